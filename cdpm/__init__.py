@@ -1,0 +1,81 @@
+"""cdpm: positive output controllability of cable-driven parallel manipulators.
+
+The public API is re-exported here. Submodules are imported on first use, so
+``import cdpm`` is fast and pulls in neither Pinocchio nor SciPy.
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING
+
+__version__ = "0.1.0"
+
+# public name -> submodule that defines it
+_EXPORTS: dict[str, str] = {
+    # errors
+    "CdpmError": "cdpm.errors",
+    "SpecError": "cdpm.errors",
+    "InputError": "cdpm.errors",
+    "ModelError": "cdpm.errors",
+    "UnsupportedError": "cdpm.errors",
+    "MissingExtraError": "cdpm.errors",
+    # spec and robot
+    "CableSpec": "cdpm.spec",
+    "load_spec": "cdpm.spec",
+    "CableRobot": "cdpm.robot",
+    "load_robot": "cdpm.robot",
+    # linearisation
+    "Linearisation": "cdpm.linearise",
+    "linearise": "cdpm.linearise",
+    # analysis (pure LTI, no Pinocchio)
+    "Verdict": "cdpm.analysis",
+    "positive_output_controllability": "cdpm.analysis",
+    "positive_controllability": "cdpm.analysis",
+    "output_controllability": "cdpm.analysis",
+    "controllability": "cdpm.analysis",
+    "positively_spans": "cdpm.analysis",
+    "wrench_closure": "cdpm.analysis",
+    # pose report
+    "PoseReport": "cdpm.report",
+    "analyze_pose": "cdpm.report",
+}
+
+__all__ = ["__version__", *_EXPORTS]
+
+
+def __getattr__(name: str):
+    module = _EXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f"module 'cdpm' has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(__all__)
+
+
+if TYPE_CHECKING:  # pragma: no cover - for static type checkers only
+    from cdpm.analysis import (  # noqa: F401
+        Verdict,
+        controllability,
+        output_controllability,
+        positive_controllability,
+        positive_output_controllability,
+        positively_spans,
+        wrench_closure,
+    )
+    from cdpm.errors import (  # noqa: F401
+        CdpmError,
+        InputError,
+        MissingExtraError,
+        ModelError,
+        SpecError,
+        UnsupportedError,
+    )
+    from cdpm.linearise import Linearisation, linearise  # noqa: F401
+    from cdpm.report import PoseReport, analyze_pose  # noqa: F401
+    from cdpm.robot import CableRobot, load_robot  # noqa: F401
+    from cdpm.spec import CableSpec, load_spec  # noqa: F401
