@@ -1,0 +1,95 @@
+"""Command line: ``cdpm <command> ...``.
+
+The CLI is thin: each command lives in its own module under
+:mod:`cdpm.commands` with ``NAME``, ``HELP``, ``add_arguments(parser)`` and
+``run(args) -> int``, and calls library functions. Heavy imports happen
+inside ``run`` so ``cdpm --help`` is instant.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+from cdpm import __version__
+from cdpm.errors import CdpmError
+
+__all__ = ["main", "build_parser"]
+
+#: command modules, in the order ``cdpm --help`` lists them
+COMMAND_MODULES = ("cdpm.commands.analyze",)
+
+_EPILOG = """\
+examples:
+  cdpm analyze models/two_link_planar/two_link_planar.yaml --pose nominal
+  cdpm analyze models/two_link_planar/two_link_planar.yaml --q pi/6 pi/3 --json
+"""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser with every command."""
+    parser = argparse.ArgumentParser(
+        prog="cdpm",
+        description=(
+            "Positive output controllability of cable-driven parallel manipulators: "
+            "load a URDF + cable spec, linearise at a pose, decide whether pulling "
+            "cables can drive the output anywhere near it."
+        ),
+        epilog=_EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument("--version", action="version", version=f"cdpm {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name in COMMAND_MODULES:
+        module = importlib.import_module(name)
+        cmd = sub.add_parser(
+            module.NAME,
+            help=module.HELP,
+            description=module.DESCRIPTION,
+            epilog=getattr(module, "EPILOG", None),
+            formatter_class=argparse.RawDescriptionHelpFormatter,
+        )
+        module.add_arguments(cmd)
+        cmd.set_defaults(_run=module.run)
+    return parser
+
+
+def _protect_negative_numbers(argv: list[str]) -> list[str]:
+    """Let values such as ``-pi/6`` follow an option without being taken for
+    an option themselves (argparse only recognises plain negative numbers)."""
+    from cdpm.spec import parse_number
+
+    out = []
+    for token in argv:
+        if token.startswith("-") and not token.startswith("--") and len(token) > 1:
+            try:
+                parse_number(token)
+            except ValueError:
+                pass
+            else:
+                token = " " + token
+        out.append(token)
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the CLI; returns the process exit code (0 ok, 1 error, 2 usage)."""
+    parser = build_parser()
+    argv = sys.argv[1:] if argv is None else list(argv)
+    args = parser.parse_args(_protect_negative_numbers(argv))
+    if not getattr(args, "_run", None):
+        parser.print_help()
+        return 2
+    try:
+        return int(args._run(args) or 0)
+    except CdpmError as exc:
+        print(f"cdpm {args.command}: error: {exc}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print(f"cdpm {args.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

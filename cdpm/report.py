@@ -1,0 +1,162 @@
+"""Pose report: every verdict cdpm gives about one pose, with its evidence.
+
+:func:`analyze_pose` linearises the robot at a pose and runs the analysis
+layer on the result; :class:`PoseReport` prints it for people (``str``),
+notebooks (``_repr_html_``) and programs (``as_dict`` -> JSON).
+"""
+
+from __future__ import annotations
+
+import html
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from cdpm.linearise import Linearisation, linearise
+
+__all__ = ["PoseReport", "analyze_pose"]
+
+
+@dataclass(frozen=True)
+class PoseReport:
+    """Verdicts at one pose of a cable robot.
+
+    Attributes:
+        model_name: name of the spec file.
+        pose_name: name of the pose, or None for an explicit q.
+        natural: natural coordinates of the pose, shape (nv,).
+        coordinate_names: names of the natural coordinates.
+        cable_lengths: cable lengths [m], shape (m,).
+        linearisation: the :class:`~cdpm.linearise.Linearisation` (A, B, C, f*).
+        poc: positive output controllability result (paper Theorem 1).
+        positive_controllability: Brammer positive (state) controllability.
+        output_controllability: output controllability (rank test).
+        controllability: Kalman controllability.
+        wrench_closure: whether the columns of -L^T positively span R^nv.
+    """
+
+    model_name: str
+    pose_name: str | None
+    natural: np.ndarray
+    coordinate_names: tuple[str, ...]
+    cable_lengths: np.ndarray
+    linearisation: Linearisation
+    poc: Any
+    positive_controllability: Any
+    output_controllability: Any
+    controllability: Any
+    wrench_closure: Any
+
+    def as_dict(self) -> dict:
+        """JSON-serialisable content of the report."""
+        lin = self.linearisation
+        return {
+            "model": self.model_name,
+            "pose": self.pose_name,
+            "q": lin.q.tolist(),
+            "coordinates": dict(zip(self.coordinate_names, self.natural.tolist(), strict=True)),
+            "output": dict(zip(lin.output_names, lin.output.tolist(), strict=True)),
+            "cables": [
+                {
+                    "name": name,
+                    "length": float(length),
+                    "tension": float(f),
+                    "sign_constrained": bool(sc),
+                }
+                for name, length, f, sc in zip(
+                    lin.cable_names,
+                    self.cable_lengths,
+                    lin.tension,
+                    lin.sign_constrained,
+                    strict=True,
+                )
+            ],
+            "linearisation": lin.as_dict(),
+            "positive_output_controllability": self.poc.as_dict(),
+            "positive_controllability": self.positive_controllability.as_dict(),
+            "output_controllability": self.output_controllability.as_dict(),
+            "controllability": self.controllability.as_dict(),
+            "wrench_closure": self.wrench_closure.as_dict(),
+        }
+
+    def __str__(self) -> str:
+        lin = self.linearisation
+        where = f"pose {self.pose_name!r}" if self.pose_name else "pose"
+        coords = ", ".join(
+            f"{n} = {v:.6g}" for n, v in zip(self.coordinate_names, self.natural, strict=True)
+        )
+        outputs = ", ".join(
+            f"{n} = {v:.6g}" for n, v in zip(lin.output_names, lin.output, strict=True)
+        )
+        lines = [
+            f"cdpm report: {self.model_name}, {where}",
+            f"  coordinates: {coords}",
+            f"  outputs:     {outputs or '(none)'}",
+            "",
+            "Cables",
+            f"  {'name':<12} {'length [m]':>11} {'tension [N]':>12}  input",
+        ]
+        for name, length, f, sc in zip(
+            lin.cable_names, self.cable_lengths, lin.tension, lin.sign_constrained, strict=True
+        ):
+            kind = "u >= 0 (slack, pull only)" if sc else "free (taut)"
+            lines.append(f"  {name:<12} {length:>11.6f} {f:>12.6g}  {kind}")
+        with np.printoptions(precision=4, suppress=True, linewidth=100):
+            lines += [
+                "",
+                "Linearisation (state = (dq, dq'))",
+                _indent(f"A =\n{lin.A}"),
+                _indent(f"B =\n{lin.B}"),
+                _indent(f"C =\n{lin.C}"),
+            ]
+        lines += [
+            "",
+            "Verdicts",
+            _indent(f"Positive output controllability (Theorem 1): {self.poc}"),
+            _indent(f"Positive controllability (Brammer): {self.positive_controllability}"),
+            _indent(f"Output controllability: {self.output_controllability}"),
+            _indent(f"Controllability (Kalman): {self.controllability}"),
+            _indent(f"Wrench closure: {self.wrench_closure}"),
+        ]
+        return "\n".join(lines)
+
+    def _repr_html_(self) -> str:
+        return f"<pre>{html.escape(str(self))}</pre>"
+
+
+def _indent(text: str, prefix: str = "  ") -> str:
+    return "\n".join(prefix + line for line in text.splitlines())
+
+
+def analyze_pose(robot, q: Any, tension: Any = None) -> PoseReport:
+    """Linearise ``robot`` at ``q`` and decide every property at that pose.
+
+    Args:
+        robot: a :class:`~cdpm.robot.CableRobot`.
+        q: a pose name from the spec, a configuration vector (nq,) or
+            natural coordinates (nv,).
+        tension: equilibrium tension (see :func:`~cdpm.linearise.linearise`).
+    """
+    from cdpm import analysis
+
+    pose_name = q if isinstance(q, str) else None
+    lin = linearise(robot, q, tension=tension)
+    kin = robot.kinematics(lin.q)
+    return PoseReport(
+        model_name=robot.spec.path.name,
+        pose_name=pose_name,
+        natural=robot.to_natural(lin.q),
+        coordinate_names=robot.coordinate_names,
+        cable_lengths=kin.lengths.copy(),
+        linearisation=lin,
+        poc=analysis.positive_output_controllability(
+            lin.A, lin.B, lin.C, sign_constrained=lin.sign_constrained
+        ),
+        positive_controllability=analysis.positive_controllability(
+            lin.A, lin.B, sign_constrained=lin.sign_constrained
+        ),
+        output_controllability=analysis.output_controllability(lin.A, lin.B, lin.C),
+        controllability=analysis.controllability(lin.A, lin.B),
+        wrench_closure=analysis.wrench_closure(lin.cable_jacobian),
+    )

@@ -1,0 +1,344 @@
+"""Robot: the Pinocchio model plus the cable layer.
+
+:class:`CableRobot` evaluates, at a configuration q, everything the
+linearisation needs: cable lengths l(q), the cable-joint Jacobian L(q)
+(``l' = L q'``, seed paper eq 16), the mass matrix M(q), gravity G(q), and
+the outputs y = h(q) with their Jacobian.
+
+Conventions (THEORY.md section 1): a straight segment from attachment point
+A to B has length ``|B - A|`` and unit vector ``u = (B - A)/|B - A|``; its row
+of L is ``u^T (J_B - J_A)`` with ``J_X`` the (3, nv) world-aligned
+translational Jacobian of the point X. A cable with several segments sums
+its segments' rows. A tension f pulls B towards A; the generalised force of
+all cables is ``-L^T f``.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from cdpm.configuration import (
+    as_configuration,
+    configuration_from_natural,
+    configuration_from_values,
+    coordinate_names,
+    natural_from_configuration,
+)
+from cdpm.errors import ModelError
+from cdpm.spec import OUTPUT_COMPONENTS, WORLD_FRAME_NAMES, CableSpec, load_spec
+
+__all__ = ["CableRobot", "CableKinematics", "load_robot"]
+
+#: A segment shorter than this [m] has no direction: its L row is undefined.
+MIN_SEGMENT_LENGTH = 1e-9
+
+
+@dataclass(frozen=True)
+class CableKinematics:
+    """Cable and output kinematics at one configuration (world frame).
+
+    Attributes:
+        q: configuration vector, shape (nq,).
+        lengths: cable lengths l [m], shape (m,).
+        jacobian: cable-joint Jacobian L, shape (m, nv); maps joint velocity
+            [rad/s or m/s] to cable length rate [m/s].
+        point_positions: world positions of the route points [m], shape (n_points, 3).
+        point_jacobians: their translational Jacobians, shape (n_points, 3, nv).
+        segment_lengths: length of each straight segment [m], shape (n_segments,).
+        segment_units: unit vectors A -> B of each segment, shape (n_segments, 3).
+        segment_points: indices (A, B) of each segment's end points, shape (n_segments, 2).
+        segment_cable: index of the cable each segment belongs to, shape (n_segments,).
+        output: outputs y, shape (p,).
+        output_jacobian: dy/dv, shape (p, nv).
+    """
+
+    q: np.ndarray
+    lengths: np.ndarray
+    jacobian: np.ndarray
+    point_positions: np.ndarray
+    point_jacobians: np.ndarray
+    segment_lengths: np.ndarray
+    segment_units: np.ndarray
+    segment_points: np.ndarray
+    segment_cable: np.ndarray
+    output: np.ndarray
+    output_jacobian: np.ndarray
+
+
+class CableRobot:
+    """A cable-driven manipulator: Pinocchio model, cables and outputs.
+
+    Build one with :func:`load_robot`. Every method that takes ``q`` accepts
+    the model's configuration vector (nq,) or, when nq != nv, natural
+    coordinates (nv,) (see :mod:`cdpm.configuration`).
+
+    Attributes:
+        spec: the validated :class:`~cdpm.spec.CableSpec`.
+        model: the ``pinocchio.Model`` (gravity set from the spec).
+        nq, nv: sizes of the configuration vector and of the tangent space.
+        cable_names: names of the m cables, in spec order.
+        output_names: names of the p outputs.
+        coordinate_names: names of the nv natural coordinates.
+        poses: named configuration vectors from the spec, each (nq,).
+        tension_min, tension_max: tension bounds [N], each shape (m,).
+    """
+
+    def __init__(self, spec: CableSpec) -> None:
+        import pinocchio as pin
+
+        self.spec = spec
+        self.model = spec.model
+        self._data = self.model.createData()
+        self._dyn_data = self.model.createData()
+        self.nq = int(self.model.nq)
+        self.nv = int(self.model.nv)
+        self.cable_names = tuple(c.name for c in spec.cables)
+        self.output_names = tuple(o.name for o in spec.outputs)
+        self.coordinate_names = tuple(coordinate_names(self.model))
+        self.poses = {k: v.copy() for k, v in spec.poses.items()}
+        self.tension_min = np.array([c.tension_min for c in spec.cables])
+        self.tension_max = np.array([c.tension_max for c in spec.cables])
+        self.gravity = np.array(spec.gravity)
+        self.external_wrench = (
+            np.zeros(self.nv) if spec.external_wrench is None else np.array(spec.external_wrench)
+        )
+
+        # Every tracked point (route points, then output frame origins) is
+        # stored in its parent joint's frame so one forward pass places all.
+        joints: list[int] = []
+        local: list[np.ndarray] = []
+        seg_a: list[int] = []
+        seg_cable: list[int] = []
+        self.route_point_slices: list[slice] = []
+        for ci, cable in enumerate(spec.cables):
+            start = len(joints)
+            for point in cable.route:
+                joint, p_joint = self._anchor(point.frame, np.array(point.point_in_frame))
+                joints.append(joint)
+                local.append(p_joint)
+            for k in range(len(cable.route) - 1):
+                seg_a.append(start + k)
+                seg_cable.append(ci)
+            self.route_point_slices.append(slice(start, len(joints)))
+        self._n_route_points = len(joints)
+        self._output_rows: list[int] = []
+        for out in spec.outputs:
+            joint, p_joint = self._anchor(out.frame, np.zeros(3))
+            self._output_rows.append(len(joints) * 3 + OUTPUT_COMPONENTS[out.component])
+            joints.append(joint)
+            local.append(p_joint)
+        self._point_joint = np.array(joints, dtype=int)
+        self._point_local = np.array(local, dtype=float).reshape(-1, 3)
+        self._segment_points = np.array([[a, a + 1] for a in seg_a], dtype=int).reshape(-1, 2)
+        self._segment_cable = np.array(seg_cable, dtype=int)
+        self._output_rows_arr = np.array(self._output_rows, dtype=int)
+        # dof mask of each joint: which tangent directions move it
+        support = np.zeros((self.model.njoints, self.nv), dtype=bool)
+        for j in range(1, self.model.njoints):
+            for anc in self.model.supports[j]:
+                if anc == 0:
+                    continue
+                jm = self.model.joints[anc]
+                support[j, jm.idx_v : jm.idx_v + jm.nv] = True
+        self._point_mask = support[self._point_joint]  # (n_points, nv)
+        self._used_joints = np.unique(self._point_joint)
+        self._pin = pin
+        self._last_q: np.ndarray | None = None
+        self._last_kin: CableKinematics | None = None
+
+    # ------------------------------------------------------------------ setup
+
+    def _anchor(self, frame_name: str, point_in_frame: np.ndarray) -> tuple[int, np.ndarray]:
+        """Parent joint of a frame and the point expressed in that joint's frame."""
+        if frame_name in WORLD_FRAME_NAMES:
+            return 0, point_in_frame
+        frame = self.model.frames[self.model.getFrameId(frame_name)]
+        return int(frame.parentJoint), np.asarray(frame.placement.act(point_in_frame), dtype=float)
+
+    def __repr__(self) -> str:
+        return (
+            f"CableRobot({self.spec.path.name!r}, nq={self.nq}, nv={self.nv}, "
+            f"cables={list(self.cable_names)}, outputs={list(self.output_names)})"
+        )
+
+    @property
+    def n_cables(self) -> int:
+        """Number of cables m."""
+        return len(self.cable_names)
+
+    @property
+    def n_outputs(self) -> int:
+        """Number of outputs p."""
+        return len(self.output_names)
+
+    # ---------------------------------------------------------- configuration
+
+    def configuration(self, value: Any) -> np.ndarray:
+        """Configuration vector (nq,) from a pose name, a vector (nq or nv
+        natural coordinates) or a mapping ``{joint: value}``."""
+        if isinstance(value, str):
+            if value not in self.poses:
+                from cdpm.errors import InputError
+
+                names = ", ".join(self.poses) or "(the spec defines none)"
+                raise InputError(f"pose {value!r} not in spec; poses: {names}")
+            return self.poses[value].copy()
+        return configuration_from_values(self.model, value)
+
+    def as_q(self, q: Any) -> np.ndarray:
+        """Validated configuration vector (nq,) from a pose name, a
+        configuration vector (nq,) or natural coordinates (nv,)."""
+        if isinstance(q, str):
+            return self.configuration(q)
+        return as_configuration(self.model, q)
+
+    def neutral(self) -> np.ndarray:
+        """The model's neutral configuration, shape (nq,)."""
+        return np.array(self._pin.neutral(self.model))
+
+    def from_natural(self, natural: Any) -> np.ndarray:
+        """Configuration vector (nq,) from natural coordinates (nv,)."""
+        return configuration_from_natural(self.model, natural)
+
+    def to_natural(self, q: Any) -> np.ndarray:
+        """Natural coordinates (nv,) of a configuration vector."""
+        return natural_from_configuration(self.model, q)
+
+    # ------------------------------------------------------------ kinematics
+
+    def kinematics(self, q: Any) -> CableKinematics:
+        """All cable and output kinematics at q in one forward pass.
+
+        Raises:
+            ModelError: a cable segment has zero length at q (its direction,
+                hence its row of L, is undefined).
+        """
+        q = self.as_q(q)
+        if self._last_q is not None and np.array_equal(q, self._last_q):
+            return self._last_kin
+        kin = self._kinematics(q)
+        self._last_q, self._last_kin = q.copy(), kin
+        return kin
+
+    def _kinematics(self, q: np.ndarray) -> CableKinematics:
+        pin = self._pin
+        data = self._data
+        pin.computeJointJacobians(self.model, data, q)
+        rotations = np.empty((self.model.njoints, 3, 3))
+        translations = np.zeros((self.model.njoints, 3))
+        rotations[0] = np.eye(3)
+        for j in self._used_joints:
+            if j:
+                placement = data.oMi[int(j)]
+                rotations[j] = placement.rotation
+                translations[j] = placement.translation
+        joint_of = self._point_joint
+        positions = (
+            np.einsum("nij,nj->ni", rotations[joint_of], self._point_local) + translations[joint_of]
+        )
+        jac_world = np.asarray(data.J)  # (6, nv) spatial Jacobian, world frame
+        linear, angular = jac_world[:3], jac_world[3:]
+        # velocity of a point p fixed on a body: v + w x p
+        point_jac = linear[None, :, :] + np.cross(
+            angular.T[None, :, :], positions[:, None, :]
+        ).transpose(0, 2, 1)
+        point_jac = point_jac * self._point_mask[:, None, :]
+
+        a, b = self._segment_points[:, 0], self._segment_points[:, 1]
+        diff = positions[b] - positions[a]
+        seg_len = np.sqrt(np.einsum("ij,ij->i", diff, diff))
+        if seg_len.size and seg_len.min() < MIN_SEGMENT_LENGTH:
+            k = int(np.argmin(seg_len))
+            cable = self.cable_names[self._segment_cable[k]]
+            first = k - self.route_point_slices[self._segment_cable[k]].start + 0
+            raise ModelError(
+                f"cable {cable!r}: segment {first} has zero length at q={np.round(q, 6).tolist()} "
+                "(its attachment points coincide), so its direction and its row of L are "
+                "undefined; move the attachment points or avoid this pose"
+            )
+        units = diff / seg_len[:, None]
+        seg_rows = np.einsum("si,sin->sn", units, point_jac[b] - point_jac[a])
+        m = self.n_cables
+        lengths = np.zeros(m)
+        jacobian = np.zeros((m, self.nv))
+        np.add.at(lengths, self._segment_cable, seg_len)
+        np.add.at(jacobian, self._segment_cable, seg_rows)
+
+        flat_pos = positions.reshape(-1)
+        flat_jac = point_jac.reshape(-1, self.nv)
+        rows = self._output_rows_arr
+        return CableKinematics(
+            q=q,
+            lengths=lengths,
+            jacobian=jacobian,
+            point_positions=positions[: self._n_route_points],
+            point_jacobians=point_jac[: self._n_route_points],
+            segment_lengths=seg_len,
+            segment_units=units,
+            segment_points=self._segment_points,
+            segment_cable=self._segment_cable,
+            output=flat_pos[rows].copy(),
+            output_jacobian=flat_jac[rows].copy(),
+        )
+
+    def cable_lengths(self, q: Any) -> np.ndarray:
+        """Cable lengths l(q) [m], shape (m,): sum of each route's segment lengths."""
+        return self.kinematics(q).lengths.copy()
+
+    def cable_jacobian(self, q: Any) -> np.ndarray:
+        """Cable-joint Jacobian L(q), shape (m, nv): ``l' = L q'`` (paper eq 16).
+
+        Maps joint velocity [rad/s or m/s] to cable length rate [m/s]; the
+        generalised force of tensions f >= 0 [N] is ``-L^T f``.
+        """
+        return self.kinematics(q).jacobian.copy()
+
+    def output(self, q: Any) -> np.ndarray:
+        """Outputs y = h(q), shape (p,) [m] (world frame)."""
+        return self.kinematics(q).output.copy()
+
+    def output_jacobian(self, q: Any) -> np.ndarray:
+        """Output Jacobian dh/dq in the tangent space, shape (p, nv)."""
+        return self.kinematics(q).output_jacobian.copy()
+
+    def attachment_points(self, q: Any) -> list[np.ndarray]:
+        """World positions of each cable's route points [m], one (k_i, 3) array per cable."""
+        positions = self.kinematics(q).point_positions
+        return [positions[s].copy() for s in self.route_point_slices]
+
+    # --------------------------------------------------------------- dynamics
+
+    def mass_matrix(self, q: Any) -> np.ndarray:
+        """Joint-space mass matrix M(q), shape (nv, nv) [kg, kg m, kg m^2]."""
+        q = self.as_q(q)
+        upper = self._pin.crba(self.model, self._dyn_data, q)
+        return np.triu(upper) + np.triu(upper, 1).T
+
+    def gravity_torque(self, q: Any) -> np.ndarray:
+        """Generalised gravity G(q), shape (nv,) [N or N m] (paper eq 11)."""
+        q = self.as_q(q)
+        return np.array(self._pin.computeGeneralizedGravity(self.model, self._dyn_data, q))
+
+
+def load_robot(path: str | os.PathLike) -> CableRobot:
+    """Load a cable robot from its YAML cable spec (which names its URDF).
+
+    Args:
+        path: the cable spec file, e.g. ``models/two_link_planar/two_link_planar.yaml``.
+            A directory holding exactly one spec ``<dir>/<dir name>.yaml`` works too.
+
+    Raises:
+        SpecError: the spec or its URDF is missing or invalid; the message
+            lists every problem found.
+    """
+    p = Path(path).expanduser()
+    if p.is_dir():
+        candidate = p / f"{p.name}.yaml"
+        if candidate.is_file():
+            p = candidate
+    return CableRobot(load_spec(p))

@@ -1,0 +1,607 @@
+"""Cable spec: the YAML file that puts cables, outputs and poses on a URDF.
+
+A spec lives beside its URDF and is read with ``yaml.safe_load`` only;
+nothing in it is executed. Arithmetic in numbers (``pi/6``, ``-2*pi/3``) is
+parsed by a small whitelist parser, not evaluated as Python.
+
+Format (all lengths in metres, forces in newtons, angles in radians)::
+
+    urdf: two_link_planar.urdf        # path relative to this file
+    gravity: [0, 0, 0]                # m/s^2, world frame (default [0, 0, -9.81])
+    cables:
+      - name: c1
+        tension: [0, .inf]            # [min, max] in N (default [0, inf])
+        route:                        # ordered attachment points, >= 2
+          - {frame: base, point: [0, 0.5, 0]}
+          - {frame: link1, point: [0.3, 0.1, 0], relative_to: com}
+    outputs:                          # components of frame positions (world)
+      - {name: tip_x, frame: tip, component: x}
+    poses:
+      nominal: [pi/6, pi/3]           # configuration vector (nq values) or
+      other: {joint2: 0.5}            # joint name -> value(s), others neutral
+    equilibrium: {method: zero}       # optional default for linearise()
+    external_wrench: [0, 0]           # optional generalised force w_ext (nv,)
+
+``relative_to: com`` gives the point relative to the link's centre of mass
+(in the link frame's orientation), as the seed paper's Table I and CASPR do;
+the default ``frame`` gives it in the frame itself.
+"""
+
+from __future__ import annotations
+
+import ast
+import hashlib
+import math
+import operator
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from cdpm.errors import SpecError
+
+__all__ = [
+    "AttachmentPoint",
+    "CableDef",
+    "OutputDef",
+    "CableSpec",
+    "load_spec",
+    "parse_number",
+    "OUTPUT_COMPONENTS",
+    "EQUILIBRIUM_METHODS",
+    "WORLD_FRAME_NAMES",
+]
+
+#: Output components a spec may ask for: position coordinates of a frame
+#: origin in the world frame. Orientation components will extend this table.
+OUTPUT_COMPONENTS = {"x": 0, "y": 1, "z": 2}
+
+#: Equilibrium tension methods a spec may name as its default (see
+#: :func:`cdpm.equilibrium_tension`).
+EQUILIBRIUM_METHODS = ("zero", "min_norm", "pretension")
+
+#: Names that refer to the fixed world frame in a route.
+WORLD_FRAME_NAMES = ("world", "universe")
+
+_TOP_KEYS = (
+    "urdf",
+    "gravity",
+    "cables",
+    "outputs",
+    "poses",
+    "equilibrium",
+    "external_wrench",
+    "description",
+    "source",
+)
+_CABLE_KEYS = ("name", "tension", "route", "description")
+_POINT_KEYS = ("frame", "point", "relative_to")
+_OUTPUT_KEYS = ("name", "frame", "component")
+_EQUILIBRIUM_KEYS = ("method", "pretension")
+_DEFAULT_GRAVITY = (0.0, 0.0, -9.81)
+
+
+@dataclass(frozen=True)
+class AttachmentPoint:
+    """One attachment point of a cable route.
+
+    Attributes:
+        frame: name of the URDF link or frame the point is fixed to.
+        point_in_frame: position in ``frame`` [m], shape (3,); a point given
+            ``relative_to: com`` has already been shifted by the link's
+            centre of mass.
+    """
+
+    frame: str
+    point_in_frame: tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class CableDef:
+    """One cable: name, tension bounds [N] and route (>= 2 points)."""
+
+    name: str
+    tension_min: float
+    tension_max: float
+    route: tuple[AttachmentPoint, ...]
+
+
+@dataclass(frozen=True)
+class OutputDef:
+    """One scalar output: a component of a frame's position in the world."""
+
+    name: str
+    frame: str
+    component: str
+
+
+@dataclass(frozen=True)
+class CableSpec:
+    """A validated cable spec with its Pinocchio model.
+
+    Attributes:
+        path: absolute path of the YAML file.
+        urdf_path: absolute path of the URDF it names.
+        model: ``pinocchio.Model`` built from the URDF, gravity set from the spec.
+        gravity: gravity vector in the world frame [m/s^2], shape (3,).
+        cables: cable definitions, in spec order.
+        outputs: output definitions, in spec order.
+        poses: named configuration vectors, each shape (nq,).
+        equilibrium_method: default equilibrium tension method.
+        pretension: default pretension [N] for the ``pretension`` method.
+        external_wrench: generalised external force w_ext, shape (nv,).
+        sha256: hash of the spec file and the URDF bytes (provenance).
+    """
+
+    path: Path
+    urdf_path: Path
+    model: Any
+    gravity: np.ndarray
+    cables: tuple[CableDef, ...]
+    outputs: tuple[OutputDef, ...]
+    poses: dict[str, np.ndarray] = field(default_factory=dict)
+    equilibrium_method: str = "zero"
+    pretension: float = 0.0
+    external_wrench: np.ndarray | None = None
+    sha256: str = ""
+
+
+# ---------------------------------------------------------------------------
+# numbers
+
+
+_BINARY_OPS = {
+    ast.Add: operator.add,
+    ast.Sub: operator.sub,
+    ast.Mult: operator.mul,
+    ast.Div: operator.truediv,
+    ast.Pow: operator.pow,
+}
+_UNARY_OPS = {ast.UAdd: operator.pos, ast.USub: operator.neg}
+_CONSTANTS = {"pi": math.pi, "inf": math.inf, "e": math.e}
+
+
+def parse_number(value: Any) -> float:
+    """Turn a YAML scalar into a float.
+
+    Accepts numbers and strings of plain arithmetic on numbers and the
+    constants ``pi``, ``e`` and ``inf`` (``"pi/6"``, ``"-2*pi/3"``, ``"1e-3"``).
+    Nothing is evaluated as Python: the string is parsed and only numeric
+    literals, those constants and ``+ - * / **`` are allowed.
+
+    Raises:
+        ValueError: the value is not a number or such an expression.
+    """
+    if isinstance(value, bool):
+        raise ValueError(f"{value!r} is a boolean, expected a number")
+    if isinstance(value, (int, float)):
+        return float(value)
+    if not isinstance(value, str):
+        raise ValueError(f"{value!r} is not a number")
+    text = value.strip()
+    if text.lower() in (".inf", "+.inf"):
+        return math.inf
+    if text.lower() == "-.inf":
+        return -math.inf
+    try:
+        tree = ast.parse(text, mode="eval")
+    except SyntaxError as exc:
+        raise ValueError(f"{value!r} is not a number or arithmetic expression") from exc
+    try:
+        return float(_eval_node(tree.body))
+    except ZeroDivisionError as exc:
+        raise ValueError(f"{value!r} divides by zero") from exc
+    except (ValueError, OverflowError) as exc:
+        raise ValueError(f"{value!r} is not a number ({exc})") from exc
+
+
+def _eval_node(node: ast.AST) -> float:
+    if isinstance(node, ast.Constant) and isinstance(node.value, (int, float)):
+        if isinstance(node.value, bool):
+            raise ValueError("booleans are not numbers")
+        return node.value
+    if isinstance(node, ast.Name) and node.id in _CONSTANTS:
+        return _CONSTANTS[node.id]
+    if isinstance(node, ast.BinOp) and type(node.op) in _BINARY_OPS:
+        return _BINARY_OPS[type(node.op)](_eval_node(node.left), _eval_node(node.right))
+    if isinstance(node, ast.UnaryOp) and type(node.op) in _UNARY_OPS:
+        return _UNARY_OPS[type(node.op)](_eval_node(node.operand))
+    raise ValueError(
+        f"only numbers, pi, e, inf and + - * / ** are allowed (found {ast.unparse(node)!r})"
+    )
+
+
+# ---------------------------------------------------------------------------
+# loading
+
+
+class _Problems:
+    """Collects problems with their YAML path so all are reported at once."""
+
+    def __init__(self) -> None:
+        self.items: list[str] = []
+
+    def add(self, where: str, what: str) -> None:
+        self.items.append(f"{where}: {what}" if where else what)
+
+
+def _vector(problems: _Problems, where: str, value: Any, size: int | None) -> list[float] | None:
+    if not isinstance(value, (list, tuple)):
+        problems.add(where, f"expected a list of {size or 'some'} numbers, got {value!r}")
+        return None
+    if size is not None and len(value) != size:
+        problems.add(where, f"expected {size} numbers, got {len(value)}: {value!r}")
+        return None
+    out = []
+    for k, item in enumerate(value):
+        try:
+            number = parse_number(item)
+        except ValueError as exc:
+            problems.add(f"{where}[{k}]", f"{exc}; expected a number")
+            return None
+        out.append(number)
+    return out
+
+
+def _unknown_keys(problems: _Problems, where: str, mapping: dict, allowed: tuple) -> None:
+    for key in mapping:
+        if key not in allowed:
+            problems.add(where, f"unknown key {key!r}; valid keys: {', '.join(allowed)}")
+
+
+def _file_hash(*paths: Path) -> str:
+    digest = hashlib.sha256()
+    for p in paths:
+        digest.update(p.read_bytes())
+    return digest.hexdigest()
+
+
+def load_spec(path: str | os.PathLike) -> CableSpec:
+    """Read and validate a cable spec and build its Pinocchio model.
+
+    Every problem found is reported in one :class:`~cdpm.errors.SpecError`
+    that names the file, the YAML path of each problem and what would be
+    valid.
+
+    Args:
+        path: the YAML cable spec.
+
+    Returns:
+        The validated :class:`CableSpec`.
+
+    Raises:
+        SpecError: the file is missing or unreadable, is not valid YAML, or
+            does not describe a valid cable robot.
+    """
+    import yaml
+
+    spec_path = Path(path).expanduser().resolve()
+    if not spec_path.is_file():
+        hint = ""
+        if spec_path.is_dir():
+            candidates = sorted(spec_path.glob("*.yaml")) + sorted(spec_path.glob("*.yml"))
+            if candidates:
+                hint = f"; did you mean {candidates[0]}?"
+        raise SpecError(f"cable spec file not found: {spec_path}{hint}")
+    try:
+        data = yaml.safe_load(spec_path.read_text(encoding="utf-8"))
+    except yaml.YAMLError as exc:
+        raise SpecError(f"not valid YAML: {exc}", path=str(spec_path)) from exc
+    except UnicodeDecodeError as exc:
+        raise SpecError(f"not a UTF-8 text file: {exc}", path=str(spec_path)) from exc
+    if not isinstance(data, dict):
+        raise SpecError(
+            "a cable spec is a YAML mapping with keys urdf, gravity, cables, outputs, poses",
+            path=str(spec_path),
+        )
+
+    problems = _Problems()
+    _unknown_keys(problems, "", data, _TOP_KEYS)
+
+    model, urdf_path = _load_urdf(problems, spec_path, data.get("urdf"))
+
+    gravity = np.array(_DEFAULT_GRAVITY)
+    if "gravity" in data:
+        g = _vector(problems, "gravity", data["gravity"], 3)
+        if g is not None:
+            if not all(math.isfinite(x) for x in g):
+                problems.add("gravity", "values must be finite")
+            gravity = np.array(g)
+
+    frames = _FrameTable(model, _link_coms(urdf_path)) if model is not None else None
+    cables = _parse_cables(problems, data.get("cables"), frames)
+    outputs = _parse_outputs(problems, data.get("outputs"), frames)
+    poses = _parse_poses(problems, data.get("poses"), model)
+    method, pretension = _parse_equilibrium(problems, data.get("equilibrium"))
+
+    external = None
+    if data.get("external_wrench") is not None and model is not None:
+        w = _vector(problems, "external_wrench", data["external_wrench"], model.nv)
+        if w is not None:
+            external = np.array(w)
+
+    if problems.items:
+        raise SpecError(problems.items, path=str(spec_path))
+
+    model.gravity.linear = gravity
+    return CableSpec(
+        path=spec_path,
+        urdf_path=urdf_path,
+        model=model,
+        gravity=gravity,
+        cables=tuple(cables),
+        outputs=tuple(outputs),
+        poses=poses,
+        equilibrium_method=method,
+        pretension=pretension,
+        external_wrench=external,
+        sha256=_file_hash(spec_path, urdf_path),
+    )
+
+
+def _load_urdf(problems: _Problems, spec_path: Path, urdf: Any):
+    if urdf is None:
+        problems.add("urdf", "missing; give the URDF file's path relative to the spec")
+        return None, None
+    if not isinstance(urdf, str):
+        problems.add("urdf", f"expected a file path, got {urdf!r}")
+        return None, None
+    urdf_path = (spec_path.parent / urdf).resolve()
+    if not urdf_path.is_file():
+        nearby = sorted(p.name for p in spec_path.parent.glob("*.urdf"))
+        hint = f"; URDF files beside the spec: {', '.join(nearby)}" if nearby else ""
+        problems.add("urdf", f"file {urdf!r} not found (looked for {urdf_path}){hint}")
+        return None, None
+    return build_model(problems, urdf_path), urdf_path
+
+
+def build_model(problems: _Problems, urdf_path: Path):
+    """Build a Pinocchio model from a URDF, recording a problem on failure."""
+    import pinocchio as pin
+
+    try:
+        return pin.buildModelFromUrdf(str(urdf_path))
+    except (ValueError, RuntimeError) as exc:
+        problems.add("urdf", f"Pinocchio could not read {urdf_path}: {exc}")
+        return None
+
+
+class _FrameTable:
+    """Names a route may use, and each link's centre of mass."""
+
+    def __init__(self, model, link_coms: dict[str, np.ndarray]) -> None:
+        self.model = model
+        self.names: dict[str, int] = {}
+        for fid, frame in enumerate(model.frames):
+            if frame.name == "universe":
+                continue
+            self.names.setdefault(frame.name, fid)
+        self.link_coms = link_coms
+
+    def listing(self) -> str:
+        return ", ".join(["world", *sorted(self.names)])
+
+    def exists(self, name: str) -> bool:
+        return name in WORLD_FRAME_NAMES or name in self.names
+
+    def com_in_frame(self, name: str) -> np.ndarray | None:
+        """Centre of mass of the link ``name`` in that link's frame [m], or
+        None when ``name`` is not a link with a positive mass."""
+        return self.link_coms.get(name)
+
+
+def _link_coms(urdf_path: Path) -> dict[str, np.ndarray]:
+    """Centre of mass of every URDF link with a positive mass, in its frame.
+
+    Pinocchio merges link inertias into their joint's and keeps no per-link
+    record, so the ``<inertial>`` origins are read from the URDF here (with
+    the standard library's XML parser; only these two attributes are read).
+    """
+    import xml.etree.ElementTree as ET
+
+    coms: dict[str, np.ndarray] = {}
+    root = ET.parse(urdf_path).getroot()
+    for link in root.iter("link"):
+        inertial = link.find("inertial")
+        if inertial is None:
+            continue
+        mass = inertial.find("mass")
+        if mass is None or not float(mass.get("value", "0")) > 0:
+            continue
+        origin = inertial.find("origin")
+        xyz = origin.get("xyz", "0 0 0") if origin is not None else "0 0 0"
+        coms[link.get("name")] = np.array([float(x) for x in xyz.split()])
+    return coms
+
+
+def _parse_cables(problems: _Problems, raw: Any, frames: _FrameTable | None) -> list[CableDef]:
+    if raw is None:
+        problems.add("cables", "missing; a cable robot needs at least one cable")
+        return []
+    if not isinstance(raw, list) or not raw:
+        problems.add("cables", "expected a non-empty list of cables")
+        return []
+    cables: list[CableDef] = []
+    seen: set[str] = set()
+    for i, item in enumerate(raw):
+        where = f"cables[{i}]"
+        if not isinstance(item, dict):
+            problems.add(where, f"expected a mapping with name, tension, route; got {item!r}")
+            continue
+        _unknown_keys(problems, where, item, _CABLE_KEYS)
+        name = item.get("name", f"cable{i + 1}")
+        if not isinstance(name, str) or not name:
+            problems.add(f"{where}.name", f"expected a non-empty string, got {name!r}")
+            name = f"cable{i + 1}"
+        if name in seen:
+            problems.add(f"{where}.name", f"duplicate cable name {name!r}; names must be unique")
+        seen.add(name)
+        where = f"cables[{i}] ({name})"
+        fmin, fmax = 0.0, math.inf
+        if "tension" in item:
+            bounds = _vector(problems, f"{where}.tension", item["tension"], 2)
+            if bounds is not None:
+                fmin, fmax = bounds
+                if not math.isfinite(fmin) or fmin < 0:
+                    problems.add(
+                        f"{where}.tension",
+                        f"minimum {fmin} must be finite and >= 0 (cables only pull)",
+                    )
+                if not fmax >= fmin:
+                    problems.add(f"{where}.tension", f"maximum {fmax} must be >= minimum {fmin}")
+                if fmax == 0:
+                    problems.add(f"{where}.tension", "maximum 0 leaves the cable no tension")
+        route = _parse_route(problems, where, item.get("route"), frames)
+        cables.append(CableDef(name=name, tension_min=fmin, tension_max=fmax, route=route))
+    return cables
+
+
+def _parse_route(
+    problems: _Problems, where: str, raw: Any, frames: _FrameTable | None
+) -> tuple[AttachmentPoint, ...]:
+    where = f"{where}.route"
+    if not isinstance(raw, list):
+        problems.add(where, "missing or not a list; give >= 2 attachment points {frame, point}")
+        return ()
+    if len(raw) < 2:
+        problems.add(
+            where,
+            f"has {len(raw)} point(s); a cable needs at least 2 attachment points "
+            "(e.g. one on the base and one on a link)",
+        )
+    points: list[AttachmentPoint] = []
+    for k, item in enumerate(raw):
+        pw = f"{where}[{k}]"
+        if not isinstance(item, dict):
+            problems.add(pw, f"expected {{frame: NAME, point: [x, y, z]}}, got {item!r}")
+            continue
+        _unknown_keys(problems, pw, item, _POINT_KEYS)
+        frame = item.get("frame")
+        ok = True
+        if not isinstance(frame, str):
+            problems.add(f"{pw}.frame", f"expected a frame name, got {frame!r}")
+            ok = False
+        elif frames is not None and not frames.exists(frame):
+            problems.add(f"{pw}.frame", f"frame {frame!r} not in URDF; frames: {frames.listing()}")
+            ok = False
+        xyz = _vector(problems, f"{pw}.point", item.get("point"), 3)
+        if xyz is not None and not all(math.isfinite(x) for x in xyz):
+            problems.add(f"{pw}.point", "coordinates must be finite")
+            xyz = None
+        relative = item.get("relative_to", "frame")
+        if relative not in ("frame", "com"):
+            problems.add(f"{pw}.relative_to", f"{relative!r} is not valid; use 'frame' or 'com'")
+            ok = False
+        if not ok or xyz is None:
+            continue
+        point = np.array(xyz)
+        if relative == "com" and frames is not None:
+            com = frames.com_in_frame(frame)
+            if com is None:
+                problems.add(
+                    f"{pw}.relative_to",
+                    f"'com' needs a URDF link with an inertia; {frame!r} is not one",
+                )
+                continue
+            point = point + com
+        points.append(AttachmentPoint(frame=frame, point_in_frame=tuple(float(x) for x in point)))
+    for k in range(len(points) - 1):
+        a, b = points[k], points[k + 1]
+        same_frame = a.frame == b.frame or (
+            a.frame in WORLD_FRAME_NAMES and b.frame in WORLD_FRAME_NAMES
+        )
+        if same_frame and np.allclose(a.point_in_frame, b.point_in_frame, atol=1e-12):
+            problems.add(
+                where,
+                f"points {k} and {k + 1} coincide (both at {list(a.point_in_frame)} on "
+                f"{a.frame!r}); a cable segment needs two distinct attachment points",
+            )
+    return tuple(points)
+
+
+def _parse_outputs(problems: _Problems, raw: Any, frames: _FrameTable | None) -> list[OutputDef]:
+    if raw is None:
+        return []
+    if not isinstance(raw, list):
+        problems.add("outputs", "expected a list of {name, frame, component}")
+        return []
+    outputs: list[OutputDef] = []
+    seen: set[str] = set()
+    for i, item in enumerate(raw):
+        where = f"outputs[{i}]"
+        if not isinstance(item, dict):
+            problems.add(where, f"expected {{name, frame, component}}, got {item!r}")
+            continue
+        _unknown_keys(problems, where, item, _OUTPUT_KEYS)
+        frame = item.get("frame")
+        component = item.get("component")
+        if not isinstance(frame, str):
+            problems.add(f"{where}.frame", f"expected a frame name, got {frame!r}")
+            continue
+        if frames is not None and not frames.exists(frame):
+            problems.add(
+                f"{where}.frame", f"frame {frame!r} not in URDF; frames: {frames.listing()}"
+            )
+            continue
+        if component not in OUTPUT_COMPONENTS:
+            problems.add(
+                f"{where}.component",
+                f"{component!r} is not valid; use one of {', '.join(OUTPUT_COMPONENTS)}",
+            )
+            continue
+        name = item.get("name", f"{frame}_{component}")
+        if not isinstance(name, str) or not name:
+            problems.add(f"{where}.name", f"expected a non-empty string, got {name!r}")
+            continue
+        if name in seen:
+            problems.add(f"{where}.name", f"duplicate output name {name!r}")
+        seen.add(name)
+        outputs.append(OutputDef(name=name, frame=frame, component=component))
+    return outputs
+
+
+def _parse_poses(problems: _Problems, raw: Any, model) -> dict[str, np.ndarray]:
+    if raw is None:
+        return {}
+    if not isinstance(raw, dict):
+        problems.add("poses", "expected a mapping from pose name to configuration")
+        return {}
+    if model is None:
+        return {}
+    from cdpm.configuration import ConfigurationError, configuration_from_values
+
+    poses: dict[str, np.ndarray] = {}
+    for name, value in raw.items():
+        try:
+            poses[str(name)] = configuration_from_values(model, value)
+        except ConfigurationError as exc:
+            problems.add(f"poses.{name}", str(exc))
+    return poses
+
+
+def _parse_equilibrium(problems: _Problems, raw: Any) -> tuple[str, float]:
+    if raw is None:
+        return "zero", 0.0
+    if not isinstance(raw, dict):
+        problems.add("equilibrium", "expected {method: NAME, pretension: N}")
+        return "zero", 0.0
+    _unknown_keys(problems, "equilibrium", raw, _EQUILIBRIUM_KEYS)
+    method = raw.get("method", "zero")
+    if method not in EQUILIBRIUM_METHODS:
+        problems.add(
+            "equilibrium.method",
+            f"{method!r} is not valid; use one of {', '.join(EQUILIBRIUM_METHODS)}",
+        )
+        method = "zero"
+    pretension = 0.0
+    if "pretension" in raw:
+        try:
+            pretension = parse_number(raw["pretension"])
+        except ValueError as exc:
+            problems.add("equilibrium.pretension", f"{exc}; expected tension in N")
+        else:
+            if not (math.isfinite(pretension) and pretension >= 0):
+                problems.add("equilibrium.pretension", "must be finite and >= 0 N")
+    return method, pretension

@@ -1,0 +1,34 @@
+"""Shared fixtures: paths of the shipped models and a spec-writing helper."""
+
+from __future__ import annotations
+
+import shutil
+import textwrap
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+MODELS = ROOT / "models"
+PAPER_SPEC = MODELS / "two_link_planar" / "two_link_planar.yaml"
+SHARED = ROOT.parent / "shared"
+
+
+@pytest.fixture(scope="session")
+def paper_robot():
+    import cdpm
+
+    return cdpm.load_robot(PAPER_SPEC)
+
+
+@pytest.fixture
+def write_spec(tmp_path):
+    """Write a spec beside a copy of the paper's URDF; returns its path."""
+    shutil.copy(MODELS / "two_link_planar" / "two_link_planar.urdf", tmp_path / "arm.urdf")
+
+    def _write(text: str, name: str = "spec.yaml") -> Path:
+        path = tmp_path / name
+        path.write_text(textwrap.dedent(text))
+        return path
+
+    return _write
