@@ -189,8 +189,9 @@ def as_configuration(model, q: Any, name: str = "q") -> np.ndarray:
             seg = arr[joint.idx_q : joint.idx_q + joint.nq][sl]
             norm = float(np.linalg.norm(seg))
             if abs(norm - 1.0) > 1e-6:
+                what = "quaternion" if sl.stop - sl.start == 4 else "(cos, sin) pair"
                 raise ConfigurationError(
-                    f"{name}: joint {jname!r} needs a unit {'quaternion' if sl.stop - sl.start == 4 else '(cos, sin) pair'}, "
+                    f"{name}: joint {jname!r} needs a unit {what}, "
                     f"got norm {norm:.6g}; pass natural coordinates "
                     f"({', '.join(coordinate_names(model))}) to avoid this"
                 )

@@ -49,7 +49,8 @@ def test_misspelled_frame_lists_valid_frames(write_spec):
     path = write_spec(GOOD.replace("frame: link1", "frame: lnk1"))
     with pytest.raises(
         cdpm.SpecError,
-        match=r"cables\[0\] \(c1\)\.route\[1\]\.frame: frame 'lnk1' not in URDF; frames: world, base, link1, link2, q1, q2, tip, tip_joint",
+        match=r"cables\[0\] \(c1\)\.route\[1\]\.frame: frame 'lnk1' not in URDF; "
+        r"frames: world, base, link1, link2, q1, q2, tip, tip_joint",
     ):
         load_spec(path)
 
