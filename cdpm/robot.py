@@ -137,6 +137,8 @@ class CableRobot:
         self._segment_points = np.array([[a, a + 1] for a in seg_a], dtype=int).reshape(-1, 2)
         self._segment_cable = np.array(seg_cable, dtype=int)
         self._output_rows_arr = np.array(self._output_rows, dtype=int)
+        self._segment_to_cable = np.zeros((len(spec.cables), len(seg_cable)))
+        self._segment_to_cable[seg_cable, np.arange(len(seg_cable))] = 1.0
         # dof mask of each joint: which tangent directions move it
         support = np.zeros((self.model.njoints, self.nv), dtype=bool)
         for j in range(1, self.model.njoints):
@@ -226,65 +228,116 @@ class CableRobot:
         return kin
 
     def _kinematics(self, q: np.ndarray) -> CableKinematics:
-        pin = self._pin
-        data = self._data
-        pin.computeJointJacobians(self.model, data, q)
-        rotations = np.empty((self.model.njoints, 3, 3))
-        translations = np.zeros((self.model.njoints, 3))
-        rotations[0] = np.eye(3)
-        for j in self._used_joints:
-            if j:
-                placement = data.oMi[int(j)]
-                rotations[j] = placement.rotation
-                translations[j] = placement.translation
-        joint_of = self._point_joint
-        positions = (
-            np.einsum("nij,nj->ni", rotations[joint_of], self._point_local) + translations[joint_of]
-        )
-        jac_world = np.asarray(data.J)  # (6, nv) spatial Jacobian, world frame
-        linear, angular = jac_world[:3], jac_world[3:]
-        # velocity of a point p fixed on a body: v + w x p
-        point_jac = linear[None, :, :] + np.cross(
-            angular.T[None, :, :], positions[:, None, :]
-        ).transpose(0, 2, 1)
-        point_jac = point_jac * self._point_mask[:, None, :]
-
-        a, b = self._segment_points[:, 0], self._segment_points[:, 1]
-        diff = positions[b] - positions[a]
-        seg_len = np.sqrt(np.einsum("ij,ij->i", diff, diff))
+        batch = self._kinematics_batch(q[None, :])
+        seg_len = batch["segment_lengths"][0]
         if seg_len.size and seg_len.min() < MIN_SEGMENT_LENGTH:
             k = int(np.argmin(seg_len))
-            cable = self.cable_names[self._segment_cable[k]]
-            first = k - self.route_point_slices[self._segment_cable[k]].start + 0
+            ci = int(self._segment_cable[k])
+            first = k - int(np.flatnonzero(self._segment_cable == ci)[0])
             raise ModelError(
-                f"cable {cable!r}: segment {first} has zero length at q={np.round(q, 6).tolist()} "
-                "(its attachment points coincide), so its direction and its row of L are "
-                "undefined; move the attachment points or avoid this pose"
+                f"cable {self.cable_names[ci]!r}: segment {first} has zero length at "
+                f"q={np.round(q, 6).tolist()} (its attachment points coincide), so its "
+                "direction and its row of L are undefined; move the attachment points or "
+                "avoid this pose"
             )
-        units = diff / seg_len[:, None]
-        seg_rows = np.einsum("si,sin->sn", units, point_jac[b] - point_jac[a])
-        m = self.n_cables
-        lengths = np.zeros(m)
-        jacobian = np.zeros((m, self.nv))
-        np.add.at(lengths, self._segment_cable, seg_len)
-        np.add.at(jacobian, self._segment_cable, seg_rows)
-
-        flat_pos = positions.reshape(-1)
-        flat_jac = point_jac.reshape(-1, self.nv)
-        rows = self._output_rows_arr
+        n_route = self._n_route_points
         return CableKinematics(
             q=q,
-            lengths=lengths,
-            jacobian=jacobian,
-            point_positions=positions[: self._n_route_points],
-            point_jacobians=point_jac[: self._n_route_points],
+            lengths=batch["lengths"][0],
+            jacobian=batch["jacobian"][0],
+            point_positions=batch["point_positions"][0, :n_route],
+            point_jacobians=batch["point_jacobians"][0, :n_route],
             segment_lengths=seg_len,
-            segment_units=units,
+            segment_units=batch["segment_units"][0],
             segment_points=self._segment_points,
             segment_cable=self._segment_cable,
-            output=flat_pos[rows].copy(),
-            output_jacobian=flat_jac[rows].copy(),
+            output=batch["output"][0],
+            output_jacobian=batch["output_jacobian"][0],
         )
+
+    def kinematics_batch(self, qs: Any) -> dict[str, np.ndarray]:
+        """Cable and output kinematics at many configurations at once.
+
+        The Pinocchio forward pass runs once per configuration; everything
+        else is vectorised over the batch, so this is the fast path for maps.
+        Zero-length segments are not raised here: they show as
+        ``segment_lengths == 0`` and NaN rows, for the caller to flag.
+
+        Args:
+            qs: configuration vectors, shape (N, nq) (validated by the caller).
+
+        Returns:
+            Arrays with a leading batch axis N: ``lengths`` (N, m),
+            ``jacobian`` (N, m, nv), ``output`` (N, p), ``output_jacobian``
+            (N, p, nv), ``segment_lengths`` (N, n_segments), ``segment_units``
+            (N, n_segments, 3), ``point_positions`` (N, n_points, 3) and
+            ``point_jacobians`` (N, n_points, 3, nv) (route points first,
+            then output frame origins).
+        """
+        qs = np.asarray(qs, dtype=float)
+        return self._kinematics_batch(qs.reshape(-1, self.nq))
+
+    def _kinematics_batch(self, qs: np.ndarray) -> dict[str, np.ndarray]:
+        pin, model, data = self._pin, self.model, self._data
+        n = qs.shape[0]
+        used = [int(j) for j in self._used_joints if j]
+        placements = np.zeros((n, model.njoints, 4, 4))
+        placements[:, 0] = np.eye(4)
+        jac = np.empty((n, 6, self.nv))
+        compute, o_m_i = pin.computeJointJacobians, data.oMi
+        for k in range(n):
+            compute(model, data, qs[k])
+            jac[k] = data.J
+            for j in used:
+                placements[k, j] = o_m_i[j].homogeneous
+        at_point = placements[:, self._point_joint]  # (N, n_points, 4, 4)
+        positions = (
+            np.einsum("nkij,kj->nki", at_point[:, :, :3, :3], self._point_local)
+            + at_point[:, :, :3, 3]
+        )
+        # velocity of a point p fixed on a body, from the spatial (world)
+        # Jacobian [v; w]: v + w x p, restricted to the joints that move it
+        w = jac[:, None, 3:, :]  # (N, 1, 3, nv)
+        p = positions[:, :, :, None]  # (N, n_points, 3, 1)
+        w_cross_p = np.stack(
+            (
+                w[:, :, 1] * p[:, :, 2] - w[:, :, 2] * p[:, :, 1],
+                w[:, :, 2] * p[:, :, 0] - w[:, :, 0] * p[:, :, 2],
+                w[:, :, 0] * p[:, :, 1] - w[:, :, 1] * p[:, :, 0],
+            ),
+            axis=2,
+        )
+        point_jac = (jac[:, None, :3, :] + w_cross_p) * self._point_mask[None, :, None, :]
+
+        a, b = self._segment_points[:, 0], self._segment_points[:, 1]
+        diff = positions[:, b] - positions[:, a]
+        seg_len = np.sqrt(np.einsum("nsi,nsi->ns", diff, diff))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            units = diff / seg_len[:, :, None]
+        seg_rows = np.einsum("nsi,nsiv->nsv", units, point_jac[:, b] - point_jac[:, a])
+        to_cable = self._segment_to_cable  # (m, n_segments) 0/1
+        flat_pos = positions.reshape(n, -1)
+        flat_jac = point_jac.reshape(n, -1, self.nv)
+        rows = self._output_rows_arr
+        return {
+            "lengths": seg_len @ to_cable.T,
+            "jacobian": np.einsum("cs,nsv->ncv", to_cable, seg_rows),
+            "segment_lengths": seg_len,
+            "segment_units": units,
+            "point_positions": positions,
+            "point_jacobians": point_jac,
+            "output": flat_pos[:, rows],
+            "output_jacobian": flat_jac[:, rows],
+        }
+
+    def mass_matrix_batch(self, qs: Any) -> np.ndarray:
+        """Mass matrices at many configurations, shape (N, nv, nv)."""
+        qs = np.asarray(qs, dtype=float).reshape(-1, self.nq)
+        out = np.empty((qs.shape[0], self.nv, self.nv))
+        for k in range(qs.shape[0]):
+            out[k] = self._pin.crba(self.model, self._dyn_data, qs[k])
+        upper = np.triu(out)
+        return upper + np.swapaxes(np.triu(out, 1), 1, 2)
 
     def cable_lengths(self, q: Any) -> np.ndarray:
         """Cable lengths l(q) [m], shape (m,): sum of each route's segment lengths."""
@@ -315,8 +368,7 @@ class CableRobot:
 
     def mass_matrix(self, q: Any) -> np.ndarray:
         """Joint-space mass matrix M(q), shape (nv, nv) [kg, kg m, kg m^2]."""
-        q = self.as_q(q)
-        upper = self._pin.crba(self.model, self._dyn_data, q)
+        upper = self._pin.crba(self.model, self._dyn_data, self.as_q(q))
         return np.triu(upper) + np.triu(upper, 1).T
 
     def gravity_torque(self, q: Any) -> np.ndarray:
