@@ -1,0 +1,296 @@
+"""Shared pieces of the analysis layer: the verdict enum, input validation
+and tolerance-aware linear algebra (ranks, null spaces, Krylov bases).
+
+Everything here is private except :class:`Verdict`.
+"""
+
+from __future__ import annotations
+
+import enum
+import html
+import math
+
+import numpy as np
+from scipy import linalg as sla
+
+from cdpm.errors import InputError
+
+__all__ = ["Verdict"]
+
+#: relative tolerance used for numerical ranks (singular values / largest)
+RANK_RTOL = 1e-10
+
+
+class Verdict(enum.Enum):
+    """Outcome of a decision: ``YES``, ``NO`` or ``MARGINAL`` (undecided at
+    the working tolerance; the result's ``reason`` says why)."""
+
+    YES = "yes"
+    NO = "no"
+    MARGINAL = "marginal"
+
+    def __str__(self) -> str:
+        return self.value.upper()
+
+    def __bool__(self) -> bool:
+        return self is Verdict.YES
+
+
+# --------------------------------------------------------------------------
+# validation
+
+
+def as_matrix(
+    name: str,
+    value,
+    rows: int | None = None,
+    cols: int | None = None,
+    rows_from: str = "",
+    cols_from: str = "",
+    check_finite: bool = True,
+) -> np.ndarray:
+    # rows_from / cols_from read like "n (rows of A)": the symbol, then why
+    """Return ``value`` as a finite 2-D float array (a copy), checking its shape.
+
+    Raises:
+        InputError: naming the argument, the expected shape and where the
+            expectation comes from, e.g. "B has 5 rows, expected n=6 (rows of A)".
+    """
+    try:
+        arr = np.array(value, dtype=float)
+    except (TypeError, ValueError) as e:
+        raise InputError(f"{name} must be a numeric matrix: {e}") from e
+    if arr.ndim == 1 and rows == 1:
+        arr = arr[None, :]
+    if arr.ndim != 2:
+        raise InputError(f"{name} must be 2-D, got an array of shape {arr.shape}")
+    if rows is not None and arr.shape[0] != rows:
+        raise InputError(f"{name} has {arr.shape[0]} rows, expected {_expect(rows_from, rows)}")
+    if cols is not None and arr.shape[1] != cols:
+        raise InputError(f"{name} has {arr.shape[1]} columns, expected {_expect(cols_from, cols)}")
+    if check_finite:
+        _check_finite(name, arr)
+    return arr
+
+
+def _expect(label: str, value: int) -> str:
+    """ "n (rows of A)", 6 -> "n=6 (rows of A)"."""
+    symbol, _, why = label.partition(" ")
+    return f"{symbol}={value} {why}".strip()
+
+
+def _check_finite(name: str, arr: np.ndarray) -> None:
+    if not np.isfinite(arr).all():
+        raise InputError(f"{name} contains non-finite values (nan or inf)")
+
+
+def as_mask(sign_constrained, m: int) -> np.ndarray:
+    """Bool mask of sign-constrained inputs, default all True (the paper)."""
+    if sign_constrained is None:
+        return np.ones(m, dtype=bool)
+    if isinstance(sign_constrained, np.ndarray) and sign_constrained.dtype == bool:
+        if sign_constrained.shape == (m,):
+            return sign_constrained.copy()
+    mask = np.asarray(sign_constrained)
+    if mask.dtype != bool:
+        if mask.dtype.kind not in "iu" or not np.isin(mask, (0, 1)).all():
+            raise InputError(f"sign_constrained must be a bool mask of length m={m}, got {mask!r}")
+        mask = mask.astype(bool)
+    if mask.shape != (m,):
+        raise InputError(
+            f"sign_constrained has shape {mask.shape}, expected (m,)=({m},) (columns of B)"
+        )
+    return mask.copy()
+
+
+def as_positive_vector(name: str, value, size: int, size_from: str) -> np.ndarray:
+    """A strictly positive, finite vector of length ``size`` (or ones if None)."""
+    if value is None:
+        return np.ones(size)
+    arr = np.array(value, dtype=float, copy=True).reshape(-1)
+    if arr.size == 1:
+        arr = np.full(size, float(arr[0]))
+    if arr.shape != (size,):
+        raise InputError(f"{name} has {arr.size} entries, expected {_expect(size_from, size)}")
+    if not np.all(np.isfinite(arr)) or np.any(arr <= 0):
+        raise InputError(f"{name} must be finite and strictly positive, got {arr}")
+    return arr
+
+
+def as_system(A, B, C=None, sign_constrained=None):
+    """Validate (A, B[, C]) and the input mask once; return float copies."""
+    A = as_matrix("A", A, check_finite=False)
+    n = A.shape[0]
+    if A.shape[1] != n:
+        raise InputError(f"A must be square, got shape {A.shape}")
+    B = as_matrix("B", B, rows=n, rows_from="n (rows of A)", check_finite=False)
+    mask = as_mask(sign_constrained, B.shape[1])
+    mats = [("A", A), ("B", B)]
+    if C is not None:
+        C = as_matrix("C", C, cols=n, cols_from="n (rows of A)", check_finite=False)
+        mats.append(("C", C))
+    # one cheap sum first; the exact per-matrix check only if it is not finite
+    if not math.isfinite(sum(float(M.sum()) for _, M in mats)):
+        for name, M in mats:
+            _check_finite(name, M)
+    return (A, B, mask) if C is None else (A, B, C, mask)
+
+
+# --------------------------------------------------------------------------
+# linear algebra
+
+
+def numerical_rank(s: np.ndarray, rtol: float = RANK_RTOL) -> int:
+    """Rank from singular values ``s`` (descending) with a relative tolerance."""
+    if s.size == 0 or s[0] <= 0:
+        return 0
+    return int(np.count_nonzero(s > rtol * s[0]))
+
+
+def orth(X: np.ndarray, rtol: float = RANK_RTOL) -> np.ndarray:
+    """Orthonormal basis of the column space of X (columns scaled first)."""
+    if X.size == 0:
+        return np.zeros((X.shape[0], 0))
+    norms = np.linalg.norm(X, axis=0)
+    keep = norms > 0
+    if not keep.any():
+        return np.zeros((X.shape[0], 0))
+    U, s, _ = np.linalg.svd(X[:, keep] / norms[keep], full_matrices=False)
+    return U[:, : numerical_rank(s, rtol)]
+
+
+def complement(Q: np.ndarray, dim: int) -> np.ndarray:
+    """Orthonormal basis of the orthogonal complement of range(Q) in R^dim."""
+    if Q.shape[1] == 0:
+        return np.eye(dim)
+    if Q.shape[1] >= dim:
+        return np.zeros((dim, 0))
+    U, _, _ = np.linalg.svd(Q, full_matrices=True)
+    return U[:, Q.shape[1] :]
+
+
+def null_space(M: np.ndarray, rtol: float = 1e-8) -> np.ndarray:
+    """Orthonormal basis of the (right) null space of M, relative tolerance."""
+    _, s, Vt = np.linalg.svd(M, full_matrices=True)
+    scale = max(s[0] if s.size else 0.0, 1e-300)
+    r = int(np.count_nonzero(s > rtol * scale))
+    return Vt[r:].T.conj()
+
+
+def balance(A: np.ndarray) -> np.ndarray:
+    """Diagonal state scaling d with D^-1 A D better conditioned (LAPACK gebal)."""
+    if A.shape[0] == 0 or not np.any(A):
+        return np.ones(A.shape[0])
+    _, (d, _) = sla.matrix_balance(A, permute=False, separate=True)
+    return d
+
+
+def scaled_system(A: np.ndarray, B: np.ndarray, C: np.ndarray | None):
+    """Similarity- and input/output-scaled copy of a system.
+
+    Returns (As, Bs, Cs, d, col, row, rho) with
+    ``As = D^-1 A D / rho``, ``Bs = D^-1 B diag(col) / rho``... more precisely
+    ``Bs[:, j] = D^-1 B[:, j] * col[j]`` and ``Cs[i] = row[i] * C[i] D``, and time
+    measured in units of 1/rho (``t = ts / rho``). None of these changes a
+    positive-controllability verdict (positive scalings and similarities).
+    """
+    d = balance(A)
+    As = A * (1.0 / d)[:, None] * d[None, :]
+    rho = float(np.linalg.norm(As, 2)) if As.size else 0.0
+    if rho == 0.0:
+        rho = 1.0
+    As = As / rho
+    Bs = B / d[:, None]
+    col = np.linalg.norm(Bs, axis=0)
+    col = np.where(col > 0, 1.0 / np.where(col > 0, col, 1.0), 1.0)
+    Bs = Bs * col
+    if C is None:
+        return As, Bs, None, d, col, None, rho
+    Cs = C * d[None, :]
+    row = np.linalg.norm(Cs, axis=1)
+    row = np.where(row > 0, 1.0 / np.where(row > 0, row, 1.0), 1.0)
+    Cs = Cs * row[:, None]
+    return As, Bs, Cs, d, col, row, rho
+
+
+def krylov_basis(A: np.ndarray, B: np.ndarray, rtol: float = RANK_RTOL) -> np.ndarray:
+    """Orthonormal basis of the reachable subspace span[B, AB, ..., A^{n-1}B].
+
+    Block Arnoldi with re-orthogonalisation: never forms badly scaled powers.
+    """
+    n = A.shape[0]
+    if B.shape[1] == 0 or n == 0:
+        return np.zeros((n, 0))
+    Q = orth(B, rtol)
+    new = Q
+    while new.shape[1] and Q.shape[1] < n:
+        X = A @ new
+        for _ in range(2):
+            X = X - Q @ (Q.T @ X)
+        norms = np.linalg.norm(X, axis=0)
+        ref = np.linalg.norm(A, 2) + 1e-300
+        X = X[:, norms > 1e-9 * ref]
+        if X.shape[1] == 0:
+            break
+        U, s, _ = np.linalg.svd(X, full_matrices=False)
+        new = U[:, : int(np.count_nonzero(s > 1e-9 * ref))]
+        if new.shape[1] == 0:
+            break
+        new = new - Q @ (Q.T @ new)
+        new = orth(new, 1e-12)
+        Q = np.hstack([Q, new])
+    return Q[:, :n]
+
+
+def cluster(values: np.ndarray, atol: float) -> list[np.ndarray]:
+    """Group (real) values closer than ``atol`` (chained); returns index arrays."""
+    order = np.argsort(values)
+    groups: list[list[int]] = []
+    for i in order:
+        if groups and values[i] - values[groups[-1][-1]] <= atol:
+            groups[-1].append(int(i))
+        else:
+            groups.append([int(i)])
+    return [np.array(g) for g in groups]
+
+
+# --------------------------------------------------------------------------
+# presentation
+
+
+def fmt_array(x, digits: int = 4) -> str:
+    """Compact one-line rendering of a small array."""
+    return np.array2string(
+        np.asarray(x), precision=digits, suppress_small=True, max_line_width=10_000, separator=", "
+    )
+
+
+def to_plain(x):
+    """Turn numpy data (nested in dicts/lists) into JSON-serialisable data."""
+    if isinstance(x, dict):
+        return {str(k): to_plain(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [to_plain(v) for v in x]
+    if isinstance(x, np.ndarray):
+        return to_plain(x.tolist())
+    if isinstance(x, (np.bool_, bool)):
+        return bool(x)
+    if isinstance(x, (np.integer,)):
+        return int(x)
+    if isinstance(x, (np.floating, float)):
+        return float(x)
+    if isinstance(x, enum.Enum):
+        return x.value
+    if isinstance(x, complex):
+        return [x.real, x.imag]
+    return x
+
+
+def html_table(title: str, rows: list[tuple[str, str]]) -> str:
+    """Minimal HTML for ``_repr_html_``: a title and a two-column table."""
+    body = "".join(
+        f"<tr><th style='text-align:left'>{html.escape(k)}</th>"
+        f"<td style='text-align:left'><code>{html.escape(v)}</code></td></tr>"
+        for k, v in rows
+    )
+    return f"<div><b>{html.escape(title)}</b><table>{body}</table></div>"

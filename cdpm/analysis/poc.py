@@ -1,0 +1,855 @@
+"""Positive output controllability (POC) of an LTI system, with certificates.
+
+Paper Theorem 1: (A, B, C) with inputs u_j >= 0 (sign-constrained j) and
+u_j free (other j) is POC iff no nonzero v in R^p has v^T g_j(t) <= 0 for
+all t >= 0 and constrained j, and v^T g_j(t) = 0 for free j, where
+g_j(t) = C e^{At} b_j.
+
+Decision pipeline (each step reported in ``POCResult.method``):
+
+1. ``mixed-cone``: project the outputs onto the complement N of the output
+   reachable subspace of the free inputs; POC(A, B, C) = POC(A, B+, N^T C).
+   If N = {0} the answer is YES.
+2. Exact fast paths on the reduced system: ``nilpotent`` (A^2 = 0),
+   ``modal`` (A = [[0, I], [K, 0]], real diagonalisable K, position output,
+   velocity input), ``full-rank-brammer`` (reduced C square invertible).
+3. ``general``: sampled exchange search for a positive-span certificate,
+   else a separating v with a proof (Taylor / sampled / tail bounds), else
+   MARGINAL.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.linalg import expm
+
+from cdpm.analysis import _modes
+from cdpm.analysis._common import (
+    Verdict,
+    as_positive_vector,
+    as_system,
+    cluster,
+    complement,
+    fmt_array,
+    html_table,
+    numerical_rank,
+    orth,
+    scaled_system,
+    to_plain,
+)
+from cdpm.analysis.brammer import left_eigen_separator
+from cdpm.analysis.certificate import POCCertificate
+from cdpm.analysis.rank import output_reachable_basis, reachable_basis
+from cdpm.analysis.span import SPAN_TOL, span_core, span_margin
+from cdpm.errors import InputError
+
+__all__ = ["POCResult", "positive_output_controllability"]
+
+
+@dataclass(frozen=True)
+class POCResult:
+    """Verdict of positive output controllability with its proof.
+
+    Attributes:
+        verdict: YES, NO or MARGINAL (``bool(result)`` is True only for YES).
+        method: the path that decided: ``"trivial"``, ``"mixed-cone"``,
+            ``"nilpotent"``, ``"modal"``, ``"full-rank-brammer"``,
+            ``"output-rank"``, ``"general"``, prefixed ``"mixed-cone+"`` when
+            free inputs were projected out first.
+        reason: one readable sentence.
+        certificate: :class:`~cdpm.analysis.certificate.POCCertificate`;
+            ``result.certificate.verify(A, B, C)`` re-checks it.
+        horizon: the horizon T used for the search and the margin [time].
+        margin: ``mu_T = min_{|v|=1} max_{t in [0,T], j} v^T W C e^{At} b_j s_j``
+            (W = output_weight, s = input_scale; free inputs count with both
+            signs), evaluated on a time grid: a lower bound of mu_T, exact
+            for A^2 = 0. Positive iff POC is seen within the horizon; for a NO
+            or MARGINAL verdict it is clipped to <= 0. See docs/analysis.md.
+        margin_bracket: (lower, upper) bounds of mu_T (the upper bound adds
+            the grid spacing times a Lipschitz bound of g).
+        output_rank: rank of [CB, CAB, ...]; output_controllable: == p.
+        A, B, C, sign_constrained: the (validated copies of the) system.
+    """
+
+    verdict: Verdict
+    method: str
+    reason: str
+    certificate: POCCertificate
+    horizon: float
+    A: np.ndarray = field(repr=False)
+    B: np.ndarray = field(repr=False)
+    C: np.ndarray = field(repr=False)
+    sign_constrained: np.ndarray = field(repr=False)
+    input_scale: np.ndarray | None = field(repr=False)
+    output_weight: np.ndarray | None = field(repr=False)
+
+    def __bool__(self) -> bool:
+        return self.verdict is Verdict.YES
+
+    @functools.cached_property
+    def output_rank(self) -> int:
+        return output_reachable_basis(self.A, self.B, self.C).shape[1]
+
+    @property
+    def output_controllable(self) -> bool:
+        return self.output_rank == self.C.shape[0]
+
+    @functools.cached_property
+    def margin_bracket(self) -> tuple[float, float]:
+        return poc_margin(self)
+
+    @property
+    def margin(self) -> float:
+        return self.margin_bracket[0]
+
+    def as_dict(self) -> dict:
+        return to_plain(
+            {
+                "verdict": self.verdict,
+                "method": self.method,
+                "reason": self.reason,
+                "margin": self.margin,
+                "margin_bracket": list(self.margin_bracket),
+                "horizon": self.horizon,
+                "output_rank": self.output_rank,
+                "output_controllable": self.output_controllable,
+                "p": self.C.shape[0],
+                "sign_constrained": self.sign_constrained,
+                "certificate": self.certificate.as_dict(),
+            }
+        )
+
+    def _certificate_lines(self) -> list[str]:
+        c = self.certificate
+        if c.kind == "positive-span":
+            lines = [f"  {c.times.size} output vectors g_j(t) positively span R^{self.C.shape[0]}:"]
+            for t, j, s, w in zip(c.times, c.inputs, c.signs, c.weights, strict=True):
+                sign = "-" if s < 0 else "+"
+                lines.append(f"    {sign}g_{j}(t={t:.4g}) weight {w:.4g}")
+            return lines
+        if c.kind == "separator":
+            return [
+                f"  separating v = {fmt_array(c.separator)} "
+                f"(v.g_j(t) <= 0 for all t >= 0; {c.proof.get('path')} proof)"
+            ]
+        return []
+
+    def __str__(self) -> str:
+        head = (
+            f"positive output controllability: {self.verdict} ({self.method}; "
+            f"margin {self.margin:.4g} on [0, {self.horizon:.4g}])"
+        )
+        return "\n".join([head, f"  {self.reason}", *self._certificate_lines()])
+
+    def _repr_html_(self) -> str:
+        return html_table(
+            f"Positive output controllability: {self.verdict}",
+            [
+                ("method", self.method),
+                ("reason", self.reason),
+                ("margin", f"{self.margin:.4g} (horizon {self.horizon:.4g})"),
+                ("certificate", "\n".join(self._certificate_lines())),
+            ],
+        )
+
+
+def positive_output_controllability(
+    A,
+    B,
+    C,
+    sign_constrained=None,
+    *,
+    horizon: float | None = None,
+    input_scale=None,
+    output_weight=None,
+    tol: float = SPAN_TOL,
+) -> POCResult:
+    """Decide positive output controllability (paper Theorem 1).
+
+    Args:
+        A: state matrix, shape (n, n).
+        B: input matrix, shape (n, m).
+        C: output matrix, shape (p, n).
+        sign_constrained: bool mask (m,); True (default for all) = u_j >= 0
+            (slack cable), False = free in sign (taut cable).
+        horizon: time horizon T [time unit of A] for the sampled search and
+            the margin; default from the spectrum (see docs/analysis.md).
+            Pass a fixed value when comparing margins across poses.
+        input_scale: positive (m,) input scales for the margin (e.g. tension
+            bounds [N]); default ones.
+        output_weight: positive (p,) output weights for the margin; default ones.
+        tol: angle-like tolerance of the span decisions.
+
+    Returns:
+        :class:`POCResult`.
+
+    Raises:
+        InputError: shapes, non-finite values or a bad mask.
+    """
+    A, B, C, mask = as_system(A, B, C, sign_constrained)
+    if horizon is not None and not (math.isfinite(horizon) and horizon > 0):
+        raise InputError(f"horizon must be a positive finite time, got {horizon!r}")
+    if input_scale is not None:
+        input_scale = as_positive_vector("input_scale", input_scale, B.shape[1], "m (columns of B)")
+    if output_weight is not None:
+        output_weight = as_positive_vector(
+            "output_weight", output_weight, C.shape[0], "p (rows of C)"
+        )
+    return _poc(A, B, C, mask, horizon, input_scale, output_weight, tol)
+
+
+def _poc(A, B, C, mask, horizon=None, input_scale=None, output_weight=None, tol=SPAN_TOL):
+    """:func:`positive_output_controllability` without validation.
+
+    For callers that evaluate many poses and have already validated float
+    arrays of consistent shapes (A (n,n), B (n,m), C (p,n), bool mask (m,)).
+    The arrays must not be mutated afterwards (the result keeps references).
+    """
+    out = None
+    if C.shape[0] == 1 and mask.all():
+        out = _scalar_nilpotent(A, B, C, mask, horizon)
+    if out is None:
+        out = _decide(A, B, C, mask, horizon, tol)
+    verdict, method, reason, cert, T = out
+    return POCResult(verdict, method, reason, cert, T, A, B, C, mask, input_scale, output_weight)
+
+
+# --------------------------------------------------------------------------
+# the pipeline
+
+
+def _decide(A, B, C, mask, horizon, tol):
+    p, n = C.shape
+    if p == 0:
+        cert = POCCertificate("positive-span", mask, proof={"path": "trivial"})
+        return Verdict.YES, "trivial", "the output space is R^0", cert, horizon or 1.0
+    free = ~mask
+    prefix = ""
+    N = None
+    Fpairs = None
+    if free.any():
+        F = output_reachable_basis(A, B[:, free], C)
+        if F.shape[1]:
+            prefix = "mixed-cone+"
+            N = complement(F, p)
+            Fpairs = _free_pairs(A, B, C, np.flatnonzero(free), F.shape[1], horizon)
+            if N.shape[1] == 0:
+                cert = _lift_yes(A, B, C, mask, None, Fpairs)
+                T = horizon or float(max(Fpairs[0].max(), 1e-300))
+                return (
+                    Verdict.YES,
+                    "mixed-cone",
+                    "the free inputs alone reach every output direction",
+                    cert,
+                    T,
+                )
+    Cr = C if N is None else N.T @ C
+    cons = np.flatnonzero(mask)
+    if cons.size == 0:
+        v = N[:, 0]
+        T = horizon or 1.0
+        cert = POCCertificate(
+            "separator", mask, separator=v, proof={"path": "output-rank", "horizon": T}
+        )
+        return (
+            Verdict.NO,
+            "output-rank",
+            "no sign-constrained input and the free inputs miss an output direction",
+            cert,
+            T,
+        )
+    sub = _Reduced(A, B[:, cons], Cr, cons, N, Fpairs, mask, C, B)
+    for path in (_nilpotent, _modal, _brammer, _general):
+        out = path(sub, horizon, tol)
+        if out is not None:
+            verdict, method, reason, cert, T = out
+            return verdict, prefix + method, reason, cert, T
+    raise AssertionError("the general path always decides")  # pragma: no cover
+
+
+@dataclass
+class _Reduced:
+    """The reduced problem POC(A, Bp, Cr) and what is needed to lift back."""
+
+    A: np.ndarray
+    Bp: np.ndarray  # constrained columns of B
+    Cr: np.ndarray  # N^T C (or C)
+    cons: np.ndarray  # indices of the constrained inputs in B
+    N: np.ndarray | None
+    Fpairs: tuple | None
+    mask: np.ndarray
+    C: np.ndarray
+    B: np.ndarray
+    square_zero: bool = False
+
+    def lift(self, v_red: np.ndarray) -> np.ndarray:
+        v = v_red if self.N is None else self.N @ v_red
+        return v / np.linalg.norm(v)
+
+    def yes(self, times, jloc, weights):
+        """YES certificate from reduced pairs (t, local j) with weights such
+        that sum w_k N^T g_k = 0."""
+        pairs = (
+            np.asarray(times, float),
+            self.cons[np.asarray(jloc, int)],
+            np.asarray(weights, float),
+        )
+        return _lift_yes(self.A, self.B, self.C, self.mask, pairs, self.Fpairs, self.square_zero)
+
+    def no(self, v_red, proof):
+        return POCCertificate("separator", self.mask, separator=self.lift(v_red), proof=proof)
+
+
+def _g(A, B, C, t, j, square_zero=False):
+    """C e^{At} b_j for the certificate (small number of pairs); exact
+    polynomial C (b_j + t A b_j) when A^2 = 0."""
+    if square_zero:
+        b = B[:, j]
+        return C @ (b + t * (A @ b))
+    return C @ (expm(A * t) @ B[:, j])
+
+
+def _free_pairs(A, B, C, free, r, horizon):
+    """(t, j) pairs of free inputs whose outputs span their reachable subspace."""
+    As, Bs, Cs, _, col, row, rho = scaled_system(A, B[:, free], C)
+    T = horizon * rho if horizon else _modes.default_horizon(np.linalg.eigvals(As))
+    times = np.linspace(0.0, T, max(2 * A.shape[0] + 1, 8))
+    G = _modes.Evaluator(As, Bs, Cs)(times)  # (N, p, mf)
+    S = G.transpose(1, 0, 2).reshape(C.shape[0], -1)
+    from scipy.linalg import qr
+
+    _, _, piv = qr(S / (np.linalg.norm(S, axis=0) + 1e-300), mode="economic", pivoting=True)
+    k = piv[:r]
+    t = times[k // free.size] / rho
+    j = free[k % free.size]
+    vecs = np.stack([_g(A, B, C, ti, ji) for ti, ji in zip(t, j, strict=True)], axis=1)
+    return t, j, vecs
+
+
+def _lift_yes(A, B, C, mask, pairs, Fpairs, square_zero=False):
+    """Assemble a YES certificate in the full output space.
+
+    ``pairs`` = (times, inputs, weights) of constrained inputs whose reduced
+    outputs combine to 0; their full outputs then combine into the free
+    reachable subspace, which the free pairs (used with both signs) cancel.
+    """
+    p = C.shape[0]
+    ts, js, ss, vs, ws = [], [], [], [], []
+    total = np.zeros(p)
+    if pairs is not None:
+        for t, j, w in zip(*pairs, strict=True):
+            g = _g(A, B, C, t, j, square_zero)
+            ts.append(t), js.append(j), ss.append(1.0), vs.append(g), ws.append(w)
+            total += w * g
+    if Fpairs is not None:
+        ft, fj, F = Fpairs
+        c = np.linalg.lstsq(F, -total, rcond=None)[0] if pairs is not None else np.zeros(ft.size)
+        for i in range(ft.size):
+            for sign in (1.0, -1.0):
+                # a_i - b_i = c_i with a_i, b_i >= 1
+                wt = max(sign * c[i], 0.0) + 1.0
+                ts.append(ft[i]), js.append(fj[i]), ss.append(sign), vs.append(F[:, i])
+                ws.append(wt)
+    return POCCertificate(
+        "positive-span",
+        mask,
+        times=np.array(ts),
+        inputs=np.array(js, dtype=int),
+        signs=np.array(ss),
+        vectors=np.stack(vs, axis=1),
+        weights=np.array(ws),
+        proof={"path": "sampled-pairs"},
+    )
+
+
+# --------------------------------------------------------------------------
+# nilpotent: A^2 = 0, g_j(t) = C b_j + t C A b_j
+
+
+def _is_square_zero(A: np.ndarray) -> bool:
+    """A^2 = 0 up to round-off, entrywise relative to |A| @ |A| (scale-free)."""
+    AA = A @ A
+    if not AA.any():
+        return True
+    return bool(np.all(np.abs(AA) <= 1e-12 * (np.abs(A) @ np.abs(A))))
+
+
+_REASON_NIL_YES = "A^2 = 0 and the columns of [CB, CAB] positively span the output space"
+_REASON_NIL_NO = (
+    "A^2 = 0 and a vector v has v.CB <= 0 and v.CAB <= 0 for every sign-constrained input"
+)
+
+
+def _scalar_nilpotent(A, B, C, mask, horizon):
+    """p = 1, all inputs constrained, A^2 = 0 (the paper's case): a sign test
+    on CB and CAB in plain Python floats; the same answer as the generic
+    nilpotent path, with no LP, no expm and few array operations."""
+    if A.shape[0] == 0 or not _is_square_zero(A):
+        return None
+    c = C[0]
+    x0 = (c @ B).tolist()
+    x1 = ((c @ A) @ B).tolist()
+    a = float(np.abs(A).max())
+    tau = 1.0 / a if a > 0 else 1.0
+    T = horizon or tau
+    y1 = [x * tau for x in x1]
+    big = max(max(map(abs, x0)), max(map(abs, y1)))
+    thr = 1e-11 * big
+    pos = neg = None  # (value, t, j) of the largest positive / negative point
+    for j, (u0, u1) in enumerate(zip(x0, y1, strict=True)):
+        for u, t in ((u0, 0.0), (u1, None)):
+            if abs(u) <= thr:
+                continue
+            if t is None:  # a late point g_j(t) = x0 + t x1 has the sign of x1
+                t = max(tau, 2 * abs(x0[j]) / abs(x1[j]))
+                u = x0[j] + t * x1[j]
+            if u > 0 and (pos is None or u > pos[0]):
+                pos = (u, t, j)
+            elif u < 0 and (neg is None or u < neg[0]):
+                neg = (u, t, j)
+    if pos is None or neg is None:
+        v = np.array([1.0 if pos is None else -1.0])
+        proof = {
+            "path": "nilpotent",
+            "horizon": T,
+            "vTCB": [v[0] * x for x in x0],
+            "vTCAB": [v[0] * x for x in x1],
+        }
+        cert = POCCertificate("separator", mask, separator=v, proof=proof)
+        return Verdict.NO, "nilpotent", _REASON_NIL_NO, cert, T
+    cert = POCCertificate(
+        "positive-span",
+        mask,
+        times=np.array([pos[1], neg[1]]),
+        inputs=np.array([pos[2], neg[2]]),
+        signs=np.ones(2),
+        vectors=np.array([[pos[0], neg[0]]]),
+        weights=np.array([-neg[0], pos[0]]),
+        proof={"path": "sampled-pairs"},
+    )
+    return Verdict.YES, "nilpotent", _REASON_NIL_YES, cert, max(T, pos[1], neg[1])
+
+
+def _nilpotent(sub: _Reduced, horizon, tol):
+    A = sub.A
+    if not _is_square_zero(A):
+        return None
+    sub.square_zero = True
+    Cr, Bp = sub.Cr, sub.Bp
+    P0 = Cr @ Bp
+    P1 = Cr @ (A @ Bp)
+    # time unit: balances |CB| against |CAB| without changing the verdict
+    a = np.abs(A).max()
+    tau = 1.0 / a if a > 0 else 1.0
+    T = horizon or tau
+    m = Bp.shape[1]
+    S = np.hstack([P0, P1 * tau])
+    yes, _, _, idx, w, v = span_core(S, tol)
+    if not yes:
+        vr = v
+        proof = {
+            "path": "nilpotent",
+            "horizon": T,
+            "vTCB": (vr @ P0).tolist(),
+            "vTCAB": (vr @ P1).tolist(),
+        }
+        return (
+            Verdict.NO,
+            "nilpotent",
+            "A^2 = 0 and a vector v has v.CB <= 0 and v.CAB <= 0 for every sign-constrained input",
+            sub.no(vr, proof),
+            T,
+        )
+    r = Cr.shape[0]
+    if r == 1:
+        times, jl, weights = _nilpotent_pairs_sign(P0[0], P1[0], idx, m, tau)
+    else:
+        found = _nilpotent_pairs(P0, P1, tau, tol)
+        if found is None:
+            return _marginal(
+                "nilpotent",
+                "the positive span of [CB, CAB] is within the tolerance of its boundary",
+                sub,
+                T,
+            )
+        times, jl, weights = found
+    return (
+        Verdict.YES,
+        "nilpotent",
+        "A^2 = 0 and the columns of [CB, CAB] positively span the output space",
+        sub.yes(times, jl, weights),
+        max(T, max(times)),
+    )
+
+
+def _nilpotent_pairs_sign(x0, x1, idx, m, tau):
+    """p = 1: a positive and a negative curve point g_j(t) = x0_j + t x1_j."""
+    pts = []
+    for k in idx:
+        j = int(k % m)
+        if k < m:
+            pts.append((0.0, j, x0[j]))
+        else:
+            t = max(tau, 2 * abs(x0[j]) / abs(x1[j]))
+            pts.append((t, j, x0[j] + t * x1[j]))
+    (t0, j0, g0), (t1, j1, g1) = pts
+    return [t0, t1], [j0, j1], [abs(g1), abs(g0)]
+
+
+def _nilpotent_pairs(P0, P1, tau, tol):
+    """p >= 2: weights >= 1 on every nonzero column (one NNLS), then pairs
+    (0, j) and (t_j, j) reproducing alpha_j CB_j + beta_j CAB_j exactly."""
+    from scipy.optimize import nnls
+
+    m = P0.shape[1]
+    S = np.hstack([P0, P1 * tau])
+    norms = np.linalg.norm(S, axis=0)
+    nz = norms > 1e-11 * norms.max()
+    U = S[:, nz] / norms[nz]
+    mu, res = nnls(U, -U.sum(axis=1), maxiter=100 * U.shape[1])
+    if res > 1e-10 * max(1.0, np.linalg.norm(U.sum(axis=1))):
+        return None
+    wfull = np.zeros(2 * m)
+    wfull[nz] = (1.0 + mu) / norms[nz]
+    alpha, beta = wfull[:m], wfull[m:] * tau  # weights on CB_j and on CAB_j
+    times, jl, weights = [], [], []
+    for j in range(m):
+        if alpha[j] > 0 and beta[j] > 0:
+            tj = 2 * beta[j] / alpha[j]
+            times += [0.0, tj]
+            jl += [j, j]
+            weights += [alpha[j] / 2, alpha[j] / 2]
+        elif alpha[j] > 0:
+            times.append(0.0), jl.append(j), weights.append(alpha[j])
+        elif beta[j] > 0:  # CB_j = 0: g_j(tau) = tau CAB_j
+            times.append(tau), jl.append(j), weights.append(beta[j] / tau)
+    return times, jl, weights
+
+
+# --------------------------------------------------------------------------
+# mechanical modal: A = [[0, I], [K, 0]], B = [0; Bv], C = [Cq, 0]
+
+
+def _modal_structure(A, Bp, Cr):
+    n = A.shape[0]
+    if n % 2 or n == 0:
+        return None
+    h = n // 2
+    ref = np.abs(A).max()
+    if ref == 0:
+        return None
+    zero = 1e-12 * ref
+    if (
+        np.abs(A[:h, :h]).max() > zero
+        or np.abs(A[h:, h:]).max() > zero
+        or np.abs(A[:h, h:] - np.eye(h)).max() > 1e-12
+    ):
+        return None
+    if np.abs(Bp[:h]).max() > 0 or np.abs(Cr[:, h:]).max() > 0:
+        return None
+    return h
+
+
+def _modal(sub: _Reduced, horizon, tol):
+    A, Bp, Cr = sub.A, sub.Bp, sub.Cr
+    h = _modal_structure(A, Bp, Cr)
+    if h is None:
+        return None
+    K = A[h:, :h]
+    Cq, Bv = Cr[:, :h], Bp[h:]
+    kap, U = np.linalg.eig(K)
+    sK = np.abs(kap).max()
+    if sK == 0 or np.abs(kap.imag).max() > 1e-9 * sK:
+        return None
+    kap, U = kap.real, U.real
+    cond = np.linalg.cond(U)
+    if not np.isfinite(cond) or cond > 1e8:
+        return None
+    Q = orth(Cq.T)
+    if Q.shape[1] < Cq.shape[0]:
+        return None  # Cq rank deficient: the general path gives the rank certificate
+    R = K.T @ Q
+    if np.linalg.norm(R - Q @ (Q.T @ R)) > 1e-9 * np.linalg.norm(K):
+        return None  # output rows not an invariant subspace: not exact
+    Uinv = np.linalg.inv(U)
+    beta = Uinv @ Bv
+    T = horizon or _modal_horizon(kap)
+    for group in cluster(kap, 1e-8 * sK):
+        k = float(np.mean(kap[group]))
+        Ra = orth(U[:, group].T @ Q)  # modal coordinates reachable by outputs
+        if Ra.shape[1] == 0:
+            continue
+        Z = Ra.T @ beta[group]
+        definite = k >= -1e-9 * sK
+        if definite:
+            yes, _, _, _, _, c = span_core(Z, tol)
+        else:
+            Uz, s, _ = np.linalg.svd(Z, full_matrices=True)
+            yes = numerical_rank(s, 1e-9) == Z.shape[0]
+            c = None if yes else Uz[:, -1]
+        if yes:
+            continue
+        w = Uinv[group].T @ (Ra @ c)  # left eigenvector of K: w^T K = k w^T
+        vr = np.linalg.lstsq(Cq.T, w, rcond=None)[0]
+        proof = {
+            "path": "modal",
+            "kappa": k,
+            "horizon": T,
+            "w": w.tolist(),
+            "wTBv": (w @ Bv).tolist(),
+        }
+        kind = "sign-definite" if definite else "oscillatory"
+        return (
+            Verdict.NO,
+            "modal",
+            f"the {kind} mode with stiffness eigenvalue {k:.4g} cannot be driven "
+            "in every direction by the sign-constrained inputs",
+            sub.no(vr, proof),
+            T,
+        )
+    return _sampled_yes(
+        sub,
+        T,
+        "modal",
+        "every sign-definite mode is positively spanned and every oscillatory mode has full rank",
+    )
+
+
+def _modal_horizon(kap):
+    osc = np.sqrt(-kap[kap < 0])
+    rates = np.sqrt(kap[kap > 0])
+    T = 0.0
+    if osc.size:
+        T = max(T, 3 * 2 * math.pi / osc.min())
+    if rates.size:
+        T = max(T, 5.0 / rates.min())
+    return T if T > 0 else 10.0 / math.sqrt(np.abs(kap).max())
+
+
+# --------------------------------------------------------------------------
+# full-rank output: POC(A, B, C) with C invertible = Brammer on (A, B)
+
+
+def _brammer(sub: _Reduced, horizon, tol):
+    A, Bp, Cr = sub.A, sub.Bp, sub.Cr
+    n = A.shape[0]
+    if Cr.shape[0] != n or np.linalg.cond(Cr) > 1e10:
+        return None
+    if reachable_basis(A, Bp).shape[1] < n:
+        return None  # let the general path give the output-rank certificate
+    mask = np.ones(Bp.shape[1], dtype=bool)
+    w, lam, _ = left_eigen_separator(A, Bp, mask, tol)
+    As = scaled_system(A, Bp, Cr)
+    T = horizon or _modes.default_horizon(np.linalg.eigvals(As[0])) / As[6]
+    if w is None:
+        return _sampled_yes(
+            sub,
+            T,
+            "full-rank-brammer",
+            "C is invertible, (A, B) is controllable and no real "
+            "eigenvector of A^T separates the inputs (Brammer)",
+        )
+    vr = np.linalg.solve(Cr.T, w)
+    proof = {
+        "path": "brammer",
+        "eigenvalue": lam,
+        "horizon": T,
+        "w": w.tolist(),
+        "wTB": (w @ Bp).tolist(),
+    }
+    return (
+        Verdict.NO,
+        "full-rank-brammer",
+        f"C is invertible and a real eigenvector of A^T (eigenvalue {lam:.4g}) "
+        "separates the inputs (Brammer)",
+        sub.no(vr, proof),
+        T,
+    )
+
+
+# --------------------------------------------------------------------------
+# general: sampled exchange search with certificates
+
+
+def _sampled_yes(sub, T, method, reason):
+    """YES certificate for an exact path: sample, then refine if needed."""
+    found = _sample_search(sub, T)
+    if found[0] == "yes":
+        return Verdict.YES, method, reason, found[1], T
+    return _marginal(
+        method, "the exact test says yes but no sampled certificate clears the tolerance", sub, T
+    )
+
+
+class _Scaled:
+    """Scaled reduced system with its evaluator (times in units 1/rho)."""
+
+    def __init__(self, sub: _Reduced):
+        As, Bs, Cs, _, col, row, rho = scaled_system(sub.A, sub.Bp, sub.Cr)
+        self.As, self.Bs, self.Cs, self.col, self.row, self.rho = As, Bs, Cs, col, row, rho
+        self.ev = _modes.Evaluator(As, Bs, Cs)
+
+    def columns(self, ts):
+        G = self.ev(ts)  # (N, r, m)
+        N, r, m = G.shape
+        return G.transpose(1, 0, 2).reshape(r, N * m), m
+
+
+def _sample_search(sub, T, sc=None, extra=None):
+    """Positive span over samples; returns ("yes", cert) or ("no", v_s, S, ts, m)."""
+    sc = sc or _Scaled(sub)
+    Ts = T * sc.rho
+    ts = _modes.coarse_times(Ts)
+    if extra is not None:
+        ts = np.unique(np.concatenate([ts, extra]))
+    for stage in range(2):
+        S, m = sc.columns(ts)
+        yes, _, _, idx, w, v = span_core(S, SPAN_TOL)
+        if yes:
+            return "yes", _cert_from_columns(sub, sc, S, ts, m, idx, w)
+        if stage == 0:
+            ts = np.unique(
+                np.concatenate([ts, _modes.fine_times(Ts, sc.ev.eigvals if sc.ev.A.size else None)])
+            )
+    return "no", v, S, ts, m
+
+
+def _cert_from_columns(sub, sc, S, ts, m, idx, w):
+    idx = np.asarray(idx)
+    norms = np.linalg.norm(S[:, idx], axis=0)
+    wr = np.asarray(w) / norms  # weights on raw scaled columns
+    k, j = idx // m, idx % m
+    # raw scaled g_s = row * g * col_j, so sum wr g_s = 0 <=> sum (wr col_j) g = 0
+    return sub.yes(ts[k] / sc.rho, j, wr * sc.col[j])
+
+
+def _marginal(method, reason, sub, T, proof=None):
+    cert = POCCertificate("none", sub.mask, proof=proof or {"reason": reason})
+    return Verdict.MARGINAL, method, reason, cert, T
+
+
+def _general(sub: _Reduced, horizon, tol):
+    r = sub.Cr.shape[0]
+    Y = output_reachable_basis(sub.A, sub.Bp, sub.Cr)
+    T0 = horizon
+    if Y.shape[1] < r:
+        v = complement(Y, r)[:, 0]
+        T = T0 or 1.0
+        return (
+            Verdict.NO,
+            "output-rank",
+            f"not output controllable: the output rank is {Y.shape[1]} < {r}",
+            sub.no(v, {"path": "output-rank", "horizon": T}),
+            T,
+        )
+    sc = _Scaled(sub)
+    Ts = T0 * sc.rho if T0 else _modes.default_horizon(sc.ev.eigvals)
+    T = Ts / sc.rho
+    extra = None
+    last = "no separator found"
+    for _ in range(6):
+        found = _sample_search(sub, T, sc, extra)
+        if found[0] == "yes":
+            return (
+                Verdict.YES,
+                "general",
+                "finitely many sampled output vectors positively span the output space",
+                found[1],
+                T,
+            )
+        _, v, S, ts, m = found
+        sep = _separator(S, v)
+        proofs, viol = [], []
+        ok = True
+        for j in range(m):
+            good, data, bad = _modes.prove_nonpositive(sc.ev, sep, j, Ts)
+            proofs.append(data)
+            if not good:
+                ok = False
+                last = data.get("reason", "proof failed")
+                viol += bad
+        if ok:
+            v_red = sep * sc.row
+            Tp = max([d.get("grid_end", Ts) for d in proofs] + [Ts]) / sc.rho
+            proof = {
+                "path": "general",
+                "horizon": Tp,
+                "scaled_time_unit": 1 / sc.rho,
+                "inputs": to_plain(proofs),
+            }
+            return (
+                Verdict.NO,
+                "general",
+                "a separating v has v.g_j(t) <= 0 for all t >= 0, proven by Taylor, "
+                "sampled and tail bounds",
+                sub.no(v_red, proof),
+                Tp,
+            )
+        if not viol:
+            break
+        extra = np.array(viol) if extra is None else np.concatenate([extra, viol])
+    return _marginal(
+        "general",
+        f"neither certificate clears the tolerance ({last})",
+        sub,
+        T,
+        {"reason": last, "candidate_separator": (sub.lift(sep * sc.row)).tolist()},
+    )
+
+
+def _separator(S, v):
+    """Max-margin separator of the normalised samples (min-norm point), or v."""
+    from cdpm.analysis.span import min_norm_separator
+
+    norms = np.linalg.norm(S, axis=0)
+    keep = norms > 1e-11 * norms.max()
+    found = min_norm_separator(S[:, keep] / norms[keep])
+    return v if found is None else found[0]
+
+
+# --------------------------------------------------------------------------
+# margin
+
+
+def poc_margin(res: POCResult) -> tuple[float, float]:
+    """(lower, upper) bounds of mu_T on [0, horizon] (see :class:`POCResult`)."""
+    A, B, C, mask = res.A, res.B, res.C, res.sign_constrained
+    p = C.shape[0]
+    if p == 0:
+        return math.inf, math.inf
+    Bw = B if res.input_scale is None else B * res.input_scale
+    Cw = C if res.output_weight is None else C * res.output_weight[:, None]
+    T = res.horizon
+    if res.certificate.kind == "positive-span" and res.certificate.times.size:
+        T = max(T, float(res.certificate.times.max()))
+    if _is_square_zero(A):
+        ts = np.array([0.0, T])
+        lip = 0.0
+        G = np.stack([Cw @ Bw, Cw @ Bw + T * (Cw @ (A @ Bw))])
+    else:
+        N = 64 if p >= 4 else 200
+        ts = np.linspace(0.0, T, N + 1)
+        E = expm(A * (T / N))
+        X = Bw.copy()
+        G, D = [], []
+        for _ in ts:
+            G.append(Cw @ X)
+            D.append(Cw @ (A @ X))
+            X = E @ X
+        G = np.array(G)
+        lip = float(np.max(np.linalg.norm(np.array(D), axis=1))) * 1.1
+    cols = [G[:, :, mask].transpose(1, 0, 2).reshape(p, -1)]
+    if (~mask).any():
+        Gf = G[:, :, ~mask].transpose(1, 0, 2).reshape(p, -1)
+        cols += [Gf, -Gf]
+    S = np.hstack(cols)
+    yes = span_core(S, SPAN_TOL)[0]
+    mu = span_margin(S, yes)
+    hi = mu + lip * (ts[1] - ts[0]) / 2 if ts.size > 1 else mu
+    if res.verdict is not Verdict.YES:
+        mu, hi = min(mu, 0.0), min(hi, 0.0)
+    return float(mu), float(hi)

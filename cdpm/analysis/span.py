@@ -1,0 +1,465 @@
+"""Positive spanning of a finite set of vectors (and wrench closure).
+
+A finite set S = {s_1, ..., s_k} of R^p positively spans R^p iff its conic
+hull is R^p, iff rank S = p and some strictly positive w has S w = 0, iff no
+nonzero v has v^T s_i <= 0 for all i (a separating vector).
+
+Decision paths (reported in ``SpanResult.method``):
+
+- ``"sign"`` (p = 1): a positive and a negative entry;
+- ``"angular"`` (p = 2): the largest angular gap between consecutive
+  directions is below pi;
+- ``"nnls"`` (p >= 3): rank p and ``-S 1`` in cone(S), one non-negative
+  least-squares solve (``-S 1 = S mu``, mu >= 0 gives w = 1 + mu > 0; the
+  NNLS residual otherwise gives a separating vector);
+- ``"lp"``: a HiGHS LP, only when the NNLS answer does not re-check;
+- ``"rank"``: rank < p (a vector orthogonal to all of S separates).
+
+Columns are normalised before deciding, and columns shorter than 1e-11 times
+the longest are treated as zero, so the verdict is invariant to positive
+scaling of each vector and ``tol`` is an angle-like tolerance.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import linprog, nnls
+from scipy.spatial import ConvexHull, QhullError
+
+from cdpm.analysis._common import (
+    Verdict,
+    as_matrix,
+    fmt_array,
+    html_table,
+    numerical_rank,
+    to_plain,
+)
+
+__all__ = ["SpanCertificate", "SpanResult", "positively_spans", "wrench_closure"]
+
+#: default angle-like tolerance of span decisions
+SPAN_TOL = 1e-9
+#: columns shorter than this times the longest count as zero vectors
+ZERO_RTOL = 1e-11
+
+
+@dataclass(frozen=True)
+class SpanCertificate:
+    """Re-checkable proof of a positive-span decision.
+
+    Attributes:
+        kind: ``"positive-span"`` (YES) or ``"separator"`` (NO).
+        indices: for YES, the columns used, shape (q,).
+        weights: for YES, strictly positive weights w with
+            ``vectors[:, indices] @ w = 0``, shape (q,).
+        separator: for NO, a unit vector v with ``v @ s_i <= 0`` for all i, (p,).
+    """
+
+    kind: str
+    indices: np.ndarray | None = None
+    weights: np.ndarray | None = None
+    separator: np.ndarray | None = None
+
+    def verify(self, vectors, tol: float = 1e-7) -> bool:
+        """Re-check against ``vectors`` (p, k) by direct linear algebra."""
+        S = np.asarray(vectors, dtype=float)
+        p = S.shape[0]
+        if self.kind == "positive-span":
+            if p == 0:
+                return True
+            sub = S[:, self.indices]
+            return check_positive_combination(sub, self.weights, tol)
+        if self.kind == "separator":
+            v = np.asarray(self.separator, dtype=float)
+            nv = np.linalg.norm(v)
+            if nv == 0:
+                return False
+            norms = np.linalg.norm(S, axis=0)
+            return bool(np.all(v @ S <= tol * nv * norms + 1e-300))
+        return False
+
+    def as_dict(self) -> dict:
+        return to_plain(
+            {
+                "kind": self.kind,
+                "indices": self.indices,
+                "weights": self.weights,
+                "separator": self.separator,
+            }
+        )
+
+
+def check_positive_combination(S: np.ndarray, w: np.ndarray, tol: float) -> bool:
+    """True when w > 0, S w = 0 (relative to tol) and rank S = rows of S,
+    with the smallest singular value of the normalised S above the residual
+    (so the positive combination survives the residual's perturbation)."""
+    p = S.shape[0]
+    w = np.asarray(w, dtype=float)
+    if w.ndim != 1 or w.size != S.shape[1] or np.any(~(w > 0)):
+        return False
+    norms = np.linalg.norm(S, axis=0)
+    if np.any(norms == 0):
+        return False
+    scale = float(np.sum(w * norms))
+    residual = float(np.linalg.norm(S @ w)) / scale
+    if residual > tol:
+        return False
+    s = np.linalg.svd(S / norms, compute_uv=False)
+    return bool(s.size >= p and s[p - 1] > max(10 * residual, 1e-12))
+
+
+@dataclass(frozen=True)
+class SpanResult:
+    """Whether the columns of ``vectors`` positively span R^p.
+
+    Attributes:
+        verdict: ``Verdict.YES`` or ``Verdict.NO`` (boundary cases within
+            ``tol`` are NO: the conic hull is then a closed half-space or less).
+        p: dimension of the space.
+        rank: numerical rank of the (normalised) vectors.
+        method: which path decided (see module docstring).
+        certificate: :class:`SpanCertificate`.
+        vectors: copy of the input, shape (p, k).
+        tol: tolerance used.
+        margin: ``min_{|v|=1} max_i v^T s_i`` on the raw vectors: the inradius
+            about 0 of conv(S) when YES, minus the distance from 0 to conv(S)
+            when NO (0 when 0 is on its boundary). Continuous in S; computed
+            on first access.
+    """
+
+    verdict: Verdict
+    p: int
+    rank: int
+    method: str
+    certificate: SpanCertificate
+    vectors: np.ndarray = field(repr=False)
+    tol: float = SPAN_TOL
+
+    def __bool__(self) -> bool:
+        return self.verdict is Verdict.YES
+
+    @functools.cached_property
+    def margin(self) -> float:
+        return span_margin(self.vectors, self.verdict is Verdict.YES)
+
+    @property
+    def reason(self) -> str:
+        if self.verdict is Verdict.YES:
+            return (
+                f"{len(self.certificate.indices)} of the {self.vectors.shape[1]} vectors "
+                f"combine to 0 with strictly positive weights and have rank {self.p}"
+            )
+        if self.rank < self.p:
+            return f"the vectors have rank {self.rank} < {self.p}"
+        return "a separating vector v has v.s <= 0 for every vector s"
+
+    def verify(self, vectors=None) -> bool:
+        """Re-check the certificate (against ``vectors`` if given)."""
+        return self.certificate.verify(self.vectors if vectors is None else vectors)
+
+    def as_dict(self) -> dict:
+        return to_plain(
+            {
+                "verdict": self.verdict,
+                "p": self.p,
+                "rank": self.rank,
+                "method": self.method,
+                "margin": self.margin,
+                "reason": self.reason,
+                "certificate": self.certificate.as_dict(),
+            }
+        )
+
+    def __str__(self) -> str:
+        c = self.certificate
+        if c.kind == "positive-span":
+            cert = f"columns {fmt_array(c.indices)} with weights {fmt_array(c.weights)}"
+        else:
+            cert = f"separator v = {fmt_array(c.separator)}"
+        return (
+            f"positively spans R^{self.p}: {self.verdict} ({self.method}; "
+            f"rank {self.rank}; margin {self.margin:.4g})\n  {self.reason}\n  {cert}"
+        )
+
+    def _repr_html_(self) -> str:
+        return html_table(
+            f"Positive span of R^{self.p}: {self.verdict}",
+            [
+                ("method", self.method),
+                ("margin", f"{self.margin:.4g}"),
+                ("reason", self.reason),
+                ("certificate", str(self.certificate.as_dict())),
+            ],
+        )
+
+
+# --------------------------------------------------------------------------
+# decision core (no validation; used by the POC code on many sample sets)
+
+
+def span_core(S: np.ndarray, tol: float = SPAN_TOL):
+    """Decide positive spanning of the columns of S (p, k).
+
+    Returns:
+        (yes, method, rank, indices, weights, separator): for YES ``indices``
+        and strictly positive ``weights`` with ``S[:, indices] @ weights = 0``;
+        for NO a unit ``separator`` v with ``v @ S <= tol * |s_i|``.
+    """
+    p, k = S.shape
+    if p == 0:
+        return True, "trivial", 0, np.zeros(0, int), np.zeros(0), None
+    norms = np.linalg.norm(S, axis=0) if p > 1 else np.abs(S[0])
+    big = norms.max() if k else 0.0
+    nz = np.flatnonzero(norms > ZERO_RTOL * big) if big > 0 else np.zeros(0, int)
+    if nz.size == 0:
+        v = np.zeros(p)
+        v[0] = 1.0
+        return False, "rank", 0, None, None, v
+    if p == 1:
+        return _span_sign(S[0], nz, tol)
+    U = S[:, nz] / norms[nz]
+    if p == 2:
+        return _span_angular(U, nz, tol)
+    return _span_general(U, nz, tol)
+
+
+def _span_sign(s: np.ndarray, nz: np.ndarray, tol: float):
+    x = s[nz]
+    i_pos, i_neg = int(np.argmax(x)), int(np.argmin(x))
+    if x[i_pos] > 0 and x[i_neg] < 0:
+        idx = np.array([nz[i_pos], nz[i_neg]])
+        # w_+ * s_+ + w_- * s_- = 0
+        # on normalised columns (+1 and -1) unit weights combine to 0
+        return True, "sign", 1, idx, np.ones(2), None
+    v = np.array([1.0]) if x[i_pos] <= 0 else np.array([-1.0])
+    return False, "sign", 1, None, None, v
+
+
+def _cross(a, b):
+    return a[0] * b[1] - a[1] * b[0]
+
+
+def _span_angular(U: np.ndarray, nz: np.ndarray, tol: float):
+    theta = np.arctan2(U[1], U[0])
+    order = np.argsort(theta)
+    th = theta[order]
+    gaps = np.diff(np.append(th, th[0] + 2 * np.pi))
+    g = int(np.argmax(gaps))
+    rank = 1 if gaps.size == 1 or np.all(np.abs(np.sin(theta - theta[0])) <= tol) else 2
+    if gaps[g] >= np.pi - tol:
+        mid = th[g] + 0.5 * gaps[g]
+        v = np.array([np.cos(mid), np.sin(mid)])
+        return False, "angular", rank, None, None, v
+    # three directions positively spanning: the first, the last one less than
+    # pi counter-clockwise from it and the next one (consecutive => gaps < pi)
+    rel = np.mod(th - th[0], 2 * np.pi)
+    a = 0
+    b = int(np.flatnonzero(rel < np.pi - tol)[-1])
+    c = b + 1
+    if c < rel.size and rel[c] <= np.pi + tol:
+        # an (almost) opposite direction: step past it
+        c += 1
+    if c >= rel.size or not (rel[c] - rel[b] < np.pi and 2 * np.pi - rel[c] < np.pi):
+        return _span_general(U, nz, tol)
+    i, j, m = order[a], order[b], order[c]
+    sa, sb, sc = U[:, i], U[:, j], U[:, m]
+    w = np.array([_cross(sb, sc), _cross(sc, sa), _cross(sa, sb)])
+    if np.any(w <= 0):
+        return _span_general(U, nz, tol)
+    idx = nz[[i, j, m]]
+    # weights refer to the raw columns: divide by their norms
+    return True, "angular", 2, idx, w, None
+
+
+def _span_general(U: np.ndarray, nz: np.ndarray, tol: float):
+    """NNLS decision on normalised columns U (p, k); LP only as a fallback."""
+    p, k = U.shape
+    Uu, s, _ = np.linalg.svd(U, full_matrices=True)
+    rank = numerical_rank(s, 1e-9)
+    if rank < p:
+        v = Uu[:, -1]
+        return False, "rank", rank, None, None, v
+    b = -U.sum(axis=1)
+    mu, res = nnls(U, b, maxiter=50 * k + 100)
+    if res <= 1e-10 * max(1.0, float(np.linalg.norm(b))):
+        w = 1.0 + mu
+        idx = _compact(U, w, tol)
+        if idx is not None:
+            return True, "nnls", p, nz[idx[0]], idx[1], None
+        return True, "nnls", p, nz, w, None
+    r = U @ mu - b
+    v = -r / np.linalg.norm(r)
+    if np.max(v @ U) <= tol:
+        return False, "nnls", p, None, None, v
+    return _span_lp(U, nz, tol, rank)
+
+
+def _compact(U: np.ndarray, w: np.ndarray, tol: float):
+    """A small positively spanning subset (<= 2p columns typically)."""
+    p, k = U.shape
+    if k <= 2 * p + 2:
+        return None
+    # columns carrying the largest weights, plus a well-conditioned basis
+    heavy = np.argsort(w)[::-1][: p + 1]
+    _, _, piv = _qr_pivots(U)
+    cand = np.unique(np.concatenate([heavy, piv[:p]]))
+    sub = U[:, cand]
+    mu, res = nnls(sub, -sub.sum(axis=1), maxiter=50 * cand.size + 100)
+    if res <= 1e-10 * max(1.0, float(np.linalg.norm(sub.sum(axis=1)))):
+        return cand, 1.0 + mu
+    return None
+
+
+def _qr_pivots(U):
+    from scipy.linalg import qr
+
+    return qr(U, mode="economic", pivoting=True)
+
+
+def _span_lp(U: np.ndarray, nz: np.ndarray, tol: float, rank: int):
+    """LP: maximise t s.t. U w = 0, w >= t, sum w = k (HiGHS).
+
+    t* > 0 iff U positively spans (given full rank); the dual gives v."""
+    p, k = U.shape
+    c = np.zeros(k + 1)
+    c[-1] = -1.0
+    A_eq = np.zeros((p + 1, k + 1))
+    A_eq[:p, :k] = U
+    A_eq[p, :k] = 1.0
+    b_eq = np.zeros(p + 1)
+    b_eq[p] = k
+    A_ub = np.hstack([-np.eye(k), np.ones((k, 1))])
+    res = linprog(
+        c,
+        A_ub=A_ub,
+        b_ub=np.zeros(k),
+        A_eq=A_eq,
+        b_eq=b_eq,
+        bounds=[(0, None)] * k + [(None, 1.0)],
+        method="highs",
+    )
+    if res.status == 0 and -res.fun > tol:
+        return True, "lp", rank, nz, res.x[:k], None
+    # separator: the min-norm point of conv(U) (LDP via NNLS)
+    v = min_norm_separator(U)
+    if v is None:
+        v = np.zeros(p)
+        v[0] = 1.0
+    return False, "lp", rank, None, None, v
+
+
+def min_norm_separator(S: np.ndarray):
+    """Unit v maximising min_i (-v^T s_i), i.e. -(the min-norm point of
+    conv S) normalised (least-distance programming by NNLS, Lawson-Hanson
+    ch. 23). Returns (v, dist) with dist = distance from 0 to conv S, or
+    None if 0 is in conv S."""
+    p, k = S.shape
+    E = np.vstack([S, np.ones((1, k))])
+    f = np.zeros(p + 1)
+    f[p] = 1.0
+    u, _ = nnls(E, f, maxiter=50 * k + 100)
+    r = E @ u - f
+    if abs(r[p]) < 1e-14 or np.linalg.norm(r[:p]) < 1e-14:
+        return None
+    x = -r[:p] / r[p]
+    nx = float(np.linalg.norm(x))
+    return -x / nx, 1.0 / nx
+
+
+def span_margin(S: np.ndarray, yes: bool) -> float:
+    """``min_{|v|=1} max_i v^T s_i`` (see :class:`SpanResult`)."""
+    p, k = S.shape
+    if p == 0:
+        return math.inf
+    if k == 0:
+        return 0.0
+    if p == 1:
+        return float(min(S.max(), -S.min()))
+    if not yes:
+        sep = min_norm_separator(S)
+        return 0.0 if sep is None else -float(sep[1])
+    try:
+        hull = ConvexHull(S.T)
+        return float(max(np.min(-hull.equations[:, -1]), 0.0))
+    except QhullError:
+        return _inradius_lower_bound(S)
+
+
+def _inradius_lower_bound(S: np.ndarray) -> float:
+    """r/sqrt(p) where r is the smallest radial extent of conv S along +-e_i
+    (the cross-polytope of radius r lies in conv S)."""
+    p, k = S.shape
+    radii = []
+    for i in range(p):
+        for sign in (1.0, -1.0):
+            d = np.zeros(p)
+            d[i] = sign
+            # max rho s.t. rho d = S lam, lam >= 0, sum lam = 1
+            c = np.zeros(k + 1)
+            c[-1] = -1.0
+            A_eq = np.zeros((p + 1, k + 1))
+            A_eq[:p, :k] = S
+            A_eq[:p, -1] = -d
+            A_eq[p, :k] = 1.0
+            b_eq = np.zeros(p + 1)
+            b_eq[p] = 1.0
+            res = linprog(c, A_eq=A_eq, b_eq=b_eq, bounds=[(0, None)] * (k + 1), method="highs")
+            radii.append(-res.fun if res.status == 0 else 0.0)
+    return float(min(radii) / math.sqrt(p))
+
+
+# --------------------------------------------------------------------------
+# public API
+
+
+def positively_spans(vectors, *, tol: float = SPAN_TOL) -> SpanResult:
+    """Decide whether the columns of ``vectors`` positively span R^p.
+
+    Args:
+        vectors: shape (p, k), one vector per column.
+        tol: angle-like tolerance; sets within ``tol`` of the boundary (conic
+            hull a closed half-space) are reported as NO.
+
+    Returns:
+        :class:`SpanResult` with a re-checkable certificate.
+    """
+    S = as_matrix("vectors", vectors)
+    return span_result(S, tol)
+
+
+def span_result(S: np.ndarray, tol: float = SPAN_TOL) -> SpanResult:
+    """:func:`positively_spans` without validation (S already a float array)."""
+    yes, method, rank, idx, w, v = span_core(S, tol)
+    if yes:
+        cert = SpanCertificate(
+            "positive-span", indices=np.asarray(idx), weights=_raw_weights(S, idx, w)
+        )
+    else:
+        cert = SpanCertificate("separator", separator=v)
+    return SpanResult(Verdict.YES if yes else Verdict.NO, S.shape[0], rank, method, cert, S, tol)
+
+
+def _raw_weights(S, idx, w):
+    """Weights found on normalised columns, converted to the raw columns."""
+    if S.shape[0] == 0:
+        return np.zeros(0)
+    norms = np.linalg.norm(S[:, idx], axis=0)
+    return np.asarray(w, dtype=float) / norms
+
+
+def wrench_closure(L, *, tol: float = SPAN_TOL) -> SpanResult:
+    """Wrench closure at a pose: the columns of ``-L^T`` positively span R^nv.
+
+    Args:
+        L: cable Jacobian, shape (m, nv); ``l' = L q'``. A tension f >= 0
+            produces the generalised force ``-L^T f`` (paper eq 11).
+
+    Returns:
+        :class:`SpanResult` over the m columns of ``-L^T`` (shape (nv, m)).
+    """
+    L = as_matrix("L", L)
+    return span_result(-L.T, tol)
