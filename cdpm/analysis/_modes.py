@@ -164,7 +164,10 @@ def prove_nonpositive(ev: Evaluator, v: np.ndarray, j: int, T: float):
     if lead_bound >= 0:
         # the dominant mode is not negative (a complex dominant mode: v fails)
         tt = T * np.linspace(1.0, 8.0, 400)
-        f = ev(tt)[:, :, j] @ v
+        if alpha > 0:
+            tt = tt[tt * alpha < 300]
+        with np.errstate(over="ignore", invalid="ignore"):
+            f = ev(tt)[:, :, j] @ v
         viol = list(tt[f > 0][:5])
         return False, {**data, "reason": "dominant mode not negative"}, viol
     Tp = T
@@ -190,7 +193,10 @@ def _grid_bound(ev, v, j, kap, lam, t0, t1, depth=0, n=None):
         fast = max(np.abs(lam).max(), 1e-3)
         n = int(min(20000, max(64, math.ceil((t1 - t0) * fast / 0.2))))
     t = np.linspace(t0, t1, n + 1)
-    f = np.real(np.exp(np.outer(t, lam)) @ kap)
+    with np.errstate(over="ignore", invalid="ignore"):
+        f = np.real(np.exp(np.outer(t, lam)) @ kap)
+    if not np.all(np.isfinite(f)):
+        return False, [], n
     if np.any(f > 0):
         return False, list(t[f > 0][:5]), n
     h = t[1] - t[0]

@@ -694,9 +694,15 @@ class _Scaled:
         self.ev = _modes.Evaluator(As, Bs, Cs)
 
     def columns(self, ts):
-        G = self.ev(ts)  # (N, r, m)
+        """Sample columns (r, N*m), column k*m + j = g_j(ts[k]); times whose
+        responses overflow are dropped (returned ``ts`` is filtered)."""
+        with np.errstate(over="ignore", invalid="ignore"):
+            G = self.ev(ts)  # (N, r, m)
+        ok = np.isfinite(G).all(axis=(1, 2)) & (np.abs(G).max(axis=(1, 2)) < 1e150)
+        if not ok.all():
+            G, ts = G[ok], ts[ok]
         N, r, m = G.shape
-        return G.transpose(1, 0, 2).reshape(r, N * m), m
+        return G.transpose(1, 0, 2).reshape(r, N * m), m, ts
 
 
 def _sample_search(sub, T, sc=None, extra=None):
@@ -707,7 +713,7 @@ def _sample_search(sub, T, sc=None, extra=None):
     if extra is not None:
         ts = np.unique(np.concatenate([ts, extra]))
     for stage in range(2):
-        S, m = sc.columns(ts)
+        S, m, ts = sc.columns(ts)
         yes, _, _, idx, w, v = span_core(S, SPAN_TOL)
         if yes:
             return "yes", _cert_from_columns(sub, sc, S, ts, m, idx, w)

@@ -1,0 +1,318 @@
+"""Known answers for the analysis layer: hand-worked systems, the paper's
+example (eqs 24-30), spans, wrench closure, ranks and input validation."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from cdpm.analysis import (
+    Verdict,
+    controllability,
+    output_controllability,
+    positive_controllability,
+    positive_output_controllability,
+    positively_spans,
+    wrench_closure,
+)
+from cdpm.errors import InputError
+
+
+def poc_checked(A, B, C, mask=None, **kw):
+    """POC with its certificate re-checked on every YES / NO verdict."""
+    res = positive_output_controllability(A, B, C, mask, **kw)
+    if res.verdict is not Verdict.MARGINAL:
+        assert res.certificate.verify(A, B, C), res
+    assert (res.margin > 0) == (res.verdict is Verdict.YES)
+    json.dumps(res.as_dict())
+    return res
+
+
+def second_order(k: float, d: float) -> np.ndarray:
+    """x'' = k x - d x' as a first-order system."""
+    return np.array([[0.0, 1.0], [k, -d]])
+
+
+@pytest.fixture
+def paper():
+    """The paper's linearisation at (pi/6, pi/3), eqs 24-26."""
+    A = np.zeros((4, 4))
+    A[0, 2] = A[1, 3] = 1.0
+    B = np.zeros((4, 4))
+    B[2] = [0.500, -0.046, -0.337, -0.822]
+    B[3] = [-1.000, 3.088, 0.674, 2.310]
+    C = np.array([[-1.5, -1.0, 0.0, 0.0]])
+    return A, B, C
+
+
+POS = np.array([[1.0, 0.0]])
+
+
+# ---------------------------------------------------------------- hand-worked
+
+
+def test_double_integrator_one_pulling_input_is_not_poc():
+    res = poc_checked(second_order(0, 0), [[0.0], [1.0]], POS)
+    assert res.verdict is Verdict.NO and not res
+    assert res.method == "nilpotent"
+    # x(t) = t u only grows: v = -1 separates
+    assert res.certificate.separator[0] < 0
+
+
+def test_double_integrator_two_opposed_inputs_is_poc():
+    res = poc_checked(second_order(0, 0), [[0.0, 0.0], [1.0, -1.0]], POS)
+    assert res.verdict is Verdict.YES and bool(res)
+    assert res.margin == pytest.approx(1.0, abs=1e-12)  # T = 1, |g| = t
+
+
+def test_double_integrator_with_a_free_input_is_poc():
+    res = poc_checked(second_order(0, 0), [[0.0, 0.0], [1.0, 2.0]], POS, [True, False])
+    assert res.verdict is Verdict.YES
+    assert res.method == "mixed-cone"
+    assert set(res.certificate.signs) == {1.0, -1.0}
+
+
+def test_undamped_oscillator_one_pulling_input_is_poc():
+    res = poc_checked(second_order(-1, 0), [[0.0], [1.0]], POS)
+    assert res.verdict is Verdict.YES
+    assert res.method == "modal"
+    # sin(t) reaches +1 and -1 within the horizon
+    assert res.margin == pytest.approx(1.0, abs=1e-3)
+
+
+def test_unstable_oscillator_is_not_poc():
+    res = poc_checked(second_order(1, 0), [[0.0], [1.0]], POS)
+    assert res.verdict is Verdict.NO
+    assert res.method == "modal"
+    assert res.certificate.proof["kappa"] == pytest.approx(1.0)
+
+
+@pytest.mark.parametrize(("damping", "verdict"), [(0.3, Verdict.YES), (3.0, Verdict.NO)])
+def test_underdamped_poc_overdamped_not(damping, verdict):
+    res = poc_checked(second_order(-1, damping), [[0.0], [1.0]], POS)
+    assert res.verdict is verdict
+    assert res.method == "general"
+
+
+def test_overdamped_no_certificate_has_all_three_bounds():
+    res = poc_checked(second_order(-1, 3.0), [[0.0], [1.0]], POS)
+    proof = res.certificate.proof["inputs"][0]
+    assert proof["taylor_order"] == 1 and proof["taylor_coefficient"] < 0
+    assert proof["t1"] > 0 and proof["grid_end"] > proof["t1"]
+    assert proof["tail_bound"] < 0
+
+
+def test_jordan_block_defective_a():
+    # A = [[-1, 1], [0, -1]] with the input on the second state: x1 = t e^{-t} u * ...
+    A = np.array([[-1.0, 1.0], [0.0, -1.0]])
+    B = np.array([[0.0, 0.0], [1.0, -1.0]])
+    res = poc_checked(A, B, POS)
+    assert res.verdict is Verdict.YES
+    res = poc_checked(A, B[:, :1], POS)
+    # g(t) = t e^{-t} >= 0: not POC; a defective A has no certified tail bound
+    assert res.verdict in (Verdict.NO, Verdict.MARGINAL)
+    assert res.verdict is not Verdict.YES
+
+
+def test_repeated_eigenvalue_brammer():
+    # A = -I: every vector is an eigenvector of A^T; two pulling inputs along
+    # e1, e2 leave -e1 - e2 unreachable
+    A = -np.eye(2)
+    res = positive_controllability(A, np.eye(2))
+    assert res.verdict is Verdict.NO
+    assert res.verify(A, np.eye(2))
+    assert np.all(res.witness_products <= 1e-12)
+    # adding -(e1 + e2) makes the three inputs positively span the eigenspace R^2
+    B3 = np.array([[1.0, 0.0, -1.0], [0.0, 1.0, -1.0]])
+    assert positive_controllability(A, B3).verdict is Verdict.YES
+    res = positive_output_controllability(A, B3, np.eye(2))
+    assert res.verdict is Verdict.YES and res.method == "full-rank-brammer"
+    assert res.certificate.verify(A, B3, np.eye(2))
+
+
+# ---------------------------------------------------------------- the paper
+
+
+def test_paper_poc_yes(paper):
+    A, B, C = paper
+    res = poc_checked(A, B, C)
+    assert res.verdict is Verdict.YES and res.method == "nilpotent"
+    # eq 28: C e^{At} B = t [0.250 -3.018 -0.169 -1.077]
+    np.testing.assert_allclose(C @ A @ B, [[0.250, -3.018, -0.169, -1.077]], atol=1.5e-3)
+    # the certificate pairs a positive and a negative output: inputs 1 and 2
+    assert sorted(res.certificate.inputs.tolist()) == [0, 1]
+    assert res.output_rank == 1 and res.output_controllable
+
+
+def test_paper_positive_controllability_no_with_remark_11_witness(paper):
+    A, B, _ = paper
+    res = positive_controllability(A, B)
+    assert res.verdict is Verdict.NO and res.method == "brammer"
+    assert res.kalman_rank == 4
+    v = res.witness / res.witness[3] * -1.0  # scale to (0, 0, -2, -1)
+    np.testing.assert_allclose(v, [0, 0, -2, -1], atol=1e-9)
+    # eq 30: v^T B = (0, -2.995, 0, -0.666) for v = (0, 0, -2, -1)
+    prods = res.witness_products / res.witness[3] * -1.0
+    np.testing.assert_allclose(prods, [0, -2.995, 0, -0.666], atol=1.5e-3)
+    assert np.all(res.witness_products <= 1e-12)
+    assert res.verify(A, B)
+    assert "witness" in str(res)
+    json.dumps(res.as_dict())
+
+
+def test_paper_ranks(paper):
+    A, B, C = paper
+    assert controllability(A, B).rank == 4
+    assert output_controllability(A, B, C).rank == 1
+    assert controllability(A, B[:, :1]).rank == 2
+    assert not controllability(A, B[:, :1])
+
+
+def test_paper_scaled_keeps_verdicts(paper):
+    A, B, C = paper
+    D = np.diag([1e-3, 1e3, 1e-3, 1e3])
+    Di = np.linalg.inv(D)
+    As, Bs, Cs = Di @ A @ D, Di @ B * 1e3, C @ D * 1e-3
+    assert poc_checked(As, Bs, Cs).verdict is Verdict.YES
+    assert positive_controllability(As, Bs).verdict is Verdict.NO
+
+
+def test_result_strings_and_html(paper):
+    A, B, C = paper
+    res = poc_checked(A, B, C)
+    assert "YES" in str(res) and "nilpotent" in str(res)
+    assert "<table>" in res._repr_html_()
+    assert str(Verdict.MARGINAL) == "MARGINAL"
+
+
+# ---------------------------------------------------------------- scaling
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_scaling_does_not_change_verdicts(seed):
+    rng = np.random.default_rng(seed)
+    n, m, p = 4, 3, 2
+    A = rng.normal(size=(n, n))
+    B = rng.normal(size=(n, m))
+    C = rng.normal(size=(p, n))
+    base = positive_output_controllability(A, B, C)
+    d = 10.0 ** rng.choice([-3, 3], size=n)
+    D, Di = np.diag(d), np.diag(1 / d)
+    As, Bs, Cs = Di @ A @ D * 1e3, Di @ B * 1e-3, C @ D * 1e3
+    scaled = poc_checked(As, Bs, Cs)
+    assert scaled.verdict is base.verdict
+    assert controllability(As, Bs).rank == controllability(A, B).rank
+    assert output_controllability(As, Bs, Cs).rank == output_controllability(A, B, C).rank
+
+
+# ---------------------------------------------------------------- spans
+
+
+@pytest.mark.parametrize(
+    ("vectors", "verdict"),
+    [
+        ([[1.0, -2.0]], Verdict.YES),
+        ([[1.0, 2.0, 0.0]], Verdict.NO),
+        ([[0.0, 0.0]], Verdict.NO),
+        ([[1.0, 0.0, -1.0], [0.0, 1.0, -1.0]], Verdict.YES),
+        ([[1.0, 0.0, -1.0, 0.0], [0.0, 1.0, 0.0, 0.0]], Verdict.NO),  # half-plane
+        ([[1.0, -1.0, 2.0], [0.0, 0.0, 0.0]], Verdict.NO),  # rank 1
+        ([[1.0, 0.0, 0.0, -1.0], [0.0, 1.0, 0.0, -1.0], [0.0, 0.0, 1.0, -1.0]], Verdict.YES),
+        ([[1.0, 0.0, 0.0, -1.0], [0.0, 1.0, 0.0, -1.0], [0.0, 0.0, 1.0, 0.0]], Verdict.NO),
+        ([[1.0, 0.0, -1.0, 0.0], [0.0, 1.0, 0.0, -1.0], [0.0, 0.0, 0.0, 0.0]], Verdict.NO),
+    ],
+)
+def test_positively_spans_known_cases(vectors, verdict):
+    res = positively_spans(vectors)
+    assert res.verdict is verdict
+    assert res.verify()
+    assert (res.margin > 0) == (verdict is Verdict.YES)
+    json.dumps(res.as_dict())
+    assert str(res)
+
+
+def test_positively_spans_margin_is_inradius():
+    # the square's vertices (+-1, +-1): inradius about 0 is 1
+    S = np.array([[1.0, -1.0, -1.0, 1.0], [1.0, 1.0, -1.0, -1.0]])
+    assert positively_spans(S).margin == pytest.approx(1.0)
+    # shifted away by 3 along x: distance from 0 to the square is 2
+    assert positively_spans(S + [[3.0], [0.0]]).margin == pytest.approx(-2.0)
+
+
+def test_positively_spans_separator_is_a_witness():
+    S = np.array([[1.0, 0.5, 0.2], [0.1, 1.0, -0.3], [0.3, 0.2, 1.0]])
+    res = positively_spans(S)
+    assert res.verdict is Verdict.NO
+    assert np.all(res.certificate.separator @ S <= 1e-12)
+
+
+def test_span_certificate_rejects_wrong_vectors():
+    res = positively_spans([[1.0, 0.0, -1.0], [0.0, 1.0, -1.0]])
+    assert not res.certificate.verify([[1.0, 0.0, 1.0], [0.0, 1.0, 1.0]])
+
+
+# ---------------------------------------------------------------- wrench closure
+
+
+def test_wrench_closure_planar_point_four_cables():
+    # a point mass pulled by four cables towards the square's corners
+    corners = np.array([[1.0, 1.0], [-1.0, 1.0], [-1.0, -1.0], [1.0, -1.0]])
+    L = -corners / np.linalg.norm(corners, axis=1, keepdims=True)  # l' = -u . x'
+    res = wrench_closure(L)
+    assert res.verdict is Verdict.YES and res.verify()
+    res = wrench_closure(L[:3])
+    assert res.verdict is Verdict.NO and res.verify()
+    # two cables can never close a planar wrench space
+    assert wrench_closure(L[:2]).verdict is Verdict.NO
+
+
+def test_wrench_closure_needs_nv_plus_one_cables():
+    rng = np.random.default_rng(3)
+    L = rng.normal(size=(3, 3))
+    assert wrench_closure(L).verdict is Verdict.NO
+
+
+# ---------------------------------------------------------------- validation
+
+
+@pytest.mark.parametrize(
+    ("args", "match"),
+    [
+        ((np.zeros((3, 3)), np.zeros((2, 1)), np.zeros((1, 3))), r"B has 2 rows, expected n=3"),
+        ((np.zeros((3, 2)), np.zeros((3, 1)), np.zeros((1, 3))), r"A must be square"),
+        ((np.zeros((3, 3)), np.zeros((3, 1)), np.zeros((1, 2))), r"C has 2 columns"),
+        ((np.full((2, 2), np.nan), np.zeros((2, 1)), np.zeros((1, 2))), r"A contains non-finite"),
+        ((np.zeros((2, 2)), [["a"], ["b"]], np.zeros((1, 2))), r"B must be a numeric matrix"),
+    ],
+)
+def test_input_validation(args, match):
+    with pytest.raises(InputError, match=match):
+        positive_output_controllability(*args)
+
+
+def test_mask_validation():
+    with pytest.raises(InputError, match=r"sign_constrained has shape \(3,\), expected"):
+        positive_output_controllability(
+            np.zeros((2, 2)), np.zeros((2, 2)), np.zeros((1, 2)), [True, False, True]
+        )
+    with pytest.raises(InputError, match="input_scale must be finite and strictly positive"):
+        positive_output_controllability(
+            np.zeros((2, 2)), np.zeros((2, 2)), np.zeros((1, 2)), input_scale=[1.0, -1.0]
+        )
+    with pytest.raises(InputError, match="horizon must be a positive"):
+        positive_output_controllability(
+            np.zeros((2, 2)), np.zeros((2, 2)), np.zeros((1, 2)), horizon=0.0
+        )
+    with pytest.raises(InputError, match="L must be 2-D"):
+        wrench_closure(np.zeros(3))
+
+
+def test_caller_arrays_are_not_mutated(paper):
+    A, B, C = paper
+    copies = [X.copy() for X in (A, B, C)]
+    positive_output_controllability(A, B, C).margin  # noqa: B018
+    positive_controllability(A, B)
+    for X, Y in zip((A, B, C), copies, strict=True):
+        np.testing.assert_array_equal(X, Y)
