@@ -455,7 +455,9 @@ def coordinate_ranges(robot, natural: Any = None) -> dict[str, tuple[float, floa
             iv = joint.idx_v + k
             name = names[iv]
             suffix = name.rsplit(".", 1)[-1] if "." in name else ""
-            is_length = (joint.nq == joint.nv and "Prismatic" in kind) or (
+            # JointModelPX/PY/PZ/PrismaticUnaligned, Translation: lengths
+            prismatic = kind.startswith(("JointModelP", "JointModelTranslation"))
+            is_length = (joint.nq == joint.nv and prismatic) or (
                 joint.nq != joint.nv and suffix in ("x", "y", "z")
             )
             if joint.nq == joint.nv or (joint.nq != joint.nv and is_length):

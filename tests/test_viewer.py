@@ -1,0 +1,501 @@
+"""Viewer: pose state, colours, slider ranges, map points, the meshcat server
+(loopback only), the view command, and a real browser rendering the scene."""
+
+from __future__ import annotations
+
+import math
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import textwrap
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import cdpm
+from cdpm.errors import InputError, MissingExtraError
+from cdpm.viewer import (
+    COLORS,
+    CableState,
+    PoseInspector,
+    cable_colors,
+    coordinate_ranges,
+    map_points,
+    pose_state,
+)
+from tests.conftest import PAPER_SPEC, ROOT
+
+NOMINAL = np.array([math.pi / 6, math.pi / 3])
+
+
+def _tip(q):
+    q1, q2 = q
+    return np.array([math.cos(q1) + math.cos(q1 + q2), math.sin(q1) + math.sin(q1 + q2), 0.0])
+
+
+# ---------------------------------------------------------------- pose state
+
+
+def test_pose_state_paper_nominal(paper_robot):
+    state = pose_state(paper_robot, "nominal")
+    assert str(state.verdict) == "YES"
+    assert state.margin is not None and state.margin > 0
+    assert state.cable_states == (CableState.SLACK,) * 4
+    np.testing.assert_allclose(state.tension, 0.0)
+    assert state.output_frames == ("tip",)
+    np.testing.assert_allclose(state.output_frame_positions[0], _tip(NOMINAL), atol=1e-12)
+    np.testing.assert_allclose(state.output, [_tip(NOMINAL)[0]], atol=1e-12)
+    # route points agree with the robot's own kinematics
+    for mine, theirs in zip(
+        state.cable_points, paper_robot.attachment_points(NOMINAL), strict=True
+    ):
+        np.testing.assert_allclose(mine, theirs, atol=1e-12)
+    # c1 anchor (0, 0.5) and its attachment 0.3, 0.1 from link1's COM (Table I)
+    c, s = math.cos(NOMINAL[0]), math.sin(NOMINAL[0])
+    np.testing.assert_allclose(state.cable_points[0][0], [0, 0.5, 0])
+    np.testing.assert_allclose(state.cable_points[0][1], [0.8 * c - 0.1 * s, 0.8 * s + 0.1 * c, 0])
+
+
+def test_pose_state_text_names_verdict_tensions_and_slack_cables(paper_robot):
+    text = str(pose_state(paper_robot, NOMINAL))
+    assert text.startswith("POC: YES (margin ")
+    assert "q1 = 0.5236, q2 = 1.0472" in text
+    assert "slack cables: c1, c2, c3, c4" in text
+    html = pose_state(paper_robot, NOMINAL)._repr_html_()
+    assert "POC: YES" in html and "rgb(31,168,57)" in html
+
+
+def test_arm_stretched_along_x_is_not_poc(paper_robot):
+    # at q = (0, 0) d(tip_x)/dq = 0: no cable can move the output
+    state = pose_state(paper_robot, [0.0, 0.0])
+    assert str(state.verdict) == "NO"
+    assert state.verdict_key == "no"
+    assert state.as_dict()["verdict"] == "no"
+
+
+def test_zero_length_cable_is_unavailable_not_an_error(write_spec):
+    spec = write_spec(
+        """
+        urdf: arm.urdf
+        gravity: [0, 0, 0]
+        cables:
+          - name: short
+            route:
+              - {frame: base, point: [0, 0, 0]}
+              - {frame: link1, point: [0, 0, 0]}
+          - name: c2
+            route:
+              - {frame: base, point: [0, 1.5, 0]}
+              - {frame: link2, point: [0.8, 0.1, 0]}
+        outputs:
+          - {name: tip_x, frame: tip, component: x}
+        poses:
+          p: [0.3, 0.4]
+        """
+    )
+    robot = cdpm.load_robot(spec)
+    state = pose_state(robot, "p")
+    assert state.verdict is None and state.verdict_key == "unavailable"
+    assert state.cable_states == (CableState.UNAVAILABLE,) * 2
+    assert state.tension is None
+    assert "zero length" in state.reason
+    assert str(state).startswith("POC: unavailable (")
+    assert cable_colors(state, 1.0) == [COLORS["unavailable"]] * 2
+
+
+def test_cable_colours_scale_with_tension(paper_robot):
+    base = pose_state(paper_robot, NOMINAL)
+    taut = (CableState.TAUT,) * 3 + (CableState.SLACK,)
+    tension = np.array([0.0, 5.0, 10.0, 0.0])
+    from dataclasses import replace
+
+    state = replace(base, cable_states=taut, tension=tension)
+    colors = cable_colors(state, scale=10.0)
+    np.testing.assert_allclose(colors[0], COLORS["taut_low"])
+    np.testing.assert_allclose(colors[2], COLORS["taut_high"])
+    mid = 0.5 * (np.array(COLORS["taut_low"]) + np.array(COLORS["taut_high"]))
+    np.testing.assert_allclose(colors[1], mid, atol=0.02)  # 32 quantisation levels
+    assert colors[3] == COLORS["slack"]
+    # above the scale saturates
+    assert cable_colors(state, scale=1.0)[1] == pytest.approx(COLORS["taut_high"])
+
+
+# ---------------------------------------------------------------- slider ranges
+
+
+def test_ranges_from_urdf_limits(paper_robot):
+    ranges = coordinate_ranges(paper_robot, NOMINAL)
+    assert list(ranges) == ["q1", "q2"]
+    for lo, hi in ranges.values():
+        assert lo == pytest.approx(-math.pi) and hi == pytest.approx(math.pi)
+
+
+def test_ranges_without_limits(tmp_path):
+    (tmp_path / "r.urdf").write_text(
+        textwrap.dedent(
+            """\
+            <robot name="r">
+              <link name="base"/>
+              <link name="a"><inertial><mass value="1"/>
+                <inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/></inertial></link>
+              <link name="b"><inertial><origin xyz="0.5 0 0"/><mass value="1"/>
+                <inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/></inertial></link>
+              <link name="c"><inertial><mass value="1"/>
+                <inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/></inertial></link>
+              <joint name="slide" type="prismatic"><parent link="base"/><child link="a"/>
+                <axis xyz="1 0 0"/><limit lower="0" upper="0" effort="1" velocity="1"/></joint>
+              <joint name="spin" type="continuous"><parent link="a"/><child link="b"/>
+                <axis xyz="0 0 1"/></joint>
+              <joint name="hinge" type="revolute"><parent link="b"/><child link="c"/>
+                <origin xyz="1 0 0"/><axis xyz="0 0 1"/>
+                <limit lower="-0.5" upper="1.5" effort="1" velocity="1"/></joint>
+            </robot>
+            """
+        )
+    )
+    (tmp_path / "r.yaml").write_text(
+        textwrap.dedent(
+            """\
+            urdf: r.urdf
+            cables:
+              - name: k
+                route: [{frame: base, point: [0, 1, 0]}, {frame: c, point: [0.2, 0, 0]}]
+            outputs: [{name: x, frame: c, component: x}]
+            """
+        )
+    )
+    robot = cdpm.load_robot(tmp_path / "r.yaml")
+    ranges = coordinate_ranges(robot, [0.25, 2.0, 0.1])
+    assert ranges["slide"] == pytest.approx((-0.75, 1.25))  # no usable limits: value +- 1 m
+    assert ranges["spin"] == pytest.approx((-math.pi, math.pi))  # continuous: one turn
+    assert ranges["hinge"] == pytest.approx((-0.5, 1.5))  # from the URDF
+    # the current value is always inside
+    assert coordinate_ranges(robot, [0.0, 0.0, 1.6])["hinge"] == pytest.approx((-0.5, 1.6))
+
+
+# ---------------------------------------------------------------- inspector
+
+
+def test_inspector_updates_state_and_text(paper_robot):
+    inspector = PoseInspector(paper_robot, q=[0.0, math.pi / 3])
+    assert inspector.text.startswith("POC: YES")
+    state = inspector.set_coordinate("q2", 0.0)
+    assert str(state.verdict) == "NO" and inspector.text.startswith("POC: NO")
+    np.testing.assert_allclose(inspector.natural, [0.0, 0.0])
+    assert len(inspector.update_seconds) == 2
+    with pytest.raises(InputError, match="no coordinate 'q3'; coordinates: q1, q2"):
+        inspector.set_coordinate("q3", 0.0)
+    with pytest.raises(InputError, match="not a finite number"):
+        inspector.set_coordinate("q1", float("nan"))
+
+
+def test_inspector_widget_slider_change_updates_panel(paper_robot):
+    pytest.importorskip("ipywidgets")
+    inspector = PoseInspector(paper_robot, q=[0.0, math.pi / 3])
+    box = inspector.widget()
+    assert len(box.children) == 3
+    slider = inspector.sliders["q2"]
+    assert (slider.min, slider.max) == pytest.approx((-math.pi, math.pi))
+    assert "POC: YES" in inspector.panel.value
+    slider.value = 0.0
+    assert "POC: NO" in inspector.panel.value
+    inspector.set_natural(NOMINAL)
+    assert inspector.sliders["q1"].value == pytest.approx(NOMINAL[0])
+    assert "POC: YES" in inspector.panel.value
+
+
+# ---------------------------------------------------------------- map points
+
+
+def _synthetic_map(xr, sample: bool = False):
+    q1 = np.linspace(-1.0, 1.0, 3)
+    q2 = np.linspace(0.5, 1.5, 2)
+    Q1, Q2 = np.meshgrid(q1, q2, indexing="ij")
+    pos = np.stack([np.cos(Q1) + np.cos(Q1 + Q2), np.sin(Q1) + np.sin(Q1 + Q2), 0 * Q1], -1)
+    pos[0, 0] = np.nan  # a pose without a position (e.g. failed)
+    poc = np.array([[1, 0], [2, -1], [1, 1]], dtype=np.int8)
+    margin = np.array([[0.5, -0.2], [0.0, np.nan], [1.0, 0.25]])
+    ds = xr.Dataset(
+        {
+            "poc": (
+                ("q1", "q2"),
+                poc,
+                {"flag_values": [1, 0, 2, -1], "flag_meanings": "yes no marginal not_analysed"},
+            ),
+            "poc_margin": (("q1", "q2"), margin),
+            "output_frame_position": (("q1", "q2", "xyz"), pos),
+            "y": (("q1", "q2", "output"), pos[..., :1]),
+        },
+        coords={"q1": q1, "q2": q2, "xyz": ["x", "y", "z"], "output": ["tip_x"]},
+    )
+    if sample:
+        ds = ds.stack(sample=("q1", "q2")).reset_index("sample")
+    return ds, pos
+
+
+@pytest.mark.parametrize("sample", [False, True])
+def test_map_points_by_verdict(sample):
+    xr = pytest.importorskip("xarray")
+    ds, pos = _synthetic_map(xr, sample)
+    positions, colors = map_points(ds)
+    assert positions.shape == (5, 3)  # the NaN position is left out
+    np.testing.assert_allclose(positions, pos.reshape(-1, 3)[1:])
+    expected = ["no", "marginal", "not_analysed", "yes", "yes"]
+    np.testing.assert_allclose(colors, [COLORS[k] for k in expected])
+
+
+def test_map_points_by_margin():
+    xr = pytest.importorskip("xarray")
+    ds, _ = _synthetic_map(xr)
+    _, colors = map_points(ds, color_by="margin")
+    # margins after dropping the NaN position: -0.2, 0.0, nan, 1.0, 0.25 (scale 1.0)
+    np.testing.assert_allclose(colors[1], [1, 1, 1])  # zero margin: white
+    np.testing.assert_allclose(colors[2], COLORS["not_analysed"])  # NaN margin: grey
+    np.testing.assert_allclose(colors[3], COLORS["yes"])  # largest margin: full green
+    assert colors[0][0] > colors[0][1]  # negative: reddish
+
+
+def test_map_points_errors():
+    xr = pytest.importorskip("xarray")
+    ds, _ = _synthetic_map(xr)
+    with pytest.raises(InputError, match="no variable 'poc_margin'"):
+        map_points(ds.drop_vars("poc_margin"), color_by="margin")
+    with pytest.raises(InputError, match="color_by='tension'"):
+        map_points(ds, color_by="tension")
+    bad = ds.rename({"xyz": "component"})
+    with pytest.raises(InputError, match="dimension 'xyz'"):
+        map_points(bad)
+
+
+# ---------------------------------------------------------------- server
+
+
+def _listening(port: int) -> list[str]:
+    """Local addresses (hex, as in /proc/net/tcp*) listening on a TCP port."""
+    found = []
+    for table in ("/proc/net/tcp", "/proc/net/tcp6"):
+        if not os.path.exists(table):
+            continue
+        for line in Path(table).read_text().splitlines()[1:]:
+            fields = line.split()
+            address, hexport = fields[1].rsplit(":", 1)
+            if fields[3] == "0A" and int(hexport, 16) == port:  # 0A: LISTEN
+                found.append(address)
+    return found
+
+
+LOOPBACK_HEX = "0100007F"  # 127.0.0.1 in /proc/net/tcp byte order
+
+
+@pytest.fixture(scope="module")
+def viewer(paper_robot):
+    pytest.importorskip("meshcat")
+    v = cdpm.viewer.Viewer(paper_robot, "nominal")
+    yield v
+    v.close()
+
+
+def test_servers_listen_on_loopback_only(viewer):
+    if not os.path.exists("/proc/net/tcp"):
+        pytest.skip("needs Linux /proc/net/tcp to list listening sockets")
+    web_port = int(viewer.url().split(":")[2].split("/")[0])
+    zmq_port = int(viewer.zmq_url.rsplit(":", 1)[1])
+    assert viewer.url().startswith("http://127.0.0.1:")
+    assert viewer.zmq_url.startswith("tcp://127.0.0.1:")
+    for port in (web_port, zmq_port):
+        assert _listening(port) == [LOOPBACK_HEX], f"port {port}: {_listening(port)}"
+
+
+def test_viewer_display_and_map(viewer, paper_robot):
+    state = viewer.display([0.0, 0.0])
+    assert state.verdict_key == "no" and viewer.state is state
+    assert viewer._marker_color == COLORS["no"]
+    assert set(viewer.last_display_seconds) == {"analysis", "draw", "total"}
+    state = viewer.display("nominal")
+    assert viewer._marker_color == COLORS["yes"]
+    assert viewer._cable_colors == [COLORS["slack"]] * 4
+    assert viewer.geometry == "urdf"  # the paper's URDF has visual cylinders
+    xr = pytest.importorskip("xarray")
+    ds, _ = _synthetic_map(xr)
+    assert viewer.show_map(ds) == 5
+    viewer.hide_map()
+    page = viewer._root.static_html()  # the server's scene, as a browser gets it
+    assert "MeshCat" in page and len(page) > 10_000
+
+
+def test_generated_geometry_and_close(paper_robot):
+    pytest.importorskip("meshcat")
+    v = cdpm.viewer.Viewer(paper_robot, [0.2, 0.3], geometry="generated")
+    pid = v.server_pid
+    assert v.geometry == "generated" and v.state.verdict_key == "yes"
+    v.close()
+    with pytest.raises(ProcessLookupError):
+        for _ in range(50):
+            os.kill(pid, 0)
+            time.sleep(0.1)
+
+
+def test_viewer_bad_arguments(paper_robot):
+    pytest.importorskip("meshcat")
+    with pytest.raises(InputError, match="geometry='mesh'"):
+        cdpm.viewer.Viewer(paper_robot, geometry="mesh")
+    with pytest.raises(InputError, match="tension_scale"):
+        cdpm.viewer.Viewer(paper_robot, tension_scale=-1.0)
+
+
+def _run(code: str, **kwargs) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, "-c", code],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        timeout=120,
+        **kwargs,
+    )
+
+
+def test_missing_meshcat_gives_install_hint():
+    code = textwrap.dedent(
+        f"""
+        import sys
+        sys.modules["meshcat"] = None  # as if not installed
+        import cdpm
+        from cdpm.viewer import Viewer
+        robot = cdpm.load_robot({str(PAPER_SPEC)!r})
+        try:
+            Viewer(robot)
+        except cdpm.MissingExtraError as exc:
+            print("HINT:", exc)
+        """
+    )
+    out = _run(code)
+    assert out.returncode == 0, out.stderr
+    assert 'pip install "cdpm[viz]"' in out.stdout
+    assert issubclass(MissingExtraError, ImportError)
+
+
+def test_import_cdpm_loads_no_viewer_dependencies():
+    out = _run("import cdpm", env={**os.environ, "PYTHONPROFILEIMPORTTIME": "1"})
+    assert out.returncode == 0, out.stderr
+    imported = {line.rsplit("|", 1)[-1].strip() for line in out.stderr.splitlines() if "|" in line}
+    assert "cdpm" in imported  # the profile did run
+    for name in ("meshcat", "matplotlib", "ipywidgets", "zmq", "tornado", "cdpm.viewer"):
+        assert not any(m == name or m.startswith(name + ".") for m in imported), name
+
+
+# ---------------------------------------------------------------- command
+
+
+def test_view_command_serves_then_stops(capsys):
+    pytest.importorskip("meshcat")
+    from cdpm.cli import main
+
+    assert main(["view", str(PAPER_SPEC), "--q", "0", "0", "--seconds", "0.2"]) == 0
+    out = capsys.readouterr().out
+    assert "POC: NO" in out
+    assert "viewer: http://127.0.0.1:" in out
+
+
+def test_view_command_ctrl_c_exits_130_and_stops_the_server():
+    pytest.importorskip("meshcat")
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "cdpm.cli", "view", str(PAPER_SPEC), "--pose", "nominal"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        cwd=ROOT,
+    )
+    try:
+        url = ""
+        deadline = time.monotonic() + 60
+        while not url and time.monotonic() < deadline:
+            line = proc.stdout.readline()
+            if line.startswith("viewer: "):
+                url = line.split()[1]
+            if not line and proc.poll() is not None:
+                break
+        assert url.startswith("http://127.0.0.1:"), proc.stderr.read()
+        port = int(url.split(":")[2].split("/")[0])
+        proc.send_signal(signal.SIGINT)
+        assert proc.wait(timeout=30) == 130
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    if os.path.exists("/proc/net/tcp"):
+        assert _listening(port) == []
+
+
+def test_view_command_bad_map(capsys):
+    from cdpm.cli import main
+
+    assert main(["view", str(PAPER_SPEC), "--map", "missing.zarr", "--seconds", "0"]) == 1
+    assert "map 'missing.zarr' not found" in capsys.readouterr().err
+
+
+# ---------------------------------------------------------------- real browser
+
+CHROMIUM_FLAGS = [
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--use-gl=swiftshader",
+    "--enable-unsafe-swiftshader",  # without it WebGL does not start: a blank page
+    "--disable-background-networking",
+    "--no-first-run",
+    "--disable-component-update",
+    "--disable-sync",
+    "--hide-scrollbars",
+    "--window-size=800,600",
+]
+
+
+def _count_near(pixels: np.ndarray, rgb, tol: int = 12) -> int:
+    target = np.round(np.array(rgb) * 255)
+    return int(np.sum(np.all(np.abs(pixels[..., :3].astype(int) - target) <= tol, axis=-1)))
+
+
+@pytest.mark.skipif(
+    shutil.which("chromium") is None and os.environ.get("CI") != "true",
+    reason="needs Debian's chromium (apt-get install chromium); CI installs it",
+)
+def test_browser_renders_cables_and_verdict(paper_robot, tmp_path):
+    pytest.importorskip("meshcat")
+    from PIL import Image
+
+    chromium = shutil.which("chromium")
+    assert chromium, "chromium is not installed (CI must install Debian's chromium)"
+    shot = tmp_path / "view.png"
+    with cdpm.viewer.Viewer(paper_robot, "nominal") as v:
+        for _attempt in range(3):  # a loaded machine may need a longer budget
+            profile = tempfile.mkdtemp(prefix="cdpm-chromium-", dir=tmp_path)
+            subprocess.run(
+                [
+                    chromium,
+                    *CHROMIUM_FLAGS,
+                    f"--user-data-dir={profile}",
+                    f"--screenshot={shot}",
+                    "--virtual-time-budget=8000",
+                    v.url(),
+                ],
+                capture_output=True,
+                timeout=120,
+                check=False,
+            )
+            pixels = np.asarray(Image.open(shot).convert("RGB")) if shot.exists() else None
+            if pixels is not None and _count_near(pixels, COLORS["slack"]) > 300:
+                break
+    assert pixels is not None, "chromium wrote no screenshot"
+    assert pixels.shape[:2] == (600, 800)
+    slack = _count_near(pixels, COLORS["slack"])
+    green = _count_near(pixels, COLORS["yes"], tol=40)  # lit sphere: shaded green
+    red = _count_near(pixels, COLORS["no"], tol=40)
+    assert slack > 300, f"slack-cable pink pixels: {slack}"
+    assert green > 50, f"YES marker green pixels: {green}"
+    assert red < 20, f"NO red pixels at a YES pose: {red}"
+    assert _count_near(pixels, COLORS["taut_high"]) < 20  # no taut cable at zero tension
