@@ -75,6 +75,10 @@ def default_horizon(eigvals: np.ndarray) -> float:
     rates = re[re > 1e-6]
     if rates.size:
         T = max(T, 5.0 / rates.min())
+    growth = eigvals.real.max()
+    if growth > 1e-6:
+        # responses grow like e^{growth t}: stop before they dwarf everything
+        T = min(T, max(10.0, 100.0 / growth))
     return min(T, HORIZON_MAX)
 
 

@@ -316,8 +316,8 @@ def _g(A, B, C, t, j, square_zero=False):
 def _free_pairs(A, B, C, free, r, horizon):
     """(t, j) pairs of free inputs whose outputs span their reachable subspace."""
     As, Bs, Cs, _, col, row, rho = scaled_system(A, B[:, free], C)
-    T = horizon * rho if horizon else _modes.default_horizon(np.linalg.eigvals(As))
-    times = np.linspace(0.0, T, max(2 * A.shape[0] + 1, 8))
+    # early times suffice to span the free reachable subspace (|As| = 1)
+    times = np.linspace(0.0, 2.0, max(2 * A.shape[0] + 1, 8))
     G = _modes.Evaluator(As, Bs, Cs)(times)  # (N, p, mf)
     S = G.transpose(1, 0, 2).reshape(C.shape[0], -1)
     from scipy.linalg import qr
@@ -842,12 +842,17 @@ def poc_margin(res: POCResult) -> tuple[float, float]:
         E = expm(A * (T / N))
         X = Bw.copy()
         G, D = [], []
-        for _ in ts:
-            G.append(Cw @ X)
-            D.append(Cw @ (A @ X))
-            X = E @ X
-        G = np.array(G)
-        lip = float(np.max(np.linalg.norm(np.array(D), axis=1))) * 1.1
+        with np.errstate(over="ignore", invalid="ignore"):
+            for _ in ts:
+                G.append(Cw @ X)
+                D.append(Cw @ (A @ X))
+                X = E @ X
+        G, D = np.array(G), np.array(D)
+        # an unstable system may overflow late in a long horizon: keep [0, t_last]
+        ok = np.isfinite(G).all(axis=(1, 2)) & np.isfinite(D).all(axis=(1, 2))
+        last = int(np.argmin(ok)) if not ok.all() else ok.size
+        ts, G, D = ts[:last], G[:last], D[:last]
+        lip = float(np.max(np.linalg.norm(D, axis=1))) * 1.1
     cols = [G[:, :, mask].transpose(1, 0, 2).reshape(p, -1)]
     if (~mask).any():
         Gf = G[:, :, ~mask].transpose(1, 0, 2).reshape(p, -1)
