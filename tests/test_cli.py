@@ -21,7 +21,9 @@ def test_analyze_paper_nominal_text(capsys):
     pc_line = next(line for line in out.splitlines() if "Positive controllability" in line)
     assert "YES" in poc_line.upper()
     assert "NO" in pc_line.upper()
-    assert "0.5" in out and "-2.995" in out.replace("-2.9952", "-2.995")
+    # B row 3 of eq 25 and the Remark 11 witness (0, 0, -2, -1) / sqrt(5)
+    assert "[ 0.4999 -0.0462 -0.3372 -0.822 ]" in out
+    assert "-0.8944, -0.4472]" in out
 
 
 def test_analyze_json_matches_explicit_q(capsys):

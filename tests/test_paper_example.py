@@ -30,7 +30,7 @@ def test_remark_11_witness_gives_eq30(lin):
     v = np.asarray(result.witness, dtype=float)
     v = v * (-2.0 / v[2])  # scale to the paper's (0, 0, -2, -1)
     np.testing.assert_allclose(v, [0, 0, -2, -1], atol=1e-12)
-    np.testing.assert_allclose(v @ lin.A.T, 0.0, atol=1e-12)  # eigenvector of A^T, eigenvalue 0
+    np.testing.assert_allclose(lin.A.T @ v, 0.0, atol=1e-12)  # eigenvector of A^T, eigenvalue 0
     # eq 30: <v, B u> = -2.995 u2 - 0.666 u4 (three printed decimals)
     np.testing.assert_allclose(v @ lin.B, [0, -2.995, 0, -0.666], rtol=0, atol=0.5e-3)
 
