@@ -99,6 +99,7 @@ def render_pose(
         InputError: unknown plane or unsupported file suffix.
     """
     Figure, FigureCanvasAgg = _import_matplotlib()
+    pose_name = q if isinstance(q, str) else None
     q = robot.as_q(_default_pose(robot) if q is None else q)
     geometry = _Geometry(robot)
     state = state if state is not None else pose_state(robot, q, geometry)
@@ -155,8 +156,8 @@ def render_pose(
     seen_states: dict[CableState, Any] = {}
     fixed = geometry.point_joint == 0
     offset = 0
-    for name, route, rgb, cstate in zip(
-        state.cable_names, cable_points, colors, state.cable_states, strict=True
+    for i, (name, route, rgb, cstate) in enumerate(
+        zip(state.cable_names, cable_points, colors, state.cable_states, strict=True)
     ):
         (line,) = ax.plot(
             route[:, h], route[:, v], color=rgb, lw=2.2, linestyle=_CABLE_STYLE[cstate], zorder=3
@@ -176,8 +177,9 @@ def render_pose(
             route[~on_world, h], route[~on_world, v], s=18, color=COLORS["attachment"], zorder=5
         )
         label_at = route[0] if on_world[0] else route[-1]
+        label = name if cstate is not CableState.TAUT else f"{name} ({state.tension[i]:.3g} N)"
         ax.annotate(
-            name,
+            label,
             (label_at[h], label_at[v]),
             xytext=(-6, 4),
             textcoords="offset points",
@@ -217,7 +219,8 @@ def render_pose(
         coords = ", ".join(
             f"{n}={x:.3g}" for n, x in zip(state.coordinate_names, state.natural, strict=True)
         )
-        title = f"{robot.spec.path.stem}: {coords}\nPOC {_verdict_text(state)}"
+        where = f", pose {pose_name!r}" if pose_name else ""
+        title = f"{robot.spec.path.stem}{where}: {coords}\nPOC {_verdict_text(state)}"
     ax.set_title(title, fontsize=10)
     fig.tight_layout()
     if path is not None:

@@ -897,7 +897,7 @@ class Viewer:
         pts = np.concatenate([pts, np.array([T[:3, 3] for T in geo.joint_placements()])])
         normal = int(np.argmin(np.ptp(pts, axis=0)))
         direction = np.zeros(3)
-        direction[normal] = 1.0
+        direction[normal] = -1.0 if normal == 1 else 1.0  # so that +x or +y points right
         # tilt a little so that the view is not along meshcat's up axis (z)
         direction[1 if normal == 2 else 2] = -0.3 if normal == 2 else 0.3
         direction /= np.linalg.norm(direction)

@@ -44,6 +44,8 @@ def run(args: argparse.Namespace) -> int:
     robot = load_robot(args.spec)
     q = pose_from_args(robot, args)
     state = pose_state(robot, q)
+    if args.pose is not None:
+        q = args.pose  # keeps the pose's name in the title
     render_pose(
         robot, q, args.output, plane=args.plane, title=args.title, dpi=args.dpi, state=state
     )
