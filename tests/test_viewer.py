@@ -348,9 +348,9 @@ def test_viewer_bad_arguments(paper_robot):
         cdpm.viewer.Viewer(paper_robot, tension_scale=-1.0)
 
 
-def _run(code: str, **kwargs) -> subprocess.CompletedProcess:
+def _run(code: str, *flags: str, **kwargs) -> subprocess.CompletedProcess:
     return subprocess.run(
-        [sys.executable, "-c", code],
+        [sys.executable, *flags, "-c", code],
         capture_output=True,
         text=True,
         cwd=ROOT,
@@ -380,7 +380,7 @@ def test_missing_meshcat_gives_install_hint():
 
 
 def test_import_cdpm_loads_no_viewer_dependencies():
-    out = _run("import cdpm", env={**os.environ, "PYTHONPROFILEIMPORTTIME": "1"})
+    out = _run("import cdpm", "-X", "importtime")
     assert out.returncode == 0, out.stderr
     imported = {line.rsplit("|", 1)[-1].strip() for line in out.stderr.splitlines() if "|" in line}
     assert "cdpm" in imported  # the profile did run

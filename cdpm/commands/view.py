@@ -88,7 +88,8 @@ def open_map(path: str):
         import xarray as xr
     except ImportError as exc:
         raise MissingExtraError(
-            f'reading a map needs xarray ({exc}); install it with: pip install "cdpm[maps]"'
+            f"reading a map needs xarray and zarr ({exc}); install them with: "
+            "pip install xarray zarr"
         ) from exc
     try:
         if p.is_dir() or p.suffix == ".zarr":
