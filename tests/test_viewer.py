@@ -499,3 +499,18 @@ def test_browser_renders_cables_and_verdict(paper_robot, tmp_path):
     assert green > 50, f"YES marker green pixels: {green}"
     assert red < 20, f"NO red pixels at a YES pose: {red}"
     assert _count_near(pixels, COLORS["taut_high"]) < 20  # no taut cable at zero tension
+
+
+def test_view_command_overlays_a_zarr_map(tmp_path, capsys):
+    pytest.importorskip("meshcat")
+    xr = pytest.importorskip("xarray")
+    pytest.importorskip("zarr")
+    from cdpm.cli import main
+
+    ds, _ = _synthetic_map(xr, sample=True)
+    ds.to_zarr(tmp_path / "map.zarr")
+    args = ["view", str(PAPER_SPEC), "--map", str(tmp_path / "map.zarr"), "--seconds", "0"]
+    assert main([*args, "--color-by", "margin"]) == 0
+    assert (
+        f"map: 5 poses from {tmp_path / 'map.zarr'}, coloured by margin" in capsys.readouterr().out
+    )
