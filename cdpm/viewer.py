@@ -37,6 +37,7 @@ import subprocess
 import sys
 import tempfile
 import time
+import types
 import warnings
 import weakref
 from dataclasses import dataclass
@@ -324,10 +325,8 @@ def _analyse(robot, q: np.ndarray):
         (tension (m,), slack mask (m,), verdict, margin, reason); the first
         four are None when the pose cannot be linearised (reason says why).
     """
-    from cdpm.linearise import linearise
-
     try:
-        lin = linearise(robot, q)
+        lin = _linearise()(robot, q)
     except CdpmError as exc:
         return None, None, None, None, str(exc)
     input_sign = getattr(lin, "input_sign", None)
@@ -345,6 +344,20 @@ def _analyse(robot, q: np.ndarray):
     margin = getattr(poc, "margin", None)
     margin = float(margin) if isinstance(margin, (int, float, np.floating)) else None
     return lin.tension, slack, poc.verdict, margin, None
+
+
+def _linearise():
+    """:func:`cdpm.linearise`, looked up through the package.
+
+    Importing the submodule ``cdpm.linearise`` by path before anything reads
+    ``cdpm.linearise`` would leave the package attribute bound to the module
+    instead of the function; reading it through the package first keeps the
+    public name a function for everyone.
+    """
+    import cdpm
+
+    linearise = cdpm.linearise
+    return linearise.linearise if isinstance(linearise, types.ModuleType) else linearise
 
 
 def pose_state(robot, q: Any, geometry: _Geometry | None = None) -> PoseState:
