@@ -465,7 +465,10 @@ def _count_near(pixels: np.ndarray, rgb, tol: int = 12) -> int:
     reason="needs Debian's chromium (apt-get install chromium); CI installs it",
 )
 def test_browser_renders_cables_and_verdict(paper_robot, tmp_path):
-    pytest.importorskip("meshcat")
+    if os.environ.get("CI") == "true":
+        import meshcat  # noqa: F401  CI installs the viz extra: a missing one fails here
+    else:
+        pytest.importorskip("meshcat")
     from PIL import Image
 
     chromium = shutil.which("chromium")
