@@ -1,0 +1,235 @@
+"""Benchmark of workspace maps: per-pose cost against a baseline and a floor.
+
+Prints, on the same random poses:
+
+- ours: :func:`cdpm.maps.evaluate_poses` per pose (everything a map stores);
+- baseline: a straightforward Theorem 1 check written here: linearise, then
+  C e^{At} B at 50 times with scipy.linalg.expm, then one HiGHS LP deciding
+  whether the 50 m output vectors positively span R^p;
+- floor: the bare Pinocchio work per pose (computeJointJacobians, the frame
+  Jacobians of the frames carrying cable points and outputs, crba);
+
+for the paper model (zero tension, nilpotent) and two_link_vertical
+(gravity, full linearisation + general analyser); then the throughput of a
+map with 1 and 2 local worker processes, and the peak memory (RSS) of a
+10^6-pose map run in a subprocess.
+
+Timings are minima over repeats, with ours and the floor interleaved, so a
+busy machine inflates both alike; still, numbers on a shared machine are
+noisy. ``--quick`` uses fewer poses and a 2*10^5-pose memory run.
+
+Run: ``python benchmarks/bench_map.py [--quick]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+PAPER = ROOT / "models" / "two_link_planar" / "two_link_planar.yaml"
+VERTICAL = ROOT / "models" / "two_link_vertical" / "two_link_vertical.yaml"
+
+
+def poses(robot, n: int, seed: int = 0) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    return rng.uniform(-np.pi, np.pi, (n, robot.nv))
+
+
+def best_of(fn, repeats: int) -> float:
+    times = []
+    for _ in range(repeats):
+        t = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t)
+    return min(times)
+
+
+def floor_cost(robot, natural: np.ndarray) -> callable:
+    """The bare Pinocchio work per pose, as a callable over all poses."""
+    import pinocchio as pin
+
+    model = robot.model
+    data = model.createData()
+    frames = {p.frame for c in robot.spec.cables for p in c.route}
+    frames |= {o.frame for o in robot.spec.outputs}
+    ids = [model.getFrameId(f) for f in sorted(frames) if model.existFrame(f)]
+    qs = np.array([robot.from_natural(x) for x in natural])
+    world = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+
+    def run():
+        for q in qs:
+            pin.computeJointJacobians(model, data, q)
+            pin.updateFramePlacements(model, data)
+            for f in ids:
+                pin.getFrameJacobian(model, data, f, world)
+            pin.crba(model, data, q)
+
+    return run
+
+
+def baseline_verdicts(robot, natural: np.ndarray, tension=None) -> list[bool | None]:
+    """Theorem 1 sampled at 50 times (expm) + one HiGHS LP per pose."""
+    from scipy.linalg import expm
+    from scipy.optimize import linprog
+
+    from cdpm.errors import CdpmError
+    from cdpm.linearise import linearise
+
+    out = []
+    times = np.linspace(0.0, 5.0, 50)
+    for x in natural:
+        try:
+            lin = linearise(robot, robot.from_natural(x), tension=tension)
+        except CdpmError:
+            out.append(None)
+            continue
+        A, B, C = lin.A, getattr(lin, "B_cone", lin.B), lin.C
+        cols = []
+        for t in times:
+            G = C @ expm(A * t) @ B
+            cols.append(G[:, lin.sign_constrained])
+            free = G[:, ~lin.sign_constrained]
+            cols += [free, -free]
+        S = np.hstack(cols)
+        S = S[:, np.linalg.norm(S, axis=0) > 1e-12]
+        p, k = S.shape
+        # max s  s.t.  S w = 0, w >= s, sum w = 1: s > 0 iff positive span
+        c = np.zeros(k + 1)
+        c[-1] = -1.0
+        a_eq = np.zeros((p + 1, k + 1))
+        a_eq[:p, :k] = S
+        a_eq[p, :k] = 1.0
+        b_eq = np.zeros(p + 1)
+        b_eq[p] = 1.0
+        a_ub = np.hstack([-np.eye(k), np.ones((k, 1))])
+        res = linprog(
+            c,
+            A_ub=a_ub,
+            b_ub=np.zeros(k),
+            A_eq=a_eq,
+            b_eq=b_eq,
+            bounds=[(0, None)] * k + [(None, 1.0)],
+            method="highs",
+        )
+        out.append(bool(res.status == 0 and -res.fun > 1e-9 and np.linalg.matrix_rank(S) == p))
+    return out
+
+
+def per_pose_costs(path: Path, n_ours: int, n_base: int, repeats: int, tension=None) -> dict:
+    import cdpm
+    from cdpm.maps import evaluate_poses
+    from cdpm.maps._kinematics import BatchKinematics
+
+    robot = cdpm.load_robot(path)
+    natural = poses(robot, n_ours)
+    batch = BatchKinematics(robot)
+    floor = floor_cost(robot, natural)
+    evaluate_poses(robot, natural[:8], tension, batch=batch)  # imports, caches
+    ours_t, floor_t = [], []
+    for _ in range(repeats):  # interleaved: load affects both alike
+        ours_t.append(best_of(lambda: evaluate_poses(robot, natural, tension, batch=batch), 1))
+        floor_t.append(best_of(floor, 1))
+    base_poses = natural[:n_base]
+    base_t = best_of(lambda: baseline_verdicts(robot, base_poses, tension), 1)
+    ours = min(ours_t) / n_ours
+    return {
+        "ours": ours,
+        "floor": min(floor_t) / n_ours,
+        "baseline": base_t / n_base,
+    }
+
+
+def throughput(path: Path, n_side: int, workers: int) -> float:
+    """Poses per second of a grid map with ``workers`` local processes."""
+    import cdpm
+
+    axes = {"q1": np.linspace(-3.1, 3.1, n_side), "q2": np.linspace(-3.1, 3.1, n_side)}
+    robot = cdpm.load_robot(path)
+    t = time.perf_counter()
+    cdpm.maps.workspace_map(robot, axes, workers=workers, chunk_size=4096)
+    return n_side * n_side / (time.perf_counter() - t)
+
+
+_MEMORY_CHILD = """
+import sys, numpy as np, cdpm.maps, cdpm
+n = int(sys.argv[1])
+side = int(round(n ** 0.5))
+axes = {"q1": np.linspace(-3.1, 3.1, side), "q2": np.linspace(-3.1, 3.1, side)}
+ds = cdpm.maps.workspace_map(sys.argv[2], axes, workers=1, store=sys.argv[3], overwrite=True)
+print(int((ds.status == 0).sum()))
+"""
+
+
+def peak_memory(path: Path, n: int) -> tuple[float, int, float]:
+    """(peak RSS [MiB], poses mapped, seconds) of a map run in a subprocess."""
+    with tempfile.TemporaryDirectory() as tmp:
+        store = os.path.join(tmp, "big.zarr")
+        t = time.perf_counter()
+        out = subprocess.run(
+            [sys.executable, "-c", _MEMORY_CHILD, str(n), str(path), store],
+            check=True,
+            capture_output=True,
+            text=True,
+        )
+        seconds = time.perf_counter() - t
+    peak_kib = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
+    return peak_kib / 1024.0, int(out.stdout.strip().splitlines()[-1]), seconds
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--quick", action="store_true", help="fewer poses, smaller memory run")
+    args = parser.parse_args(argv)
+    n_ours = 4096 if args.quick else 16384
+    n_base = 40 if args.quick else 200
+    repeats = 3 if args.quick else 7
+    print(
+        f"cdpm map benchmark ({'quick' if args.quick else 'full'}); machine load average "
+        f"{os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs: timings are noisy when busy\n"
+    )
+
+    print("per-pose cost [us/pose] on the same random poses")
+    print(f"{'model':<34} {'ours':>9} {'floor':>9} {'baseline':>10} {'vs base':>9} {'vs floor':>9}")
+    rows = [("two_link_planar (zero tension)", PAPER, n_ours, n_base)]
+    if VERTICAL.is_file():
+        rows.append(("two_link_vertical (gravity)", VERTICAL, max(n_ours // 16, 256), n_base))
+    for label, path, n1, n2 in rows:
+        r = per_pose_costs(path, n1, n2, repeats)
+        print(
+            f"{label:<34} {r['ours'] * 1e6:9.2f} {r['floor'] * 1e6:9.2f} "
+            f"{r['baseline'] * 1e6:10.1f} {r['baseline'] / r['ours']:8.0f}x "
+            f"{r['ours'] / r['floor']:8.2f}x"
+        )
+    print(
+        "targets: paper >= 100x cheaper than the baseline and <= 2x the floor; "
+        "two_link_vertical >= 20x cheaper than the baseline\n"
+    )
+
+    side = 300 if args.quick else 700
+    t1 = throughput(PAPER, side, 1)
+    t2 = throughput(PAPER, side, 2)
+    print(
+        f"map throughput, paper model, {side}x{side} grid: 1 worker {t1:,.0f} poses/s, "
+        f"2 workers {t2:,.0f} poses/s: {t2 / t1:.2f}x (target >= 1.7x)\n"
+    )
+
+    n_mem = 200_000 if args.quick else 1_000_000
+    rss, mapped, seconds = peak_memory(PAPER, n_mem)
+    print(
+        f"peak memory of a {mapped:,}-pose map to zarr (subprocess, 1 worker): "
+        f"{rss:,.0f} MiB in {seconds:.1f} s (target < 1024 MiB)"
+    )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

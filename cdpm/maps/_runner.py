@@ -1,0 +1,277 @@
+"""Running map chunks: in-process, in local worker processes, or on Dask.
+
+Every executor runs the same function on the same chunks (the poses of a
+chunk are computed by the driver from the :class:`~cdpm.maps._plan.MapPlan`
+and sent along), returns the chunk's arrays to the driver, and the driver
+writes them, so results do not depend on where a chunk ran.
+
+Workers rebuild the robot from its spec: local processes from the spec
+path, Dask workers from the spec and URDF bytes shipped with each task (a
+remote worker need not see the driver's files); both check the spec hash.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+import sys
+import tempfile
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+from cdpm.errors import CdpmError, InputError, MissingExtraError
+
+__all__ = ["RobotSource", "run_chunks", "ProgressPrinter"]
+
+
+@dataclass(frozen=True)
+class RobotSource:
+    """How a worker rebuilds the robot: the spec path, its hash, and the
+    bytes of the spec and URDF (relative paths under their common folder)."""
+
+    spec_path: str
+    sha256: str
+    files: tuple[tuple[str, bytes], ...]
+    spec_relpath: str
+
+    @classmethod
+    def from_robot(cls, robot) -> RobotSource:
+        spec = Path(robot.spec.path).resolve()
+        urdf = Path(robot.spec.urdf_path).resolve()
+        root = Path(os.path.commonpath([spec.parent, urdf.parent]))
+        files = tuple((str(p.relative_to(root)), p.read_bytes()) for p in (spec, urdf))
+        return cls(str(spec), robot.spec.sha256, files, str(spec.relative_to(root)))
+
+    def load(self):
+        """The robot, from the spec path if it is there and unchanged, else
+        from the shipped bytes in a temporary folder."""
+        from cdpm.robot import load_robot
+
+        if Path(self.spec_path).is_file():
+            robot = load_robot(self.spec_path)
+            if robot.spec.sha256 == self.sha256:
+                return robot
+        folder = Path(tempfile.mkdtemp(prefix="cdpm-spec-"))
+        for rel, data in self.files:
+            target = folder / rel
+            target.parent.mkdir(parents=True, exist_ok=True)
+            target.write_bytes(data)
+        robot = load_robot(folder / self.spec_relpath)
+        if robot.spec.sha256 != self.sha256:
+            raise CdpmError("the shipped cable spec does not match its hash")  # pragma: no cover
+        return robot
+
+
+# --------------------------------------------------------------------------
+# worker side
+
+_LOCAL = threading.local()
+
+
+def _state(source: RobotSource):
+    """(robot, batch kinematics) of this thread, built once per spec hash
+    (robots hold Pinocchio data buffers, so threads do not share them)."""
+    cache = getattr(_LOCAL, "cache", None)
+    if cache is None:
+        cache = _LOCAL.cache = {}
+    if source.sha256 not in cache:
+        from cdpm.maps._kinematics import BatchKinematics
+
+        robot = source.load()
+        cache[source.sha256] = (robot, BatchKinematics(robot))
+    return cache[source.sha256]
+
+
+def compute_chunk(source: RobotSource, setting, index: int, natural) -> tuple[int, dict]:
+    """Evaluate one chunk in a worker; returns (index, arrays)."""
+    from cdpm.maps._evaluate import evaluate_poses
+
+    robot, batch = _state(source)
+    return index, evaluate_poses(robot, natural, setting, batch=batch)
+
+
+def _init_process() -> None:
+    # Ctrl-C goes to the whole process group: the driver handles it and
+    # stops the workers, which must not print tracebacks of their own
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+# --------------------------------------------------------------------------
+# progress
+
+
+class ProgressPrinter:
+    """A one-line progress bar on stderr: poses done, poses/s and ETA.
+
+    Args:
+        total: number of poses to compute in this run.
+        label: text before the bar.
+        stream: where to print (stderr by default).
+        interval: seconds between redraws.
+    """
+
+    def __init__(self, total: int, label: str = "map", stream=None, interval: float = 0.2):
+        self.total, self.label = total, label
+        self.stream = stream or sys.stderr
+        self.interval = interval
+        self.start = time.perf_counter()
+        self.last = 0.0
+        self.done = 0
+
+    def __call__(self, done: int, total: int, index: int | None = None) -> None:
+        self.done, self.total = done, total
+        now = time.perf_counter()
+        if now - self.last >= self.interval or done >= total:
+            self.last = now
+            self._draw(now)
+
+    def _draw(self, now: float) -> None:
+        elapsed = max(now - self.start, 1e-9)
+        rate = self.done / elapsed
+        frac = self.done / self.total if self.total else 1.0
+        width = 24
+        bar = "#" * int(round(frac * width))
+        eta = (self.total - self.done) / rate if rate > 0 else float("nan")
+        text = (
+            f"\r{self.label} [{bar:<{width}}] {self.done}/{self.total} poses "
+            f"{100 * frac:5.1f}%  {rate:,.0f} poses/s  ETA {_clock(eta)}"
+        )
+        self.stream.write(text)
+        if self.done >= self.total:
+            self.stream.write(f"  done in {_clock(elapsed)}\n")
+        self.stream.flush()
+
+
+def _clock(seconds: float) -> str:
+    if seconds != seconds or seconds == float("inf"):
+        return "--:--"
+    seconds = int(round(seconds))
+    h, rest = divmod(seconds, 3600)
+    m, s = divmod(rest, 60)
+    return f"{h}:{m:02d}:{s:02d}" if h else f"{m:02d}:{s:02d}"
+
+
+# --------------------------------------------------------------------------
+# driver side
+
+
+def run_chunks(
+    robot,
+    plan,
+    setting,
+    todo: list[int],
+    sink,
+    workers: int,
+    scheduler,
+    progress: Callable[[int, int, int], None] | None,
+) -> None:
+    """Compute the chunks ``todo`` and write each to ``sink`` as it finishes."""
+    total = sum(plan.chunk_size(k) for k in todo)
+    state = {"done": 0}
+
+    def finished(index: int, data: dict) -> None:
+        sink.write(index, data)
+        state["done"] += plan.chunk_size(index)
+        if progress is not None:
+            progress(state["done"], total, index)
+
+    if progress is not None:
+        progress(0, total, -1)
+    if not todo:
+        return
+    if scheduler is not None:
+        _run_dask(robot, plan, setting, todo, finished, scheduler)
+    elif workers <= 1 or len(todo) == 1:
+        from cdpm.maps._evaluate import evaluate_poses
+        from cdpm.maps._kinematics import BatchKinematics
+
+        batch = BatchKinematics(robot)
+        for index in todo:
+            finished(index, evaluate_poses(robot, plan.natural(index), setting, batch=batch))
+    else:
+        _run_processes(robot, plan, setting, todo, finished, workers)
+
+
+def _context():
+    methods = multiprocessing.get_all_start_methods()
+    return multiprocessing.get_context("forkserver" if "forkserver" in methods else "spawn")
+
+
+def _run_processes(robot, plan, setting, todo, finished, workers: int) -> None:
+    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+
+    source = RobotSource.from_robot(robot)
+    pending = list(reversed(todo))
+    executor = ProcessPoolExecutor(
+        max_workers=min(workers, len(todo)), mp_context=_context(), initializer=_init_process
+    )
+    running = set()
+    try:
+        while pending or running:
+            while pending and len(running) < 2 * workers:
+                index = pending.pop()
+                running.add(
+                    executor.submit(compute_chunk, source, setting, index, plan.natural(index))
+                )
+            done, running = wait(running, return_when=FIRST_COMPLETED)
+            for future in done:
+                finished(*future.result())
+    except BaseException:
+        for future in running:
+            future.cancel()
+        # stop the workers now rather than after their current chunk
+        for process in list(getattr(executor, "_processes", {}).values()):
+            process.terminate()
+        executor.shutdown(wait=False, cancel_futures=True)
+        raise
+    executor.shutdown(wait=True)
+
+
+def _run_dask(robot, plan, setting, todo, finished, scheduler) -> None:
+    try:
+        import distributed
+    except ImportError as exc:
+        raise MissingExtraError(
+            "running a map on a Dask cluster needs dask.distributed: pip install 'cdpm[dask]'"
+        ) from exc
+    own = isinstance(scheduler, str)
+    if own:
+        try:
+            client = distributed.Client(scheduler, timeout="20s")
+        except (OSError, TimeoutError) as exc:
+            raise InputError(
+                f"cannot reach the Dask scheduler at {scheduler!r}: {exc}; start one with "
+                "`dask scheduler` (and workers with `dask worker ADDRESS`) or drop --scheduler "
+                "to use local processes"
+            ) from exc
+    else:
+        client = scheduler
+    try:
+        source = RobotSource.from_robot(robot)
+        n_workers = max(1, sum(client.nthreads().values()))
+        pending = list(reversed(todo))
+        queue = distributed.as_completed()
+
+        def submit() -> None:
+            index = pending.pop()
+            queue.add(
+                client.submit(
+                    compute_chunk, source, setting, index, plan.natural(index), pure=False
+                )
+            )
+
+        for _ in range(min(len(pending), 2 * n_workers)):
+            submit()
+        for future in queue:
+            finished(*future.result())
+            future.release()
+            if pending:
+                submit()
+    finally:
+        if own:
+            client.close()

@@ -1,0 +1,301 @@
+"""Where map chunks go: a zarr store on disk (resumable) or memory.
+
+Zarr layout (readable with ``xarray.open_zarr``): one array per data
+variable, chunked like the map's chunks, so each map chunk is written by a
+region write into its own zarr chunks; coordinates and provenance attributes
+are written when the store is created. Resumption bookkeeping lives beside
+the arrays, in ``<store>/.cdpm/`` (zarr ignores it):
+
+- ``created``: written once the skeleton (every array and attribute) exists;
+- ``done/<k>``: written after chunk k's data is in the store. Files appear
+  in that order, so after a crash (Ctrl-C, SIGKILL) every chunk with a
+  marker is complete and the others are recomputed from scratch.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from cdpm.errors import InputError
+from cdpm.maps._evaluate import CODE_FIELDS, STATUS_CODES, VERDICT_CODES
+from cdpm.maps._plan import MapPlan, coordinate_units, settings_difference
+
+__all__ = ["ZarrSink", "MemorySink", "open_map", "variable_specs"]
+
+_META = ".cdpm"
+_VERDICT_DOC = {
+    "poc": "positive output controllability of the linearisation (seed paper Theorem 1)",
+    "output_controllable": "output controllability: rank [CB CAB ...] = p",
+    "positive_controllable": "positive (state) controllability, Brammer's test",
+    "wrench_closure": "wrench closure: the columns of -L^T positively span R^nv",
+    "static_feasible": "static feasibility: a tension within the bounds holds the pose",
+}
+
+
+def _flag_attrs(codes: dict[str, int]) -> dict:
+    return {
+        "flag_values": [int(v) for v in codes.values()],
+        "flag_meanings": " ".join(codes),
+    }
+
+
+def variable_specs(robot, plan: MapPlan) -> dict[str, tuple]:
+    """name -> (extra dims, dtype, fill value, attrs) of every data variable."""
+    specs: dict[str, tuple] = {}
+    for name in CODE_FIELDS:
+        attrs = {"long_name": _VERDICT_DOC[name], **_flag_attrs(VERDICT_CODES)}
+        specs[name] = ((), "int8", -1, attrs)
+    specs["poc_margin"] = (
+        (),
+        "float64",
+        np.nan,
+        {
+            "long_name": "POC margin mu_T (positive iff POC; 0 when not)",
+            "description": "inradius about 0 of the outputs reachable at the horizon with unit "
+            "input impulses (cdpm.analysis POCResult.margin)",
+        },
+    )
+    for name, word in (("tension_min", "smallest"), ("tension_max", "largest")):
+        specs[name] = (
+            (),
+            "float64",
+            np.nan,
+            {"long_name": f"{word} equilibrium cable tension", "units": "N"},
+        )
+    frame = robot.spec.outputs[0].frame if robot.spec.outputs else ""
+    specs["y"] = (("output",), "float64", np.nan, {"long_name": "outputs y = h(q)", "units": "m"})
+    specs["output_frame_position"] = (
+        ("xyz",),
+        "float64",
+        np.nan,
+        {
+            "long_name": f"world position of frame {frame!r} (first output)",
+            "units": "m",
+            "frame": frame,
+        },
+    )
+    specs["status"] = ((), "int8", -1, {"long_name": "pose status", **_flag_attrs(STATUS_CODES)})
+    return specs
+
+
+def _attrs(robot, plan: MapPlan) -> dict:
+    s = plan.settings
+    return {
+        "title": f"cdpm workspace map of {robot.spec.path.name}",
+        "cdpm_version": s["cdpm_version"],
+        "spec": str(robot.spec.path),
+        "spec_sha256": s["spec_sha256"],
+        "axes": list(plan.names),
+        "mode": plan.mode,
+        "base": s["base"],
+        "coordinates": s["coordinates"],
+        "tension": json.dumps(s["tension"]),
+        "chunk_size": s["chunk_size"],
+        "cdpm_settings": json.dumps(s, sort_keys=True),
+    }
+
+
+def _coords(robot, plan: MapPlan) -> dict:
+    units = dict(zip(robot.coordinate_names, coordinate_units(robot.model), strict=True))
+    coords: dict = {}
+    if plan.mode == "grid":
+        for name, v in zip(plan.names, plan.values, strict=True):
+            coords[name] = (name, v, {"units": units[name], "long_name": name})
+    else:
+        coords["sample"] = ("sample", np.arange(plan.shape[0]))
+        for name, v in zip(plan.names, plan.values, strict=True):
+            coords[name] = ("sample", v, {"units": units[name], "long_name": name})
+    coords["output"] = ("output", np.array(robot.output_names, dtype=str))
+    coords["xyz"] = ("xyz", np.array(["x", "y", "z"]))
+    return coords
+
+
+def _extra_size(robot, dim: str) -> int:
+    return robot.n_outputs if dim == "output" else 3
+
+
+class MemorySink:
+    """Chunks written into numpy arrays; :meth:`dataset` wraps them."""
+
+    def __init__(self, robot, plan: MapPlan):
+        self.robot, self.plan = robot, plan
+        self.specs = variable_specs(robot, plan)
+        self.arrays = {
+            name: np.full(
+                plan.shape + tuple(_extra_size(robot, d) for d in extra), fill, dtype=dtype
+            )
+            for name, (extra, dtype, fill, _) in self.specs.items()
+        }
+
+    def done(self) -> set[int]:
+        return set()
+
+    def write(self, index: int, data: dict) -> None:
+        region = self.plan.region(index)
+        shape = tuple(s.stop - s.start for s in region)
+        for name, arr in self.arrays.items():
+            value = data[name]
+            arr[region] = value.reshape(shape + value.shape[1:])
+
+    def dataset(self):
+        import xarray as xr
+
+        dims = self.plan.dims
+        data_vars = {
+            name: (dims + extra, self.arrays[name], attrs)
+            for name, (extra, _, _, attrs) in self.specs.items()
+        }
+        return xr.Dataset(
+            data_vars, coords=_coords(self.robot, self.plan), attrs=_attrs(self.robot, self.plan)
+        )
+
+
+class ZarrSink:
+    """A resumable zarr store on the local file system.
+
+    Args:
+        path: directory of the store (``*.zarr`` by convention).
+        robot, plan: what is mapped.
+        overwrite: delete an existing store at ``path`` first.
+
+    Raises:
+        InputError: ``path`` holds a store made with other settings (or
+            something that is not a cdpm map) and ``overwrite`` is False.
+    """
+
+    def __init__(self, path, robot, plan: MapPlan, overwrite: bool = False):
+        self.path = Path(path).expanduser()
+        self.robot, self.plan = robot, plan
+        self.specs = variable_specs(robot, plan)
+        created = self.path / _META / "created"
+        if self.path.exists():
+            is_map = created.is_file()
+            if overwrite or (not is_map and (self.path / _META).is_dir()):
+                # a map killed while its skeleton was written is remade
+                self._remove()
+            elif not is_map:
+                raise InputError(
+                    f"{self.path} exists and is not a cdpm map store; choose another output "
+                    "path (--out) or pass overwrite=True (--overwrite) to replace it"
+                )
+            else:
+                self._check_settings()
+        if not created.is_file():
+            self._create()
+        self._done_dir = self.path / _META / "done"
+        self._group = None
+
+    def _remove(self) -> None:
+        if (
+            self.path.is_dir()
+            and not ((self.path / "zarr.json").is_file() or (self.path / _META).is_dir())
+            and any(self.path.iterdir())
+        ):
+            raise InputError(
+                f"{self.path} is a non-empty directory that is not a zarr store; refusing to "
+                "delete it: choose another output path (--out)"
+            )
+        if self.path.is_dir():
+            shutil.rmtree(self.path)
+        else:
+            self.path.unlink()
+
+    def _check_settings(self) -> None:
+        import zarr
+
+        group = zarr.open_group(str(self.path), mode="r")
+        stored = json.loads(group.attrs.get("cdpm_settings", "{}"))
+        diff = settings_difference(stored, self.plan.settings)
+        if diff:
+            lines = "\n".join(f"  - {d}" for d in diff)
+            raise InputError(
+                f"{self.path} holds a map made with different settings, so it cannot be "
+                f"resumed:\n{lines}\nwrite to a new store (another --out path) or replace it "
+                "(--overwrite, or overwrite=True)"
+            )
+
+    def _create(self) -> None:
+        import xarray as xr
+        import zarr
+
+        plan = self.plan
+        skeleton = xr.Dataset(coords=_coords(self.robot, plan), attrs=_attrs(self.robot, plan))
+        with warnings.catch_warnings():
+            # zarr v3: string coordinates and consolidated metadata are not
+            # in the v3 spec yet; xarray and zarr-python read both fine
+            warnings.simplefilter("ignore", UserWarning)
+            warnings.simplefilter("ignore", FutureWarning)
+            skeleton.to_zarr(str(self.path), mode="w", consolidated=False, zarr_format=3)
+            group = zarr.open_group(str(self.path), mode="r+")
+            for name, (extra, dtype, fill, attrs) in self.specs.items():
+                extra_shape = tuple(_extra_size(self.robot, d) for d in extra)
+                group.create_array(
+                    name,
+                    shape=plan.shape + extra_shape,
+                    chunks=plan.chunks + extra_shape,
+                    dtype=dtype,
+                    fill_value=fill,
+                    dimension_names=list(plan.dims + extra),
+                    attributes=attrs,
+                )
+            zarr.consolidate_metadata(str(self.path))
+        meta = self.path / _META
+        (meta / "done").mkdir(parents=True, exist_ok=True)
+        _touch(meta / "created")
+
+    def done(self) -> set[int]:
+        """Indices of the chunks whose data is complete in the store."""
+        if not self._done_dir.is_dir():
+            return set()
+        return {int(p.name) for p in self._done_dir.iterdir() if p.name.isdigit()}
+
+    def write(self, index: int, data: dict) -> None:
+        """Write chunk ``index`` (region write), then its done marker."""
+        import zarr
+
+        if self._group is None:
+            self._group = zarr.open_group(str(self.path), mode="r+")
+        region = self.plan.region(index)
+        shape = tuple(s.stop - s.start for s in region)
+        for name in self.specs:
+            value = data[name]
+            self._group[name][region] = value.reshape(shape + value.shape[1:])
+        _touch(self._done_dir / str(index))
+
+    def dataset(self):
+        return open_map(self.path)
+
+
+def _touch(path: Path) -> None:
+    """Create an empty marker file atomically (rename of a temporary file)."""
+    tmp = path.with_name(path.name + ".tmp")
+    with open(tmp, "wb") as fh:
+        fh.flush()
+    os.replace(tmp, path)
+
+
+def open_map(path):
+    """Open a map store written by :func:`cdpm.workspace_map` as an
+    ``xarray.Dataset`` (lazily loaded; no Dask needed).
+
+    Raises:
+        InputError: ``path`` is not a cdpm map store.
+    """
+    import xarray as xr
+
+    p = Path(path).expanduser()
+    if not (p / "zarr.json").is_file() and not (p / ".zgroup").is_file():
+        raise InputError(f"{p} is not a zarr store; make one with `cdpm map SPEC ... --out {p}`")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        warnings.simplefilter("ignore", FutureWarning)
+        ds = xr.open_zarr(str(p), chunks=None)
+    if "cdpm_settings" not in ds.attrs:
+        raise InputError(f"{p} is a zarr store but not a cdpm map (no cdpm_settings attribute)")
+    return ds
