@@ -64,7 +64,7 @@ def reference(A, B, C, mask):
     spread = lam.real.max() - lam.real.min()
     if spread > 0:
         T = min(T, 18.0 / spread)
-    ts = np.linspace(0, T, 4001)
+    ts = np.linspace(0, T, 1501)
     E = expm(A * (ts[1] - ts[0]))
     X, cols = B.copy(), []
     for _ in ts:
@@ -74,6 +74,8 @@ def reference(A, B, C, mask):
         for t in T * np.array([2.0, 4.0, 8.0]):
             cols.append(C @ expm(A * t) @ B)
     G = np.array(cols)  # (N, p, m)
+    # thin out times (never inputs) to keep the LPs small
+    G = G[:: max(1, G.shape[0] // 400)]
     p = C.shape[0]
     S = [G[:, :, mask].transpose(1, 0, 2).reshape(p, -1)]
     if (~mask).any():
@@ -84,7 +86,6 @@ def reference(A, B, C, mask):
     if not np.isfinite(S).all() or norms.max() == 0:
         return None
     U = S[:, norms > 1e-9 * norms.max()] / norms[norms > 1e-9 * norms.max()]
-    U = U[:, :: max(1, U.shape[1] // 1500)]
     k = U.shape[1]
     # max s: U w = 0, w >= s, sum w = k
     res = linprog(
@@ -114,7 +115,7 @@ def reference(A, B, C, mask):
 
 @settings(
     derandomize=True,
-    max_examples=160,
+    max_examples=120,
     deadline=None,
     suppress_health_check=[HealthCheck.too_slow],
 )

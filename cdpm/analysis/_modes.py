@@ -78,7 +78,7 @@ def default_horizon(eigvals: np.ndarray) -> float:
     growth = eigvals.real.max()
     if growth > 1e-6:
         # responses grow like e^{growth t}: stop before they dwarf everything
-        T = min(T, max(10.0, 100.0 / growth))
+        T = min(T, max(10.0, 30.0 / growth))
     return min(T, HORIZON_MAX)
 
 
@@ -133,11 +133,9 @@ def prove_nonpositive(ev: Evaluator, v: np.ndarray, j: int, T: float):
     if lead.size == 0:
         return True, {"input": j, "identically_zero": True}, []
     k0 = int(lead[0])
-    if coeff[k0] > 0:
-        return False, {"input": j, "reason": "positive near t = 0"}, [min(1e-3, T * 1e-3)]
     fac = np.array([math.factorial(k) for k in range(K + 2)], dtype=float)
     t1 = None
-    for i in range(0, 40):
+    for i in range(0, 60):
         t = min(1.0, T) * 2.0**-i
         ks = np.arange(k0 + 1, K + 1)
         rem = np.sum(np.abs(coeff[ks]) * t ** (ks - k0) / fac[ks])
@@ -147,6 +145,9 @@ def prove_nonpositive(ev: Evaluator, v: np.ndarray, j: int, T: float):
             break
     if t1 is None:
         return False, {"input": j, "reason": "no Taylor interval"}, []
+    if coeff[k0] > 0:
+        # f > 0 on (0, t1]: hand those times to the exchange step
+        return False, {"input": j, "reason": "positive near t = 0"}, [t1, t1 / 2]
     data = {"input": j, "taylor_order": k0, "taylor_coefficient": float(coeff[k0]), "t1": t1}
     if not ev.modal:
         return False, {**data, "reason": "A is defective or ill-conditioned: no tail bound"}, []

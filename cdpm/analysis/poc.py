@@ -692,10 +692,16 @@ class _Scaled:
         As, Bs, Cs, _, col, row, rho = scaled_system(sub.A, sub.Bp, sub.Cr)
         self.As, self.Bs, self.Cs, self.col, self.row, self.rho = As, Bs, Cs, col, row, rho
         self.ev = _modes.Evaluator(As, Bs, Cs)
+        lam = self.ev.eigvals if As.size else np.zeros(1)
+        spread = float(lam.real.max() - lam.real.min())
+        self.t_max = 27.0 / spread if spread > 1e-12 else np.inf
 
     def columns(self, ts):
         """Sample columns (r, N*m), column k*m + j = g_j(ts[k]); times whose
         responses overflow are dropped (returned ``ts`` is filtered)."""
+        # past a modal dynamic range of e^27 (~1e12) double precision no
+        # longer resolves the slower directions: sample up to there only
+        ts = ts[ts <= self.t_max]
         with np.errstate(over="ignore", invalid="ignore"):
             G = self.ev(ts)  # (N, r, m)
         ok = np.isfinite(G).all(axis=(1, 2)) & (np.abs(G).max(axis=(1, 2)) < 1e150)
@@ -726,9 +732,10 @@ def _sample_search(sub, T, sc=None, extra=None):
 
 def _cert_from_columns(sub, sc, S, ts, m, idx, w):
     idx = np.asarray(idx)
-    norms = np.linalg.norm(S[:, idx], axis=0)
-    wr = np.asarray(w) / norms  # weights on raw scaled columns
     k, j = idx // m, idx % m
+    # span_core's weights refer to unit columns; re-evaluate the raw ones
+    raw = sc.ev(ts[k])[np.arange(k.size), :, j]  # (K, r)
+    wr = np.asarray(w) / np.linalg.norm(raw, axis=1)  # weights on raw scaled columns
     # raw scaled g_s = row * g * col_j, so sum wr g_s = 0 <=> sum (wr col_j) g = 0
     return sub.yes(ts[k] / sc.rho, j, wr * sc.col[j])
 
@@ -853,6 +860,14 @@ def poc_margin(res: POCResult) -> tuple[float, float]:
         last = int(np.argmin(ok)) if not ok.all() else ok.size
         ts, G, D = ts[:last], G[:last], D[:last]
         lip = float(np.max(np.linalg.norm(D, axis=1))) * 1.1
+    cert = res.certificate
+    if cert.kind == "positive-span" and cert.times.size and not _is_square_zero(A):
+        # the certificate's own times: mu_T > 0 is then visible on the grid
+        extra = np.unique(cert.times[cert.times <= T])
+        with np.errstate(over="ignore", invalid="ignore"):
+            Ge = np.array([Cw @ (expm(A * t) @ Bw) for t in extra])
+        if Ge.size and np.isfinite(Ge).all():
+            G = np.concatenate([G, Ge])
     cols = [G[:, :, mask].transpose(1, 0, 2).reshape(p, -1)]
     if (~mask).any():
         Gf = G[:, :, ~mask].transpose(1, 0, 2).reshape(p, -1)
@@ -860,6 +875,13 @@ def poc_margin(res: POCResult) -> tuple[float, float]:
     S = np.hstack(cols)
     yes = span_core(S, SPAN_TOL)[0]
     mu = span_margin(S, yes)
+    if res.verdict is Verdict.YES and cert.vectors is not None:
+        # conv(certificate) lies in conv(samples): its inradius is a lower
+        # bound too, and robust when a growing system dwarfs early samples
+        s_in = np.ones(B.shape[1]) if res.input_scale is None else res.input_scale
+        w_out = np.ones(p) if res.output_weight is None else res.output_weight
+        Sc = cert.vectors * cert.signs * s_in[cert.inputs] * w_out[:, None]
+        mu = max(mu, span_margin(Sc, True))
     hi = mu + lip * (ts[1] - ts[0]) / 2 if ts.size > 1 else mu
     if res.verdict is not Verdict.YES:
         mu, hi = min(mu, 0.0), min(hi, 0.0)
