@@ -18,7 +18,13 @@ from cdpm.errors import CdpmError
 __all__ = ["main", "build_parser"]
 
 #: command modules, in the order ``cdpm --help`` lists them
-COMMAND_MODULES = ("cdpm.commands.analyze", "cdpm.commands.view", "cdpm.commands.picture")
+COMMAND_MODULES = (
+    "cdpm.commands.analyze",
+    "cdpm.commands.view",
+    "cdpm.commands.picture",
+    "cdpm.commands.map",
+    "cdpm.commands.plot",
+)
 
 _EPILOG = """\
 examples:

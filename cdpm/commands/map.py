@@ -1,0 +1,184 @@
+"""``cdpm map``: a workspace map of verdicts over a grid or random poses."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+NAME = "map"
+HELP = "map positive output controllability over a grid or random poses (zarr store)"
+DESCRIPTION = """\
+Sweep the robot over a grid of natural coordinates (or random samples), decide
+at every pose positive output controllability (seed paper Theorem 1), output
+and positive controllability, wrench closure and static feasibility, and write
+the map chunk by chunk into a zarr store. Re-running the same command on the
+same store resumes an interrupted map; coordinates not on an axis stay at the
+base pose."""
+EPILOG = """\
+examples:
+  cdpm map models/two_link_planar/two_link_planar.yaml \\
+      --axis q1=-pi:pi:181 --axis q2=-pi:pi:181 --out map.zarr --plot map.png
+  cdpm map SPEC --axis q1=-pi:pi --axis q2=-pi:pi --samples 100000 --seed 1 --out s.zarr
+  cdpm map SPEC --axis q1=0:1.5:61 --base q2=pi/3 --workers 2 --out slice.zarr
+  cdpm map SPEC --axis q1=-pi:pi:721 --axis q2=-pi:pi:721 --scheduler tcp://host:8786 \\
+      --out big.zarr
+
+AXIS is NAME=LOW:HIGH:COUNT (a grid of COUNT values), NAME=V1,V2,... (given
+values) or, with --samples, NAME=LOW:HIGH (a sampling range); values accept
+arithmetic such as -pi/2. NAME is a coordinate of the robot (a joint name, or
+root.x style free-flyer coordinates; `cdpm analyze SPEC` lists them)."""
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("spec", metavar="SPEC", help="cable spec YAML file (or its model folder)")
+    parser.add_argument(
+        "--axis",
+        action="append",
+        required=True,
+        metavar="AXIS",
+        help="NAME=LOW:HIGH:COUNT, NAME=V1,V2,... or (with --samples) NAME=LOW:HIGH",
+    )
+    parser.add_argument("--out", metavar="STORE", help="zarr store to write (and resume)")
+    parser.add_argument("--plot", metavar="PNG", help="also draw the map into this image")
+    parser.add_argument("--samples", type=int, metavar="N", help="N random poses instead of a grid")
+    parser.add_argument("--seed", type=int, default=0, metavar="S", help="random seed (default 0)")
+    parser.add_argument(
+        "--base",
+        nargs="+",
+        metavar="VALUE",
+        help="pose of the other coordinates: a pose name, NAME=VALUE pairs or "
+        "all values (default: the spec's first pose)",
+    )
+    parser.add_argument(
+        "--tension",
+        metavar="METHOD",
+        help="equilibrium tension method: zero, min_norm or pretension (default: the spec's)",
+    )
+    parser.add_argument(
+        "--workers",
+        type=int,
+        metavar="N",
+        help="local worker processes (default: one per CPU; 1 = in this process)",
+    )
+    parser.add_argument(
+        "--scheduler",
+        metavar="ADDR",
+        help="run on a Dask distributed scheduler, e.g. tcp://127.0.0.1:8786",
+    )
+    parser.add_argument("--chunk-size", type=int, metavar="N", help="poses per chunk")
+    parser.add_argument(
+        "--overwrite", action="store_true", help="replace an existing store instead of resuming it"
+    )
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def parse_axis(text: str, sampled: bool):
+    """(name, values or (low, high)) from NAME=LOW:HIGH:COUNT, NAME=V1,V2 or NAME=LOW:HIGH."""
+    import numpy as np
+
+    from cdpm.errors import InputError
+    from cdpm.spec import parse_number
+
+    name, sep, rest = text.partition("=")
+    name = name.strip()
+    if not sep or not name or not rest.strip():
+        raise InputError(f"--axis {text!r}: expected NAME=LOW:HIGH:COUNT or NAME=V1,V2,...")
+
+    def number(token: str) -> float:
+        try:
+            return parse_number(token.strip())
+        except ValueError as exc:
+            raise InputError(f"--axis {text!r}: {exc}") from exc
+
+    if ":" in rest:
+        parts = rest.split(":")
+        if sampled:
+            if len(parts) != 2:
+                raise InputError(f"--axis {text!r}: with --samples give a range NAME=LOW:HIGH")
+            return name, (number(parts[0]), number(parts[1]))
+        if len(parts) != 3:
+            raise InputError(f"--axis {text!r}: expected NAME=LOW:HIGH:COUNT")
+        try:
+            count = int(parts[2])
+        except ValueError as exc:
+            raise InputError(f"--axis {text!r}: COUNT must be an integer") from exc
+        if count < 1:
+            raise InputError(f"--axis {text!r}: COUNT must be at least 1")
+        return name, np.linspace(number(parts[0]), number(parts[1]), count)
+    if sampled:
+        raise InputError(f"--axis {text!r}: with --samples give a range NAME=LOW:HIGH")
+    return name, np.array([number(t) for t in rest.split(",") if t.strip()])
+
+
+def parse_base(tokens):
+    """A pose name, {name: value} or a list of values from --base tokens."""
+    from cdpm.errors import InputError
+
+    if not tokens:
+        return None
+    if len(tokens) == 1 and "=" not in tokens[0]:
+        token = tokens[0]
+        try:
+            from cdpm.spec import parse_number
+
+            return [parse_number(token)]
+        except ValueError:
+            return token  # a pose name
+    if all("=" in t for t in tokens):
+        pairs = {}
+        for t in tokens:
+            k, _, v = t.partition("=")
+            pairs[k.strip()] = v.strip()
+        return pairs
+    if any("=" in t for t in tokens):
+        raise InputError("--base takes a pose name, NAME=VALUE pairs or all values, not a mix")
+    return list(tokens)
+
+
+def run(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from cdpm.maps import STATUS_CODES, VERDICT_CODES, workspace_map
+    from cdpm.robot import load_robot
+
+    robot = load_robot(args.spec)
+    sampled = args.samples is not None
+    axes = dict(parse_axis(a, sampled) for a in args.axis)
+    base = parse_base(args.base)
+    if isinstance(base, list):
+        base = robot.configuration(base)
+    ds = workspace_map(
+        robot,
+        axes,
+        base=base,
+        tension=args.tension,
+        samples=args.samples,
+        seed=args.seed,
+        workers=args.workers,
+        scheduler=args.scheduler,
+        store=args.out,
+        overwrite=args.overwrite,
+        chunk_size=args.chunk_size,
+        progress=not args.quiet,
+    )
+    poc = np.asarray(ds["poc"].values)
+    status = np.asarray(ds["status"].values)
+    total = poc.size
+    words = ", ".join(
+        f"{name} {int((poc == code).sum())} ({100 * (poc == code).mean():.1f}%)"
+        for name, code in VERDICT_CODES.items()
+        if (poc == code).any()
+    )
+    print(f"{robot.spec.path.name}: {total} poses; positive output controllable: {words}")
+    flagged = {n: int((status == c).sum()) for n, c in STATUS_CODES.items() if c > 0}
+    flagged = {n: k for n, k in flagged.items() if k}
+    if flagged:
+        print("flagged poses: " + ", ".join(f"{n} {k}" for n, k in flagged.items()))
+    if args.out:
+        print(f"map written to {args.out}")
+    if args.plot:
+        from cdpm.plotting import save_map_plot
+
+        save_map_plot(ds, args.plot)
+        print(f"plot written to {args.plot}", file=sys.stderr if args.quiet else sys.stdout)
+    return 0

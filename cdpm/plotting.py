@@ -1,0 +1,281 @@
+"""Pictures of workspace maps (matplotlib, imported on first use).
+
+:func:`plot_map` draws a map made by :func:`cdpm.workspace_map` (or read
+with :func:`cdpm.maps.open_map`) as one figure:
+
+- the verdict (categorical colours with a legend) over the first two axes,
+  with axis labels in the coordinates' names and units;
+- the POC margin with a diverging colour map centred at 0;
+- for more than two axes, small multiples: slices of the verdict along the
+  third axis (further axes at their middle value);
+- an output-space view: each pose at its outputs y (or at the position of
+  the first output's frame when p = 1), coloured by verdict.
+
+Random-sample maps are drawn as scatter plots in the first two coordinates.
+Figures are built with the object-oriented API (no pyplot state), so it
+works headless; :func:`save_map_plot` writes a PNG.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from cdpm.errors import InputError, MissingExtraError
+
+__all__ = ["plot_map", "save_map_plot", "VERDICT_COLORS"]
+
+#: colour of each verdict code (yes, no, marginal, not analysed)
+VERDICT_COLORS = {1: "#2e9e44", 0: "#d4453a", 2: "#f2a33a", -1: "#c8c8c8"}
+_VERDICT_LABELS = {1: "yes", 0: "no", 2: "marginal", -1: "not analysed"}
+_ORDER = (-1, 0, 2, 1)  # colour-map index order
+
+
+def _matplotlib():
+    try:
+        import matplotlib
+        from matplotlib.figure import Figure
+    except ImportError as exc:
+        raise MissingExtraError("plots need matplotlib: pip install 'cdpm[plot]'") from exc
+    return matplotlib, Figure
+
+
+def _load(ds_or_path):
+    if isinstance(ds_or_path, (str, os.PathLike)):
+        from cdpm.maps import open_map
+
+        return open_map(ds_or_path)
+    return ds_or_path
+
+
+def _label(ds, name: str) -> str:
+    units = ds[name].attrs.get("units")
+    return f"{name} [{units}]" if units else name
+
+
+def _verdict_cmap(matplotlib):
+    from matplotlib.colors import BoundaryNorm, ListedColormap
+
+    cmap = ListedColormap([VERDICT_COLORS[c] for c in _ORDER])
+    norm = BoundaryNorm(np.arange(len(_ORDER) + 1) - 0.5, len(_ORDER))
+    return cmap, norm
+
+
+def _verdict_index(codes: np.ndarray) -> np.ndarray:
+    index = np.zeros(codes.shape, dtype=int)
+    for k, c in enumerate(_ORDER):
+        index[codes == c] = k
+    return index
+
+
+def _legend(ax, codes: np.ndarray, variable: str) -> None:
+    from matplotlib.patches import Patch
+
+    present = [c for c in (1, 0, 2, -1) if np.any(codes == c)]
+    handles = [
+        Patch(facecolor=VERDICT_COLORS[c], edgecolor="0.3", label=_VERDICT_LABELS[c])
+        for c in present
+    ]
+    ax.legend(
+        handles=handles,
+        title=variable,
+        loc="upper right",
+        fontsize=8,
+        title_fontsize=8,
+        framealpha=0.85,
+    )
+
+
+def _pose_dims(ds) -> list[str]:
+    return [d for d in ds["poc"].dims if d not in ("output", "xyz")]
+
+
+def _grid_panel(ax, ds, variable: str, x: str, y: str, index: dict, kind: str, fig):
+    da = ds[variable].isel(index).transpose(y, x)
+    xv, yv = ds[x].values, ds[y].values
+    values = np.asarray(da.values)
+    if kind == "verdict":
+        matplotlib, _ = _matplotlib()
+        cmap, norm = _verdict_cmap(matplotlib)
+        ax.pcolormesh(xv, yv, _verdict_index(values), cmap=cmap, norm=norm, shading="nearest")
+    else:
+        from matplotlib.colors import TwoSlopeNorm
+
+        finite = values[np.isfinite(values)]
+        span = float(np.max(np.abs(finite))) if finite.size else 1.0
+        span = span if span > 0 else 1.0
+        mesh = ax.pcolormesh(
+            xv, yv, values, cmap="RdBu", norm=TwoSlopeNorm(0.0, -span, span), shading="nearest"
+        )
+        fig.colorbar(mesh, ax=ax, shrink=0.85, label=variable)
+    ax.set_xlabel(_label(ds, x))
+    ax.set_ylabel(_label(ds, y))
+    return values
+
+
+def _output_view(ax, ds, variable: str) -> None:
+    codes = np.asarray(ds[variable].values).reshape(-1)
+    if ds.sizes.get("output", 0) >= 2:
+        pts = np.asarray(ds["y"].values).reshape(-1, ds.sizes["output"])[:, :2]
+        names = [str(n) for n in ds["output"].values[:2]]
+        xlabel, ylabel = f"{names[0]} [m]", f"{names[1]} [m]"
+    else:
+        pts = np.asarray(ds["output_frame_position"].values).reshape(-1, 3)
+        frame = ds["output_frame_position"].attrs.get("frame", "frame")
+        spread = np.nanstd(pts, axis=0)
+        axes = np.argsort(spread)[::-1][:2]
+        axes.sort()
+        pts = pts[:, axes]
+        xlabel = f"{frame} {'xyz'[axes[0]]} [m]"
+        ylabel = f"{frame} {'xyz'[axes[1]]} [m]"
+    size = max(1.0, 4000.0 / max(len(codes), 1))
+    for c in (1, -1, 2, 0):  # the rarer verdicts on top
+        sel = codes == c
+        if sel.any():
+            ax.scatter(
+                pts[sel, 0],
+                pts[sel, 1],
+                s=size,
+                c=VERDICT_COLORS[int(c)],
+                linewidths=0,
+                label=_VERDICT_LABELS[int(c)],
+                rasterized=True,
+            )
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_title(f"output space, coloured by {variable}", fontsize=10)
+    _legend(ax, codes, variable)
+
+
+def plot_map(
+    ds_or_path: Any,
+    *,
+    variable: str = "poc",
+    margin: bool = True,
+    output_view: bool = True,
+    max_slices: int = 6,
+    title: str | None = None,
+):
+    """Draw a workspace map.
+
+    Args:
+        ds_or_path: the ``xarray.Dataset`` of :func:`cdpm.workspace_map` or
+            the path of its zarr store.
+        variable: verdict variable to colour by (``poc``, ``wrench_closure``,
+            ``positive_controllable``, ``output_controllable``, ``static_feasible``).
+        margin: add the ``poc_margin`` panel.
+        output_view: add the output-space panel.
+        max_slices: most slices drawn for maps of more than two axes.
+        title: figure title (default: spec name and settings).
+
+    Returns:
+        ``matplotlib.figure.Figure``.
+    """
+    _, Figure = _matplotlib()
+    ds = _load(ds_or_path)
+    if variable not in ds or "flag_values" not in ds[variable].attrs:
+        choices = [v for v in ds.data_vars if "flag_values" in ds[v].attrs and v != "status"]
+        raise InputError(f"{variable!r} is not a verdict of this map; choose one of {choices}")
+    dims = _pose_dims(ds)
+    sample = dims == ["sample"]
+    axes_names = list(ds.attrs.get("axes", dims))
+    panels: list[str] = []
+    slices: list[dict] = [{}]
+    if not sample and len(dims) > 2:
+        third = dims[2]
+        n3 = ds.sizes[third]
+        picks = np.unique(np.linspace(0, n3 - 1, min(max_slices, n3)).round().astype(int))
+        rest = {d: ds.sizes[d] // 2 for d in dims[3:]}
+        slices = [{third: int(k), **rest} for k in picks]
+    panels += ["verdict"] * len(slices)
+    if margin:
+        panels.append("margin")
+    if output_view:
+        panels.append("output")
+    ncols = min(len(panels), 3)
+    nrows = -(-len(panels) // ncols)
+    fig = Figure(figsize=(4.6 * ncols, 4.0 * nrows), layout="constrained")
+    axs = [fig.add_subplot(nrows, ncols, k + 1) for k in range(len(panels))]
+    mid = slices[len(slices) // 2]
+    tension = ds.attrs.get("tension", "?")
+    try:
+        tension = json.loads(tension)
+    except (TypeError, ValueError):
+        pass
+    for k, (ax, kind) in enumerate(zip(axs, panels, strict=True)):
+        if kind == "output":
+            _output_view(ax, ds, variable)
+            continue
+        if sample or len(dims) == 1:
+            _sample_panel(
+                ax, ds, variable if kind == "verdict" else "poc_margin", dims, axes_names, kind, fig
+            )
+            continue
+        x, y = dims[1], dims[0]
+        index = slices[k] if kind == "verdict" else mid
+        _grid_panel(ax, ds, variable if kind == "verdict" else "poc_margin", x, y, index, kind, fig)
+        where = ", ".join(f"{d} = {float(ds[d].values[i]):.3g}" for d, i in index.items())
+        name = variable if kind == "verdict" else "POC margin"
+        ax.set_title(name + (f" ({where})" if where else ""), fontsize=10)
+        if kind == "verdict" and k == 0:
+            _legend(ax, np.asarray(ds[variable].values), variable)
+    spec = Path(str(ds.attrs.get("spec", "map"))).name
+    fig.suptitle(title or f"{spec}: equilibrium tension {tension}", fontsize=11)
+    return fig
+
+
+def _sample_panel(ax, ds, variable, dims, axes_names, kind, fig):
+    if len(axes_names) >= 2:
+        xn, yn = axes_names[0], axes_names[1]
+        xv, yv = np.asarray(ds[xn].values), np.asarray(ds[yn].values)
+    else:
+        xn, yn = axes_names[0], None
+        xv = np.asarray(ds[xn].values)
+        yv = np.zeros_like(xv)
+    values = np.asarray(ds[variable].values).reshape(-1)
+    size = max(2.0, 6000.0 / max(values.size, 1))
+    if kind == "verdict":
+        for c in (1, -1, 2, 0):
+            sel = values == c
+            if sel.any():
+                ax.scatter(
+                    xv[sel], yv[sel], s=size, c=VERDICT_COLORS[c], linewidths=0, rasterized=True
+                )
+        _legend(ax, values, variable)
+        ax.set_title(variable, fontsize=10)
+    else:
+        from matplotlib.colors import TwoSlopeNorm
+
+        finite = values[np.isfinite(values)]
+        span = float(np.max(np.abs(finite))) if finite.size else 1.0
+        span = span if span > 0 else 1.0
+        sc = ax.scatter(
+            xv,
+            yv,
+            s=size,
+            c=values,
+            cmap="RdBu",
+            norm=TwoSlopeNorm(0.0, -span, span),
+            linewidths=0,
+            rasterized=True,
+        )
+        fig.colorbar(sc, ax=ax, shrink=0.85, label=variable)
+        ax.set_title("POC margin", fontsize=10)
+    ax.set_xlabel(_label(ds, xn))
+    if yn:
+        ax.set_ylabel(_label(ds, yn))
+
+
+def save_map_plot(ds_or_path: Any, path: str | os.PathLike, *, dpi: int = 100, **kwargs) -> Path:
+    """Draw a map with :func:`plot_map` and write it as an image (PNG by
+    the file extension); returns the path written."""
+    fig = plot_map(ds_or_path, **kwargs)
+    out = Path(path).expanduser()
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=dpi)
+    return out
