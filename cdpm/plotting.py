@@ -40,7 +40,7 @@ def _matplotlib():
         import matplotlib
         from matplotlib.figure import Figure
     except ImportError as exc:
-        raise MissingExtraError("plots need matplotlib: pip install 'cdpm[plot]'") from exc
+        raise MissingExtraError("plots need matplotlib: pip install 'cdpm[maps]'") from exc
     return matplotlib, Figure
 
 

@@ -237,7 +237,7 @@ def _run_dask(robot, plan, setting, todo, finished, scheduler) -> None:
         import distributed
     except ImportError as exc:
         raise MissingExtraError(
-            "running a map on a Dask cluster needs dask.distributed: pip install 'cdpm[dask]'"
+            "running a map on a Dask cluster needs dask.distributed: pip install 'cdpm[maps]'"
         ) from exc
     own = isinstance(scheduler, str)
     if own:
