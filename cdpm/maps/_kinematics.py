@@ -135,6 +135,14 @@ class _Joint:
     angular: np.ndarray  # (3, nv_j) angular part
 
 
+def _unaligned_axis(joint) -> np.ndarray:
+    """Axis of an unaligned revolute or prismatic joint (from the concrete
+    joint model: the generic wrapper does not expose it)."""
+    concrete = joint.extract() if hasattr(joint, "extract") else joint
+    axis = np.array(concrete.axis, dtype=float).reshape(3)
+    return axis / np.linalg.norm(axis)
+
+
 def _joint_from_model(joint, parent: int, placement) -> _Joint | None:
     name = joint.shortname()
     eye = np.eye(3)
@@ -159,9 +167,9 @@ def _joint_from_model(joint, parent: int, placement) -> _Joint | None:
         "JointModelRevoluteUnaligned",
         "JointModelRevoluteUnboundedUnaligned",
     ):
-        kind, axis = "revolute", np.array(joint.axis, dtype=float)
+        kind, axis = "revolute", _unaligned_axis(joint)
     if kind is None and name == "JointModelPrismaticUnaligned":
-        kind, axis = "prismatic", np.array(joint.axis, dtype=float)
+        kind, axis = "prismatic", _unaligned_axis(joint)
     if kind == "revolute":
         return _Joint(kind=kind, axis=axis, linear=zeros1, angular=axis[:, None], **base)
     if kind == "prismatic":

@@ -1,0 +1,477 @@
+"""Workspace maps: batched kinematics, verdicts against the per-pose public
+API, degenerate poses, storage and resumption, local and Dask execution."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import cdpm
+from cdpm.errors import InputError
+from cdpm.maps import STATUS_CODES, VERDICT_CODES, open_map, sample_axes, workspace_map
+from cdpm.maps._kinematics import BatchKinematics
+from tests.conftest import MODELS, PAPER_SPEC
+
+CODE = {"yes": 1, "no": 0, "marginal": 2}
+
+MIXED_URDF = """<?xml version="1.0"?>
+<robot name="mixed">
+  <link name="base"/>
+  <link name="body">
+    <inertial><origin xyz="0.1 0.05 0.02" rpy="0.1 0.2 0.3"/><mass value="2.0"/>
+      <inertia ixx="0.3" ixy="0.01" ixz="0.02" iyy="0.2" iyz="0.03" izz="0.25"/></inertial>
+  </link>
+  <link name="slider">
+    <inertial><origin xyz="0.0 0.1 0.0" rpy="0 0 0"/><mass value="0.5"/>
+      <inertia ixx="0.01" ixy="0" ixz="0" iyy="0.02" iyz="0" izz="0.03"/></inertial>
+  </link>
+  <link name="arm">
+    <inertial><origin xyz="0.3 0 0" rpy="0 0 0"/><mass value="1.0"/>
+      <inertia ixx="0.01" ixy="0" ixz="0" iyy="0.05" iyz="0" izz="0.05"/></inertial>
+  </link>
+  <link name="tip"/>
+  <joint name="root" type="floating"><parent link="base"/><child link="body"/></joint>
+  <joint name="slide" type="prismatic"><parent link="body"/><child link="slider"/>
+    <origin xyz="0.2 0 0.1" rpy="0 0.3 0"/><axis xyz="0 0.6 0.8"/>
+    <limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+  <joint name="hinge" type="revolute"><parent link="slider"/><child link="arm"/>
+    <origin xyz="0 0.1 0" rpy="0.2 0 0"/><axis xyz="0.6 0 0.8"/>
+    <limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+  <joint name="tipj" type="fixed"><parent link="arm"/><child link="tip"/>
+    <origin xyz="0.6 0 0"/></joint>
+</robot>
+"""
+
+MIXED_SPEC = """\
+urdf: mixed.urdf
+gravity: {gravity}
+cables:
+  - name: a
+    route:
+      - {{frame: world, point: [1, 0, 1]}}
+      - {{frame: body, point: [0.1, 0, 0]}}
+  - name: b
+    route:
+      - {{frame: world, point: [-1, 0.5, 1]}}
+      - {{frame: slider, point: [0, 0.1, 0]}}
+      - {{frame: tip, point: [0, 0, 0.05]}}
+  - name: c
+    route:
+      - {{frame: world, point: [0, -1, -1]}}
+      - {{frame: arm, point: [0.5, 0, 0]}}
+outputs:
+  - {{name: tip_x, frame: tip, component: x}}
+  - {{name: tip_z, frame: tip, component: z}}
+"""
+
+
+@pytest.fixture
+def mixed_robot(tmp_path):
+    """A free-flyer with an unaligned prismatic and revolute joint, full
+    inertias and a cable routed over two links."""
+
+    def make(gravity="[0, 0, -9.81]"):
+        (tmp_path / "mixed.urdf").write_text(MIXED_URDF)
+        spec = tmp_path / "mixed.yaml"
+        spec.write_text(MIXED_SPEC.format(gravity=gravity))
+        return cdpm.load_robot(spec)
+
+    return make
+
+
+def _same(a, b) -> None:
+    """Datasets equal value by value (NaN == NaN), same variables and coords."""
+    assert set(a.data_vars) == set(b.data_vars)
+    for name in a.data_vars:
+        x, y = np.asarray(a[name].values), np.asarray(b[name].values)
+        assert x.dtype == y.dtype, name
+        assert np.array_equal(x, y, equal_nan=x.dtype.kind == "f"), name
+    for name in a.coords:
+        assert np.array_equal(np.asarray(a[name].values), np.asarray(b[name].values)), name
+
+
+PAPER_AXES = {"q1": np.linspace(-3.1, 3.1, 41), "q2": np.linspace(-3.1, 3.1, 37)}
+
+
+@pytest.fixture(scope="module")
+def paper_map():
+    return workspace_map(cdpm.load_robot(PAPER_SPEC), PAPER_AXES, workers=1)
+
+
+# --------------------------------------------------------------------------
+# batched kinematics
+
+
+@pytest.mark.parametrize("model", ["paper", "mixed"])
+def test_batch_kinematics_equals_robot(model, mixed_robot, paper_robot):
+    robot = paper_robot if model == "paper" else mixed_robot()
+    batch = BatchKinematics(robot)
+    assert batch.supported
+    natural = np.random.default_rng(7).uniform(-1.5, 1.5, (25, robot.nv))
+    res = batch.evaluate(natural)
+    for i, x in enumerate(natural):
+        q = robot.from_natural(x)
+        kin = robot.kinematics(q)
+        np.testing.assert_allclose(res.lengths[:, i], kin.lengths, atol=1e-12)
+        np.testing.assert_allclose(res.jacobian[..., i], kin.jacobian, atol=1e-12)
+        np.testing.assert_allclose(res.output[:, i], kin.output, atol=1e-12)
+        np.testing.assert_allclose(res.output_jacobian[..., i], kin.output_jacobian, atol=1e-12)
+        np.testing.assert_allclose(res.mass_matrix[..., i], robot.mass_matrix(q), atol=1e-12)
+        np.testing.assert_allclose(res.gravity[:, i], robot.gravity_torque(q), atol=1e-11)
+
+
+# --------------------------------------------------------------------------
+# verdicts
+
+
+def test_map_dataset_contract(paper_map):
+    ds = paper_map
+    assert ds["poc"].dims == ("q1", "q2")
+    assert ds["y"].dims == ("q1", "q2", "output")
+    assert ds["output_frame_position"].dims == ("q1", "q2", "xyz")
+    assert list(ds["output"].values) == ["tip_x"]
+    assert ds["q1"].attrs["units"] == "rad"
+    for name in (
+        "poc",
+        "output_controllable",
+        "positive_controllable",
+        "wrench_closure",
+        "static_feasible",
+        "status",
+    ):
+        assert ds[name].dtype == np.int8
+        assert ds[name].attrs["flag_values"] and ds[name].attrs["flag_meanings"]
+    assert ds.attrs["spec_sha256"] == cdpm.load_robot(PAPER_SPEC).spec.sha256
+    assert ds.attrs["cdpm_version"] == cdpm.__version__
+    assert (ds["status"] == STATUS_CODES["ok"]).all()
+    # both verdicts occur on this grid, and the margin is positive exactly on YES
+    poc = ds["poc"].values
+    assert (poc == 1).any() and (poc == 0).any()
+    assert np.all((ds["poc_margin"].values > 0) == (poc == 1))
+    # tip x = cos q1 + cos(q1 + q2) (paper eq 17)
+    q1, q2 = np.meshgrid(PAPER_AXES["q1"], PAPER_AXES["q2"], indexing="ij")
+    np.testing.assert_allclose(ds["y"].values[..., 0], np.cos(q1) + np.cos(q1 + q2), atol=1e-12)
+
+
+def test_map_verdicts_equal_public_per_pose(paper_map, paper_robot):
+    ds = paper_map
+    rng = np.random.default_rng(3)
+    for _ in range(30):
+        i, j = rng.integers(ds.sizes["q1"]), rng.integers(ds.sizes["q2"])
+        q = [float(ds["q1"][i]), float(ds["q2"][j])]
+        lin = cdpm.linearise(paper_robot, q)
+        poc = cdpm.positive_output_controllability(
+            lin.A, lin.B, lin.C, sign_constrained=lin.sign_constrained
+        )
+        brammer = cdpm.positive_controllability(lin.A, lin.B, sign_constrained=lin.sign_constrained)
+        closure = cdpm.wrench_closure(lin.cable_jacobian)
+        oc = cdpm.output_controllability(lin.A, lin.B, lin.C)
+        at = ds.isel(q1=i, q2=j)
+        assert int(at["poc"]) == CODE[poc.verdict.value]
+        assert float(at["poc_margin"]) == pytest.approx(poc.margin, rel=1e-9, abs=1e-12)
+        assert int(at["positive_controllable"]) == CODE[brammer.verdict.value]
+        assert int(at["wrench_closure"]) == CODE[closure.verdict.value]
+        assert int(at["output_controllable"]) == (1 if oc.controllable else 0)
+
+
+def test_paper_nominal_pose_is_yes(paper_robot):
+    ds = workspace_map(paper_robot, {"q1": [np.pi / 6]}, base="nominal", workers=1)
+    assert ds["poc"].values.tolist() == [VERDICT_CODES["yes"]]
+    assert ds.attrs["base"] == pytest.approx([np.pi / 6, np.pi / 3])
+
+
+def test_mixed_robot_verdicts_equal_public(mixed_robot):
+    """Free-flyer coordinates as axes, p = 2, nv = 8: the deferred paths."""
+    robot = mixed_robot("[0, 0, 0]")
+    axes = {"root.x": np.linspace(-0.5, 0.5, 3), "hinge": np.linspace(-2, 2, 4)}
+    ds = workspace_map(robot, axes, base={"root.z": 0.2, "slide": 0.1}, workers=1)
+    assert ds["poc"].dims == ("root.x", "hinge")
+    assert ds["root.x"].attrs["units"] == "m" and ds["hinge"].attrs["units"] == "rad"
+    for i in range(3):
+        for j in range(4):
+            q = robot.configuration(
+                {
+                    "root.x": axes["root.x"][i],
+                    "hinge": axes["hinge"][j],
+                    "root.z": 0.2,
+                    "slide": 0.1,
+                }
+            )
+            lin = cdpm.linearise(robot, q)
+            poc = cdpm.positive_output_controllability(
+                lin.A, lin.B, lin.C, sign_constrained=lin.sign_constrained
+            )
+            assert int(ds["poc"][i, j]) == CODE[poc.verdict.value]
+            closure = cdpm.wrench_closure(lin.cable_jacobian)
+            assert int(ds["wrench_closure"][i, j]) == CODE[closure.verdict.value]
+
+
+def test_degenerate_poses_are_flagged(write_spec):
+    # cable c1 runs from (1, 0, 0) to the point 1 m along link1: zero length at q1 = 0
+    spec = write_spec(
+        """\
+        urdf: arm.urdf
+        gravity: [0, 0, 0]
+        cables:
+          - name: c1
+            route:
+              - {frame: base, point: [1, 0, 0]}
+              - {frame: link1, point: [1, 0, 0]}
+          - name: c2
+            route:
+              - {frame: base, point: [0, 1.5, 0]}
+              - {frame: link2, point: [0.3, 0.1, 0], relative_to: com}
+        outputs:
+          - {name: tip_x, frame: tip, component: x}
+        """
+    )
+    ds = workspace_map(spec, {"q1": [-0.5, 0.0, 0.5], "q2": [0.3, 1.0]}, workers=1)
+    status = ds["status"].values
+    assert (status[1] == STATUS_CODES["zero_length_cable"]).all()
+    assert (status[[0, 2]] == STATUS_CODES["ok"]).all()
+    for name in ("poc", "wrench_closure", "positive_controllable"):
+        assert (ds[name].values[1] == VERDICT_CODES["not_analysed"]).all()
+        assert np.isin(ds[name].values[[0, 2]], [0, 1, 2]).all()
+    assert np.isnan(ds["poc_margin"].values[1]).all()
+    # the outputs stay defined at degenerate poses
+    assert np.isfinite(ds["y"].values).all()
+
+
+def test_singular_mass_matrix_is_flagged(write_spec, tmp_path):
+    urdf = (tmp_path / "arm.urdf").read_text()
+    # link2 without mass: M is singular at every pose
+    head, tail = urdf.split('<link name="link2">')
+    (tmp_path / "arm.urdf").write_text(
+        head + '<link name="link2">' + tail.replace('<mass value="1.0"/>', '<mass value="0.0"/>', 1)
+    )
+    spec = write_spec(
+        """\
+        urdf: arm.urdf
+        gravity: [0, 0, 0]
+        cables:
+          - name: c1
+            route:
+              - {frame: base, point: [0, 0.5, 0]}
+              - {frame: link1, point: [0.3, 0.1, 0], relative_to: com}
+          - name: c2
+            route:
+              - {frame: base, point: [0, -1.5, 0]}
+              - {frame: link2, point: [0.8, -0.1, 0]}
+        outputs:
+          - {name: tip_x, frame: tip, component: x}
+        """
+    )
+    ds = workspace_map(spec, {"q1": [0.0, 1.0], "q2": [0.5]}, workers=1)
+    assert (ds["status"].values == STATUS_CODES["singular_mass_matrix"]).all()
+    assert (ds["poc"].values == VERDICT_CODES["not_analysed"]).all()
+
+
+@pytest.mark.slow
+def test_gravity_map_uses_the_equilibrium(tmp_path):
+    robot = cdpm.load_robot(MODELS / "two_link_vertical" / "two_link_vertical.yaml")
+    axes = {"q1": [-1.2, 0.0, 0.6], "q2": [0.4, 1.5]}
+    ds = workspace_map(robot, axes, workers=1)
+    from cdpm.equilibrium import equilibrium_tension
+
+    for i, q1 in enumerate(axes["q1"]):
+        for j, q2 in enumerate(axes["q2"]):
+            eq = equilibrium_tension(robot, robot.configuration([q1, q2]))
+            at = ds.isel(q1=i, q2=j)
+            if eq.feasible:
+                assert int(at["status"]) == STATUS_CODES["ok"]
+                assert float(at["tension_max"]) == pytest.approx(eq.tension.max(), abs=1e-9)
+                assert float(at["tension_min"]) == pytest.approx(eq.tension.min(), abs=1e-9)
+                lin = cdpm.linearise(robot, [q1, q2])
+                poc = cdpm.positive_output_controllability(
+                    lin.A, lin.B_cone, lin.C, sign_constrained=lin.sign_constrained
+                )
+                assert int(at["poc"]) == CODE[poc.verdict.value]
+            else:
+                assert int(at["status"]) == STATUS_CODES["no_equilibrium"]
+                assert int(at["poc"]) == VERDICT_CODES["not_analysed"]
+            assert int(at["static_feasible"]) == (1 if eq.feasible else 0)
+
+
+# --------------------------------------------------------------------------
+# inputs
+
+
+def test_bad_axes_are_rejected(paper_robot, tmp_path):
+    with pytest.raises(InputError, match="not a coordinate of the robot; coordinates: q1, q2"):
+        workspace_map(paper_robot, {"q3": [0.0]})
+    with pytest.raises(InputError, match="axis 'q1' has no values"):
+        workspace_map(paper_robot, {"q1": []})
+    with pytest.raises(InputError, match="non-finite"):
+        workspace_map(paper_robot, {"q1": [0.0, np.nan]})
+    with pytest.raises(InputError, match="pose 'nope' not in spec"):
+        workspace_map(paper_robot, {"q1": [0.0]}, base="nope")
+    with pytest.raises(InputError, match="workers must be a positive integer"):
+        workspace_map(paper_robot, {"q1": [0.0]}, workers=0)
+    (tmp_path / "junk").mkdir()
+    (tmp_path / "junk" / "file.txt").write_text("x")
+    with pytest.raises(InputError, match="not a cdpm map store"):
+        workspace_map(paper_robot, {"q1": [0.0]}, store=tmp_path / "junk")
+
+
+def test_random_samples(paper_robot):
+    ds = workspace_map(paper_robot, {"q1": (-3, 3), "q2": (0, 1)}, samples=300, seed=5, workers=1)
+    assert ds["poc"].dims == ("sample",)
+    assert ds["q1"].dims == ("sample",) and ds.sizes["sample"] == 300
+    assert float(ds["q2"].min()) >= 0 and float(ds["q2"].max()) <= 1
+    again = workspace_map(
+        paper_robot, sample_axes({"q1": (-3, 3), "q2": (0, 1)}, 300, seed=5), workers=1
+    )
+    _same(ds, again)
+    # per-sample verdicts equal a grid evaluation at the same poses
+    q = np.stack([ds["q1"].values, ds["q2"].values], axis=1)[:20]
+    ref = cdpm.maps.evaluate_poses(paper_robot, q)
+    np.testing.assert_array_equal(ds["poc"].values[:20], ref["poc"])
+
+
+# --------------------------------------------------------------------------
+# storage, resumption, parallel runs
+
+
+def test_store_roundtrip_and_settings_mismatch(paper_robot, paper_map, tmp_path):
+    store = tmp_path / "m.zarr"
+    ds = workspace_map(paper_robot, PAPER_AXES, workers=1, store=store, chunk_size=300)
+    _same(ds, paper_map)
+    _same(open_map(store), paper_map)
+    assert len(os.listdir(store / ".cdpm" / "done")) == 6  # 41 x 37 poses, chunks of 8 x 37
+    other = {"q1": PAPER_AXES["q1"], "q2": PAPER_AXES["q2"][:-1]}
+    with pytest.raises(InputError, match=r"different settings(.|\n)*axis 'q2'(.|\n)*--overwrite"):
+        workspace_map(paper_robot, other, workers=1, store=store, chunk_size=300)
+    with pytest.raises(InputError, match="chunk_size: stored 300, now 400"):
+        workspace_map(paper_robot, PAPER_AXES, workers=1, store=store, chunk_size=400)
+    replaced = workspace_map(paper_robot, other, workers=1, store=store, overwrite=True)
+    assert replaced.sizes["q2"] == 36
+
+
+def test_interrupted_run_resumes_without_recomputing(paper_robot, paper_map, tmp_path):
+    store = tmp_path / "m.zarr"
+    seen: list[int] = []
+
+    def stop_after_three(done, total, index):
+        if index >= 0:
+            seen.append(index)
+        if len(seen) == 3:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        workspace_map(
+            paper_robot,
+            PAPER_AXES,
+            workers=1,
+            store=store,
+            chunk_size=150,
+            progress=stop_after_three,
+        )
+    done_before = {int(p.name) for p in (store / ".cdpm" / "done").iterdir()}
+    assert done_before == set(seen)
+    resumed: list[int] = []
+    ds = workspace_map(
+        paper_robot,
+        PAPER_AXES,
+        workers=1,
+        store=store,
+        chunk_size=150,
+        progress=lambda d, t, k: resumed.append(k) if k >= 0 else None,
+    )
+    n_chunks = len(done_before) + len(resumed)
+    assert not done_before & set(resumed)
+    assert sorted(done_before | set(resumed)) == list(range(n_chunks))
+    _same(ds, paper_map)
+
+
+_KILL_CHILD = """
+import sys, numpy as np, cdpm.maps
+axes = {"q1": np.linspace(-3.1, 3.1, 301), "q2": np.linspace(-3.1, 3.1, 300)}
+cdpm.maps.workspace_map(sys.argv[1], axes, workers=1, store=sys.argv[2], chunk_size=600)
+"""
+
+
+@pytest.mark.slow
+def test_sigkilled_map_resumes_to_the_same_result(paper_robot, tmp_path):
+    store = tmp_path / "killed.zarr"
+    done_dir = store / ".cdpm" / "done"
+    proc = subprocess.Popen(
+        [sys.executable, "-c", _KILL_CHILD, str(PAPER_SPEC), str(store)],
+        cwd=str(Path(__file__).resolve().parents[1]),
+    )
+    try:
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline:
+            if done_dir.is_dir() and len([p for p in done_dir.iterdir() if p.name.isdigit()]) >= 5:
+                break
+            if proc.poll() is not None:
+                pytest.fail("the map finished before it could be killed")
+            time.sleep(0.02)
+        proc.send_signal(signal.SIGKILL)
+    finally:
+        proc.wait(timeout=30)
+    done_before = {int(p.name) for p in done_dir.iterdir() if p.name.isdigit()}
+    axes = {"q1": np.linspace(-3.1, 3.1, 301), "q2": np.linspace(-3.1, 3.1, 300)}
+    assert 5 <= len(done_before) < 151  # 90300 poses in chunks of 600 (2 rows of 300)
+    resumed: list[int] = []
+    ds = workspace_map(
+        paper_robot,
+        axes,
+        workers=1,
+        store=store,
+        chunk_size=600,
+        progress=lambda d, t, k: resumed.append(k) if k >= 0 else None,
+    )
+    assert not done_before & set(resumed)
+    assert sorted(done_before | set(resumed)) == list(range(151))
+    fresh = workspace_map(paper_robot, axes, workers=1, chunk_size=600)
+    _same(ds, fresh)
+    assert (ds["status"].values == 0).all()
+
+
+def test_worker_processes_give_the_same_map(paper_robot, paper_map, tmp_path):
+    ds = workspace_map(PAPER_SPEC, PAPER_AXES, workers=2, chunk_size=300, store=tmp_path / "p.zarr")
+    _same(ds, paper_map)
+
+
+def test_dask_cluster_gives_the_same_map(paper_robot, paper_map, tmp_path):
+    distributed = pytest.importorskip("distributed")
+    with distributed.LocalCluster(
+        host="127.0.0.1",
+        protocol="tcp://",
+        processes=False,
+        n_workers=1,
+        threads_per_worker=2,
+        dashboard_address=":0",
+    ) as cluster:
+        assert cluster.scheduler_address.startswith("tcp://127.0.0.1:")
+        ds = workspace_map(
+            paper_robot,
+            PAPER_AXES,
+            scheduler=cluster.scheduler_address,
+            chunk_size=300,
+            store=tmp_path / "d.zarr",
+        )
+        _same(ds, paper_map)
+        with distributed.Client(cluster) as client:
+            ds2 = workspace_map(paper_robot, PAPER_AXES, scheduler=client, chunk_size=300)
+            _same(ds2, paper_map)
+
+
+def test_robot_source_rebuilds_from_shipped_bytes(paper_robot, tmp_path):
+    from cdpm.maps._runner import RobotSource
+
+    folder = tmp_path / "model"
+    shutil.copytree(PAPER_SPEC.parent, folder)
+    robot = cdpm.load_robot(folder / PAPER_SPEC.name)
+    source = RobotSource.from_robot(robot)
+    shutil.rmtree(folder)  # a remote worker does not see the driver's files
+    rebuilt = source.load()
+    assert rebuilt.spec.sha256 == paper_robot.spec.sha256
