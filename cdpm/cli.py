@@ -24,6 +24,7 @@ COMMAND_MODULES = (
     "cdpm.commands.picture",
     "cdpm.commands.map",
     "cdpm.commands.plot",
+    "cdpm.commands.import_caspr",
 )
 
 _EPILOG = """\

@@ -1,0 +1,551 @@
+"""CASPR import: joint conventions against CASPR's own kinematics formulas,
+refusals with reasons, the whole model library, and the 2R example against
+the seed paper's model."""
+
+from __future__ import annotations
+
+import contextlib
+import csv
+import io
+import math
+import textwrap
+import warnings
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+import cdpm
+import cdpm.cli
+from cdpm.caspr import CasprWarning, cable_sets, import_caspr
+from cdpm.errors import CdpmError, InputError, UnsupportedError
+from tests.conftest import PAPER_SPEC, SHARED  # noqa: F401
+
+CASPR = SHARED / "caspr-models" / "models"
+needs_library = pytest.mark.skipif(
+    not (CASPR / "models_list.csv").is_file(),
+    reason=f"CASPR model files not found at {CASPR} (shared test data)",
+)
+
+# ---------------------------------------------------------------------------
+# An independent implementation of CASPR's kinematics (SystemModelBodies.update,
+# the joint classes' RelRotationMatrix / RelTranslationVector,
+# CableAttachmentPoint), used as the reference for the imported URDF + spec.
+
+
+def _rx(a):
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[1, 0, 0], [0, c, -s], [0, s, c]])
+
+
+def _ry(a):
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
+
+
+def _rz(a):
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
+
+
+def _raxis(axis, t):
+    a = np.asarray(axis) / np.linalg.norm(axis)
+    k = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
+    return np.eye(3) + math.sin(t) * k + (1 - math.cos(t)) * k @ k
+
+
+def _caspr_joint(jtype, q, axis):
+    """(R_pe, r_rel) of a CASPR joint at q (CASPR's definitions)."""
+    eye, zero = np.eye(3), np.zeros(3)
+    table = {
+        "R_X": lambda: (_rx(q[0]), zero),
+        "R_Y": lambda: (_ry(q[0]), zero),
+        "R_Z": lambda: (_rz(q[0]), zero),
+        "R_AXIS": lambda: (_raxis(axis, q[0]), zero),
+        "P_X": lambda: (eye, np.array([q[0], 0, 0])),
+        "P_AXIS": lambda: (eye, np.asarray(axis) / np.linalg.norm(axis) * q[0]),
+        "P_XY": lambda: (eye, np.array([q[0], q[1], 0])),
+        "P_XZ": lambda: (eye, np.array([q[0], 0, q[1]])),
+        "T_XYZ": lambda: (eye, np.array(q[:3])),
+        "PLANAR_XY": lambda: (_rz(q[2]), np.array([q[0], q[1], 0])),
+        "PLANAR_XZ": lambda: (_ry(q[2]), np.array([q[0], 0, q[1]])),
+        "PLANAR_YZ": lambda: (_rx(q[2]), np.array([0, q[0], q[1]])),
+        "U_XY": lambda: (_rx(q[0]) @ _ry(q[1]), zero),
+        "U_XZ": lambda: (_rx(q[0]) @ _rz(q[1]), zero),
+        "U_YZ": lambda: (_ry(q[0]) @ _rz(q[1]), zero),
+        "S_EULER_XYZ": lambda: (_rx(q[0]) @ _ry(q[1]) @ _rz(q[2]), zero),
+        "S_FIXED_XYZ": lambda: (_rz(q[2]) @ _ry(q[1]) @ _rx(q[0]), zero),
+        "SPATIAL_EULER_XYZ": lambda: (_rx(q[3]) @ _ry(q[4]) @ _rz(q[5]), np.array(q[:3])),
+    }
+    return table[jtype]()
+
+
+def _vec(text):
+    return np.array([float(x) for x in text.split()])
+
+
+class _CasprReference:
+    """Cable lengths of a CASPR model computed the way CASPR does."""
+
+    def __init__(self, bodies: Path, cables: Path, cable_set: str | None = None):
+        self.links = []
+        for el in ET.parse(bodies).getroot().find("links").findall("link_rigid"):
+            joint = el.find("joint")
+            phys = el.find("physical")
+            self.links.append(
+                {
+                    "type": joint.get("type"),
+                    "axis": _vec(joint.get("axis")) if joint.get("axis") else None,
+                    "com": _vec(phys.find("com_location").text),
+                    "parent": int(el.find("parent/num").text),
+                    "r_parent": _vec(el.find("parent/location").text),
+                }
+            )
+        root = ET.parse(cables).getroot()
+        chosen = cable_set or root.get("default_cable_set")
+        self.cables = []
+        for cable in root.find(f"cable_set[@id='{chosen}']"):
+            ref = cable.get("attachment_reference")
+            points = []
+            for att in cable.find("attachments").findall("attachment"):
+                link, loc = int(att.find("link").text), _vec(att.find("location").text)
+                if link > 0 and ref == "com":
+                    loc = loc + self.links[link - 1]["com"]  # r_PA = r_PG + r_GA
+                points.append((link, loc))
+            self.cables.append(points)
+
+    def lengths(self, q_per_link: list[np.ndarray]) -> np.ndarray:
+        rot, r_op = [], []  # R_0k and r_OP (in frame k) per link
+        for link, q in zip(self.links, q_per_link, strict=True):
+            r_pe, r_rel = _caspr_joint(link["type"], q, link["axis"])
+            p = link["parent"]
+            base = np.zeros(3) if p == 0 else r_op[p - 1]
+            rot.append(r_pe if p == 0 else rot[p - 1] @ r_pe)
+            r_op.append(r_pe.T @ (base + link["r_parent"] + r_rel))
+
+        def world(link, r_pa):
+            if link == 0:
+                return r_pa
+            return rot[link - 1] @ (r_op[link - 1] + r_pa)
+
+        out = []
+        for points in self.cables:
+            xs = [world(k, r) for k, r in points]
+            out.append(sum(np.linalg.norm(b - a) for a, b in zip(xs, xs[1:], strict=False)))
+        return np.array(out)
+
+
+def _caspr_q(result, natural) -> list[np.ndarray]:
+    """Per-link CASPR q from cdpm natural coordinates."""
+    sizes: dict[int, int] = {}
+    for link, index in result.caspr_coordinates:
+        sizes[link] = max(sizes.get(link, 0), index + 1)
+    q = [np.zeros(sizes[k]) for k in sorted(sizes)]
+    for (link, index), value in zip(result.caspr_coordinates, natural, strict=True):
+        q[link - 1][index] = value
+    return q
+
+
+def _random_natural(robot, rng) -> np.ndarray:
+    lower = np.asarray(robot.model.lowerPositionLimit, dtype=float)
+    upper = np.asarray(robot.model.upperPositionLimit, dtype=float)
+    return rng.uniform(lower, upper)
+
+
+def _import_quietly(*args, **kwargs):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", CasprWarning)
+        return import_caspr(*args, **kwargs)
+
+
+def _fd_error(robot, natural, h=1e-6) -> float:
+    """Max |L - central FD of l(q)|, relative to max(1, |L|)."""
+    jac = robot.cable_jacobian(natural)
+    fd = np.zeros_like(jac)
+    for k in range(robot.nv):
+        step = np.zeros(robot.nv)
+        step[k] = h
+        fd[:, k] = (robot.cable_lengths(natural + step) - robot.cable_lengths(natural - step)) / (
+            2 * h
+        )
+    return float(np.max(np.abs(fd - jac)) / max(1.0, float(np.max(np.abs(jac)))))
+
+
+# ---------------------------------------------------------------------------
+# synthetic models: every joint type, both attachment references
+
+
+_BODY = """\
+      <link_rigid num="{num}" name="L{num}">
+        <joint type="{type}" q_initial="{q0}" q_min="{qmin}" q_max="{qmax}"{extra}/>
+        <physical>
+          <mass>{mass}</mass>
+          <com_location>{com}</com_location>
+          <end_location>0.1 0.2 0.3</end_location>
+          <inertia ref="{ref}">
+            <Ixx>0.3</Ixx><Iyy>0.2</Iyy><Izz>0.25</Izz>
+            <Ixy>0.01</Ixy><Ixz>-0.02</Ixz><Iyz>0.005</Iyz>
+          </inertia>
+        </physical>
+        <parent><num>{parent}</num><location>{location}</location></parent>
+      </link_rigid>
+"""
+
+_DOFS = {
+    "R_X": 1, "R_Y": 1, "R_Z": 1, "R_AXIS": 1, "P_X": 1, "P_AXIS": 1, "P_XY": 2, "P_XZ": 2,
+    "T_XYZ": 3, "PLANAR_XY": 3, "PLANAR_XZ": 3, "PLANAR_YZ": 3, "U_XY": 2, "U_XZ": 2,
+    "U_YZ": 2, "S_EULER_XYZ": 3, "S_FIXED_XYZ": 3, "SPATIAL_EULER_XYZ": 6,
+}  # fmt: skip
+
+
+def _write_model(
+    tmp_path: Path,
+    joints: list[str],
+    cables_xml: str | None = None,
+    overrides: dict[int, dict] | None = None,
+):
+    """Bodies file with a chain of links (one per joint type) and a cables
+    file with one cable from the ground to each link (alternating com/joint
+    references) plus a multi-segment cable through every link."""
+    bodies = []
+    for k, jtype in enumerate(joints, start=1):
+        n = _DOFS[jtype]
+        extra = ' axis="0.3 -0.5 0.8"' if jtype.endswith("AXIS") else ""
+        fields = {
+            "num": k,
+            "type": jtype,
+            "q0": " ".join(["0.1"] * n),
+            "qmin": " ".join(["-1"] * n),
+            "qmax": " ".join(["1"] * n),
+            "extra": extra,
+            "mass": 1.5,
+            "com": "0.05 0.3 -0.02",
+            "ref": "com",
+            "parent": k - 1,
+            "location": "0.02 0.35 0.01" if k > 1 else "0 0 0.5",
+        }
+        fields.update((overrides or {}).get(k, {}))
+        bodies.append(_BODY.format(**fields))
+    (tmp_path / "M_bodies.xml").write_text(
+        "<bodies_system><links display_range='-1 1 -1 1 0 2' view_angle='0 0'>\n"
+        + "".join(bodies)
+        + "</links></bodies_system>"
+    )
+    if cables_xml is None:
+        cables = []
+        for k in range(1, len(joints) + 1):
+            for j, base in enumerate(([1.0, 0.5, 2.0], [-1.0, -0.5, 2.1], [0.4, -1.2, -0.3])):
+                ref = "com" if (k + j) % 2 else "joint"
+                cables.append(
+                    f"""<cable_ideal name="c{k}_{j}" attachment_reference="{ref}">
+                    <properties><force_min>1</force_min><force_max>50</force_max></properties>
+                    <attachments>
+                      <attachment><link>0</link><location>{" ".join(map(str, base))}</location>
+                      </attachment>
+                      <attachment><link>{k}</link><location>0.04 {0.1 * j} -0.03</location>
+                      </attachment>
+                    </attachments></cable_ideal>"""
+                )
+        route = "".join(
+            f"<attachment><link>{k}</link><location>0.02 0.1 {0.01 * k}</location></attachment>"
+            for k in range(1, len(joints) + 1)
+        )
+        cables.append(
+            f"""<cable_ideal name="through" attachment_reference="com">
+            <properties><force_min>0</force_min><force_max>20</force_max></properties>
+            <attachments><attachment><link>0</link><location>0 0 -1</location></attachment>
+            {route}</attachments></cable_ideal>"""
+        )
+        cables_xml = (
+            "<cables default_cable_set='main'><cable_set id='main'>"
+            + "".join(cables)
+            + "</cable_set><cable_set id='empty'></cable_set></cables>"
+        )
+    (tmp_path / "M_cables.xml").write_text(textwrap.dedent(cables_xml))
+    return tmp_path / "M_bodies.xml", tmp_path / "M_cables.xml"
+
+
+JOINT_GROUPS = [
+    ["R_X", "R_Y", "R_Z", "R_AXIS"],
+    ["P_X", "P_AXIS", "P_XY", "P_XZ", "T_XYZ"],
+    ["PLANAR_XY", "PLANAR_XZ", "PLANAR_YZ"],
+    ["U_XY", "U_XZ", "U_YZ", "S_EULER_XYZ", "S_FIXED_XYZ"],
+    ["SPATIAL_EULER_XYZ", "S_FIXED_XYZ", "R_AXIS"],
+]
+
+
+@pytest.mark.parametrize("joints", JOINT_GROUPS, ids=["+".join(g) for g in JOINT_GROUPS])
+def test_joint_chains_match_caspr_kinematics(tmp_path, joints):
+    bodies, cables = _write_model(tmp_path, joints)
+    result = _import_quietly(bodies, cables, tmp_path / "out")
+    robot = cdpm.load_robot(result.spec_path)
+    reference = _CasprReference(bodies, cables)
+    assert robot.nv == sum(_DOFS[j] for j in joints)
+    assert robot.n_cables == 3 * len(joints) + 1
+    rng = np.random.default_rng(7)
+    for _ in range(10):
+        natural = _random_natural(robot, rng)
+        expected = reference.lengths(_caspr_q(result, natural))
+        np.testing.assert_allclose(robot.cable_lengths(natural), expected, rtol=0, atol=1e-12)
+        assert _fd_error(robot, natural) < 1e-6
+
+
+def test_inertia_and_gravity_follow_caspr(tmp_path):
+    # link 1 inertia about its joint (ref="joint") must be shifted to the COM;
+    # link 2's about its COM is kept
+    bodies, cables = _write_model(
+        tmp_path, ["R_X", "R_Y"], overrides={1: {"ref": "joint", "mass": 2.0, "com": "0.1 0.2 0.3"}}
+    )
+    result = _import_quietly(bodies, cables, tmp_path / "out")
+    robot = cdpm.load_robot(result.spec_path)
+    np.testing.assert_allclose(robot.gravity, [0, 0, -9.81])
+    inertia_joint = np.array([[0.3, 0.01, -0.02], [0.01, 0.2, 0.005], [-0.02, 0.005, 0.25]])
+    c = np.array([0.1, 0.2, 0.3])
+    inertia_com = inertia_joint - 2.0 * (c @ c * np.eye(3) - np.outer(c, c))
+    link1 = robot.model.inertias[robot.model.getJointId("joint1")]
+    assert link1.mass == pytest.approx(2.0)
+    np.testing.assert_allclose(link1.lever, c, atol=1e-12)
+    # Pinocchio stores the inertia about the COM
+    np.testing.assert_allclose(link1.inertia, inertia_com, atol=1e-12)
+    link2 = robot.model.inertias[robot.model.getJointId("joint2")]
+    np.testing.assert_allclose(link2.inertia, inertia_joint, atol=1e-12)
+    # pose 'initial' is CASPR's q_initial
+    np.testing.assert_allclose(robot.to_natural(robot.poses["initial"]), [0.1, 0.1])
+
+
+def test_s_fixed_xyz_coordinates_are_reversed_and_labelled(tmp_path):
+    bodies, cables = _write_model(tmp_path, ["S_FIXED_XYZ"])
+    result = _import_quietly(bodies, cables, tmp_path / "out")
+    assert result.caspr_coordinates == ((1, 2), (1, 1), (1, 0))
+    assert result.coordinates[0].startswith("joint1_rz <- link 1 'L1' (S_FIXED_XYZ) q[2]")
+
+
+def test_cable_set_bounds_and_routes(tmp_path):
+    bodies, cables = _write_model(tmp_path, ["R_X", "R_Y"])
+    result = _import_quietly(bodies, cables, tmp_path / "out")
+    spec = yaml.safe_load(result.spec_path.read_text())
+    assert result.cable_set == "main"
+    assert spec["cables"][0]["tension"] == [1.0, 50.0]
+    through = spec["cables"][-1]
+    assert [p["frame"] for p in through["route"]] == ["base", "link1", "link2"]
+    assert through["route"][1]["relative_to"] == "com"
+    assert cable_sets(cables) == (("main", "empty"), "main")
+    with pytest.raises(
+        InputError, match=r"cable set 'nope' not found; sets in this file: main, empty"
+    ):
+        import_caspr(bodies, cables, tmp_path / "out", cable_set="nope")
+    with pytest.raises(InputError, match=r"<cable_set id=\"empty\"> has no cables"):
+        import_caspr(bodies, cables, tmp_path / "out", cable_set="empty")
+
+
+def _one_cable_model(tmp_path, cable: str, joint_attrs: str = ""):
+    # two links: cdpm's robot layer mishandles nv = 1 (see the report)
+    bodies, _ = _write_model(tmp_path, ["R_X", "R_Y"])
+    if joint_attrs:
+        text = bodies.read_text().replace('type="R_X"', f'type="R_X" {joint_attrs}')
+        bodies.write_text(text)
+    cables = tmp_path / "M_cables.xml"
+    cables.write_text(
+        f"<cables default_cable_set='s'><cable_set id='s'>{cable}</cable_set></cables>"
+    )
+    return bodies, cables
+
+
+_POINTS = (
+    "<attachments><attachment><link>0</link><location>1 0 0</location></attachment>"
+    "<attachment><link>1</link><location>0 0.1 0</location></attachment></attachments>"
+)
+
+
+@pytest.mark.parametrize(
+    ("cable", "joint_attrs", "match"),
+    [
+        (
+            "<cable_ideal name='a' attachment_reference='joint'><properties><force_min>1"
+            "</force_min><force_max>9</force_max></properties><attachments>"
+            "<base_rotating_pulley><fixed_location>1 0 0</fixed_location></base_rotating_pulley>"
+            "<attachment><link>1</link><location>0 0 0</location></attachment></attachments>"
+            "</cable_ideal>",
+            "",
+            r"M_cables\.xml: <base_rotating_pulley> of <cable_ideal name=\"a\".*pulley",
+        ),
+        (
+            f"<cable_passive_linear_spring name='s' attachment_reference='com'><properties>"
+            f"<K>5</K><l0>1</l0></properties>{_POINTS}</cable_passive_linear_spring>",
+            "",
+            r"M_cables\.xml: <cable_passive_linear_spring name=\"s\".*passive spring",
+        ),
+        (
+            f"<cable_ideal name='a' attachment_reference='com'>{_POINTS}</cable_ideal>",
+            'actuated="true"',
+            r"M_bodies\.xml: <joint type=\"R_X\" actuated=\"true\".* of <link_rigid num=\"1\" "
+            r"name=\"L1\"> is an actuated joint",
+        ),
+    ],
+    ids=["pulley", "passive-spring", "actuated-joint"],
+)
+def test_refusals_name_element_and_file(tmp_path, cable, joint_attrs, match):
+    bodies, cables = _one_cable_model(tmp_path, cable, joint_attrs)
+    with pytest.raises(UnsupportedError, match=match):
+        import_caspr(bodies, cables, tmp_path / "out")
+
+
+def test_quaternion_and_unknown_joints_are_refused(tmp_path):
+    bodies, cables = _write_model(tmp_path, ["R_X"])
+    bodies.write_text(bodies.read_text().replace('type="R_X"', 'type="S_QUATERNION"'))
+    with pytest.raises(UnsupportedError, match=r"<joint type=\"S_QUATERNION\".*quaternion"):
+        import_caspr(bodies, cables, tmp_path / "out")
+    bodies.write_text(bodies.read_text().replace('type="S_QUATERNION"', 'type="HELIX"'))
+    with pytest.raises(UnsupportedError, match=r"joint type 'HELIX' is not supported"):
+        import_caspr(bodies, cables, tmp_path / "out")
+
+
+def test_elastic_cable_imported_with_warning(tmp_path):
+    cable = (
+        "<cable_linear_spring name='e' attachment_reference='com'><properties><K>300</K>"
+        f"<force_min>2</force_min><force_max>40</force_max></properties>{_POINTS}"
+        "</cable_linear_spring>"
+    )
+    bodies, cables = _one_cable_model(tmp_path, cable)
+    with pytest.warns(CasprWarning, match=r"elastic cable imported as an ideal cable.*\(K\)"):
+        result = import_caspr(bodies, cables, tmp_path / "out")
+    robot = cdpm.load_robot(result.spec_path)
+    np.testing.assert_allclose([robot.tension_min[0], robot.tension_max[0]], [2, 40])
+
+
+def test_degenerate_initial_pose_is_replaced(tmp_path):
+    # the only cable runs from the joint point to the ground origin: zero length at q_initial
+    cable = (
+        "<cable_ideal name='a' attachment_reference='joint'><properties><force_min>0</force_min>"
+        "<force_max>9</force_max></properties><attachments>"
+        "<attachment><link>0</link><location>0 0 0</location></attachment>"
+        "<attachment><link>1</link><location>0 0 0</location></attachment></attachments>"
+        "</cable_ideal>"
+    )
+    bodies, cables = _write_model(tmp_path, ["P_XY"])
+    cables.write_text(
+        f"<cables default_cable_set='s'><cable_set id='s'>{cable}</cable_set></cables>"
+    )
+    bodies.write_text(
+        bodies.read_text()
+        .replace("<location>0 0 0.5</location>", "<location>0 0 0</location>")
+        .replace('q_initial="0.1 0.1"', 'q_initial="0 0"')
+    )
+    with pytest.warns(CasprWarning, match="is not usable .*segment"):
+        result = import_caspr(bodies, cables, tmp_path / "out")
+    assert result.pose_name == "sampled"
+    assert np.all(np.abs(result.pose) > 0) and np.all(np.abs(result.pose) <= 1)
+
+
+def test_cli_import_then_analyze(tmp_path, capsys):
+    bodies, cables = _write_model(tmp_path, ["U_XY", "R_Z"])
+    out = tmp_path / "M"
+    assert cdpm.cli.main(["import-caspr", str(bodies), str(cables), "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "CASPR model 'M': 2 link(s), 3 coordinate(s), 7 cable(s) (set 'main')" in text
+    assert "joint1_rx <- link 1 'L1' (U_XY) q[0]" in text
+    spec = yaml.safe_load((out / "M.yaml").read_text())
+    assert spec["poses"] == {"initial": {"joint1_rx": 0.1, "joint1_ry": 0.1, "joint2": 0.1}}
+    assert (
+        cdpm.cli.main(
+            ["import-caspr", str(bodies), str(cables), "--out", str(out), "--cable-set", "x"]
+        )
+        == 1
+    )
+    assert "cable set 'x' not found" in capsys.readouterr().err
+
+
+# ---------------------------------------------------------------------------
+# the CASPR model library
+
+
+def _library() -> list[tuple[str, Path, Path]]:
+    def resolve(folder: Path, name: str) -> Path:
+        # models_list.csv and the folders disagree on case in two places
+        matches = [p for p in folder.iterdir() if p.name.lower() == name.lower()]
+        return matches[0]
+
+    rows = []
+    with open(CASPR / "models_list.csv", newline="") as handle:
+        for row in csv.reader(handle):
+            label, folder, bodies, cables = row[:4]
+            where = CASPR
+            for part in folder.strip("/").split("/"):
+                where = resolve(where, part)
+            rows.append((label, resolve(where, bodies), resolve(where, cables)))
+    return rows
+
+
+# Observed on the library snapshot of 2024-03-09 (36 models): a change in
+# these numbers is a regression or a new capability, and should be looked at.
+EXPECTED_REFUSED = {
+    "Passive springs planar": "cable_passive_linear_spring",
+    "SpiderBot UR3": 'actuated="true"',
+    "SpiderBot UR3 Test": "screw_base_rotating_pulley",
+    "SpiderBot_X52": 'actuated="true"',
+    "FASTKIT Planar": 'actuated="true"',
+    "PlanarSnakeArm": 'actuated="true"',
+}
+N_MODELS = 36
+
+
+def _analyze_cli(spec: Path) -> tuple[int, str, str]:
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        code = cdpm.cli.main(["analyze", str(spec)])
+    return code, out.getvalue(), err.getvalue()
+
+
+@needs_library
+@pytest.mark.slow
+def test_whole_library(tmp_path):
+    rows = _library()
+    assert len(rows) == N_MODELS
+    table, refused, imported = [], {}, {}
+    for label, bodies, cables in rows:
+        try:
+            result = _import_quietly(bodies, cables, tmp_path / bodies.name[: -len("_bodies.xml")])
+        except CdpmError as exc:
+            refused[label] = str(exc)
+            table.append((label, "refused", str(exc).split(": ", 1)[1][:110]))
+            continue
+        imported[label] = (result, bodies, cables)
+
+    rng = np.random.default_rng(2024)
+    worst_fd, worst_caspr = 0.0, 0.0
+    for label, (result, bodies, cables) in imported.items():
+        robot = cdpm.load_robot(result.spec_path)
+        reference = _CasprReference(bodies, cables, result.cable_set)
+        for _ in range(3):
+            natural = _random_natural(robot, rng)
+            worst_fd = max(worst_fd, _fd_error(robot, natural))
+            expected = reference.lengths(_caspr_q(result, natural))
+            worst_caspr = max(
+                worst_caspr,
+                float(
+                    np.max(np.abs(robot.cable_lengths(natural) - expected)) / max(1, expected.max())
+                ),
+            )
+        table.append(
+            (
+                label,
+                "imported",
+                f"nv={robot.nv} m={robot.n_cables} p={robot.n_outputs} "
+                f"pose {result.pose_name}, {len(result.warnings)} warning(s)",
+            )
+        )
+    print(f"\nCASPR library: {len(imported)} imported, {len(refused)} refused")
+    for row in table:
+        print("  {:<28} {:<9} {}".format(*row))
+    print(f"worst |L - FD| = {worst_fd:.2e}; worst |l - l_CASPR| = {worst_caspr:.2e} (relative)")
+
+    assert set(refused) == set(EXPECTED_REFUSED)
+    for label, element in EXPECTED_REFUSED.items():
+        message = refused[label]
+        assert element in message, message  # names the element
+        assert str(CASPR) in message, message  # and the file
+    assert len(imported) == N_MODELS - len(EXPECTED_REFUSED)
+    assert worst_fd < 1e-6
+    assert worst_caspr < 1e-12
