@@ -151,11 +151,12 @@ def per_pose_costs(path: Path, n_ours: int, n_base: int, repeats: int, tension=N
 def throughput(path: Path, n_side: int, workers: int) -> float:
     """Poses per second of a grid map with ``workers`` local processes."""
     import cdpm
+    from cdpm.maps import workspace_map
 
     axes = {"q1": np.linspace(-3.1, 3.1, n_side), "q2": np.linspace(-3.1, 3.1, n_side)}
     robot = cdpm.load_robot(path)
     t = time.perf_counter()
-    cdpm.maps.workspace_map(robot, axes, workers=workers, chunk_size=4096)
+    workspace_map(robot, axes, workers=workers, chunk_size=4096)
     return n_side * n_side / (time.perf_counter() - t)
 
 

@@ -132,7 +132,7 @@ def _output_view(ax, ds, variable: str) -> None:
         pts = pts[:, axes]
         xlabel = f"{frame} {'xyz'[axes[0]]} [m]"
         ylabel = f"{frame} {'xyz'[axes[1]]} [m]"
-    size = max(1.0, 4000.0 / max(len(codes), 1))
+    size = max(1.0, min(30.0, 12000.0 / max(len(codes), 1)))
     for c in (1, -1, 2, 0):  # the rarer verdicts on top
         sel = codes == c
         if sel.any():
@@ -238,7 +238,7 @@ def _sample_panel(ax, ds, variable, dims, axes_names, kind, fig):
         xv = np.asarray(ds[xn].values)
         yv = np.zeros_like(xv)
     values = np.asarray(ds[variable].values).reshape(-1)
-    size = max(2.0, 6000.0 / max(values.size, 1))
+    size = max(3.0, min(40.0, 30000.0 / max(values.size, 1)))
     if kind == "verdict":
         for c in (1, -1, 2, 0):
             sel = values == c

@@ -94,7 +94,7 @@ def _attrs(robot, plan: MapPlan) -> dict:
         "axes": list(plan.names),
         "mode": plan.mode,
         "base": s["base"],
-        "coordinates": s["coordinates"],
+        "robot_coordinates": s["coordinates"],
         "tension": json.dumps(s["tension"]),
         "chunk_size": s["chunk_size"],
         "cdpm_settings": json.dumps(s, sort_keys=True),

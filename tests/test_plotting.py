@@ -1,0 +1,195 @@
+"""Map pictures and the map / plot commands (in-process via cdpm.cli.main)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import cdpm
+from cdpm.cli import main
+from cdpm.maps import open_map, workspace_map
+from tests.conftest import PAPER_SPEC
+
+pytest.importorskip("matplotlib")
+
+
+def _check_image(path, min_bytes=10_000, max_bytes=1_500_000):
+    """The PNG exists, has a sensible size and is not blank."""
+    import matplotlib.image as mpimg
+
+    assert path.is_file()
+    size = path.stat().st_size
+    assert min_bytes < size < max_bytes, size
+    pixels = mpimg.imread(path)[..., :3]
+    assert pixels.shape[0] > 200 and pixels.shape[1] > 300
+    assert pixels.std() > 0.05  # several colours, not a blank canvas
+    # the verdict colours appear: green for YES
+    green = (pixels[..., 1] > 0.5) & (pixels[..., 0] < 0.35) & (pixels[..., 2] < 0.4)
+    assert green.mean() > 0.003
+
+
+def test_grid_map_plot(paper_robot, tmp_path):
+    from cdpm.plotting import plot_map, save_map_plot
+
+    ds = workspace_map(
+        paper_robot, {"q1": np.linspace(-3, 3, 61), "q2": np.linspace(-3, 3, 61)}, workers=1
+    )
+    fig = plot_map(ds)
+    labels = [ax.get_xlabel() for ax in fig.axes]
+    assert "q2 [rad]" in labels and "tip x [m]" in labels
+    assert any(ax.get_legend() is not None for ax in fig.axes)
+    _check_image(save_map_plot(ds, tmp_path / "map.png"))
+
+
+def test_sample_and_slice_plots(tmp_path, write_spec):
+    from cdpm.plotting import save_map_plot
+
+    robot = cdpm.load_robot(PAPER_SPEC)
+    ds = workspace_map(robot, {"q1": (-3, 3), "q2": (-3, 3)}, samples=2000, seed=2, workers=1)
+    _check_image(save_map_plot(ds, tmp_path / "samples.png"))
+    # three axes: slices of the verdict along the third
+    spec = write_spec(
+        """\
+        urdf: arm.urdf
+        gravity: [0, 0, 0]
+        cables:
+          - name: c1
+            route:
+              - {frame: base, point: [0, 0.5, 0]}
+              - {frame: link1, point: [0.3, 0.1, 0], relative_to: com}
+          - name: c2
+            route:
+              - {frame: base, point: [0, 1.5, 0]}
+              - {frame: link2, point: [0.3, 0.1, 0], relative_to: com}
+          - name: c3
+            route:
+              - {frame: base, point: [0, -0.5, 0]}
+              - {frame: link1, point: [0.3, -0.1, 0], relative_to: com}
+          - name: c4
+            route:
+              - {frame: base, point: [0, -1.5, 0]}
+              - {frame: link2, point: [0.3, -0.1, 0], relative_to: com}
+        outputs:
+          - {name: tip_x, frame: tip, component: x}
+          - {name: tip_y, frame: tip, component: y}
+        """
+    )
+    ds3 = workspace_map(
+        spec, {"q1": np.linspace(-3, 3, 31), "q2": np.linspace(-3, 3, 31)}, workers=1
+    )
+    assert ds3.sizes["output"] == 2
+    _check_image(save_map_plot(ds3, tmp_path / "two_outputs.png"))
+
+
+def test_plot_of_more_than_two_axes(tmp_path):
+    import xarray as xr
+
+    from cdpm.plotting import plot_map
+
+    robot = cdpm.load_robot(PAPER_SPEC)
+    ds = workspace_map(
+        robot, {"q1": np.linspace(-3, 3, 21), "q2": np.linspace(-3, 3, 21)}, workers=1
+    )
+    # stack three copies along a third (synthetic) axis to exercise slicing
+    stacked = xr.concat([ds, ds, ds], dim=xr.DataArray([0.0, 1.0, 2.0], dims="z", name="z"))
+    stacked = stacked.transpose("q1", "q2", "z", ...)
+    fig = plot_map(stacked, max_slices=3)
+    titles = [ax.get_title() for ax in fig.axes]
+    assert sum("z = " in t for t in titles) >= 3
+
+
+def test_plot_rejects_unknown_variable(paper_robot):
+    from cdpm.errors import InputError
+    from cdpm.plotting import plot_map
+
+    ds = workspace_map(paper_robot, {"q1": [0.1, 0.2]}, workers=1)
+    with pytest.raises(InputError, match="not a verdict of this map"):
+        plot_map(ds, variable="tension_max")
+
+
+def test_cli_map_and_plot(tmp_path, capsys):
+    store, png = tmp_path / "m.zarr", tmp_path / "m.png"
+    argv = [
+        "map",
+        str(PAPER_SPEC),
+        "--axis",
+        "q1=-pi:pi:41",
+        "--axis",
+        "q2=-pi:pi:31",
+        "--out",
+        str(store),
+        "--plot",
+        str(png),
+        "--workers",
+        "1",
+    ]
+    assert main(argv) == 0
+    out, err = capsys.readouterr()
+    assert "1271 poses; positive output controllable: yes" in out
+    assert "poses/s" in err and "ETA" in err
+    ds = open_map(store)
+    assert ds.sizes == {"q1": 41, "q2": 31, "output": 1, "xyz": 3}
+    _check_image(png)
+    # the same command again resumes a complete map: nothing to compute
+    assert main(argv + ["--quiet"]) == 0
+    out2 = tmp_path / "again.png"
+    assert main(["plot", str(store), "-o", str(out2), "--variable", "wrench_closure"]) == 0
+    _check_image(out2)
+
+
+def test_cli_map_samples_and_errors(tmp_path, capsys):
+    store = tmp_path / "s.zarr"
+    assert (
+        main(
+            [
+                "map",
+                str(PAPER_SPEC),
+                "--axis",
+                "q1=-pi:pi",
+                "--axis",
+                "q2=-1:1",
+                "--samples",
+                "500",
+                "--seed",
+                "3",
+                "--out",
+                str(store),
+                "--quiet",
+                "--workers",
+                "1",
+            ]
+        )
+        == 0
+    )
+    ds = open_map(store)
+    assert ds["poc"].dims == ("sample",) and ds.sizes["sample"] == 500
+    assert "q1" in ds.coords and ds["q1"].dims == ("sample",)
+    capsys.readouterr()
+    assert (
+        main(["map", str(PAPER_SPEC), "--axis", "q1=-pi:pi:21", "--out", str(store), "--quiet"])
+        == 1
+    )
+    assert "different settings" in capsys.readouterr().err
+    assert main(["map", str(PAPER_SPEC), "--axis", "q9=0:1:3", "--quiet"]) == 1
+    assert "'q9' is not a coordinate of the robot" in capsys.readouterr().err
+    assert main(["map", str(PAPER_SPEC), "--axis", "q1=0:1", "--quiet"]) == 1
+    assert "NAME=LOW:HIGH:COUNT" in capsys.readouterr().err
+    assert (
+        main(
+            [
+                "map",
+                str(PAPER_SPEC),
+                "--axis",
+                "q1=0,0.5,1",
+                "--base",
+                "q2=pi/3",
+                "--quiet",
+                "--workers",
+                "1",
+            ]
+        )
+        == 0
+    )
+    assert "3 poses" in capsys.readouterr().out
+    assert main(["plot", str(tmp_path / "missing.zarr"), "-o", str(tmp_path / "x.png")]) == 1
+    assert "not a zarr store" in capsys.readouterr().err
