@@ -1,13 +1,26 @@
 """Linearisation of the cable robot dynamics at an equilibrium.
 
-Dynamics (seed paper eq 11): ``M(q) q'' + C(q, q') + G(q) + w_ext = -L(q)^T f``.
+Dynamics (seed paper eq 11, with the URDF's viscous joint damping D)::
+
+    M(q) q'' + C(q, q') + G(q) + D q' + w_ext = -L(q)^T f
+
 At an equilibrium (q*, q' = 0, f*) the linearisation in the state
-``x = (dq, dq')`` (tangent space, nv each) is (paper eqs 21-23)::
+``x = (dq, dq')`` (tangent space, nv each; ``q = pin.integrate(q*, dq)``)
+is (paper eqs 21-23)::
 
-    A = [[0, I], [K, 0]],   B = [[0], [-M^-1 L^T]],   C = [[dh/dq, 0]]
+    A = [[0, I], [K, K_v]],   B = [[0], [-M^-1 L^T]],   C = [[dh/dq, 0]]
 
-with the stiffness block ``K = dq''/dq``. At zero tension and no gravity
-(the paper's case) K = 0 and A is nilpotent.
+with the stiffness block ``K = dq''/dq = -M^-1 (dG/dq + d(L^T f*)/dq)``
+(gravity stiffness from Pinocchio's ABA derivatives, cable stiffness
+``sum_i f_i Hess(l_i)`` from :meth:`cdpm.robot.CableRobot.cable_stiffness`,
+both analytic, in Pinocchio's local tangent convention) and the rate block
+``K_v = dq''/dq' = -M^-1 D`` (Coriolis terms are quadratic in q' and vanish
+at rest, so K_v = 0 without damping). At zero tension and no gravity (the
+paper's case) K = 0 and A is nilpotent.
+
+The equilibrium tension comes from :func:`cdpm.equilibrium.equilibrium_tension`
+(by default the spec's method, ``min_norm`` when it names none: zero
+tension for the paper's model) or is given by the caller and checked.
 """
 
 from __future__ import annotations
@@ -17,12 +30,18 @@ from typing import Any
 
 import numpy as np
 
-from cdpm.errors import InputError, ModelError, UnsupportedError
+from cdpm.equilibrium import (
+    EquilibriumResult,
+    InfeasibleEquilibriumError,
+    check_equilibrium,
+    equilibrium_tension,
+)
+from cdpm.errors import InputError, ModelError
 
 __all__ = ["Linearisation", "linearise", "state_names"]
 
-#: A cable whose equilibrium tension is within this of its lower bound [N]
-#: (relative to the largest tension scale) is treated as sitting on it.
+#: A cable whose equilibrium tension is within this of a bound [N]
+#: (relative to max(1, |f|)) is treated as sitting on it.
 BOUND_TOLERANCE = 1e-9
 
 
@@ -31,12 +50,15 @@ class Linearisation:
     """The linear system ``dx' = A dx + B du, dy = C dx`` at an equilibrium.
 
     Attributes:
-        A: state matrix, shape (2 nv, 2 nv); state ``(dq, dq')`` in the tangent space.
+        A: state matrix, shape (2 nv, 2 nv); state ``(dq, dq')`` in the
+            tangent space (``q = pin.integrate(q*, dq)``).
         B: input matrix, shape (2 nv, m); input = change of cable tension [N].
         C: output matrix, shape (p, 2 nv).
         tension: equilibrium cable tensions f* [N], shape (m,).
-        sign_constrained: True for cables at their lower tension bound
-            (their input can only increase), shape (m,).
+        sign_constrained: True for cables whose tension change has one sign:
+            at their lower bound (slack; du >= 0) or, rarely, at their upper
+            bound (du <= 0; see ``input_sign``), shape (m,). Cables strictly
+            inside their bounds (taut) are free inputs.
         q: configuration vector of the equilibrium, shape (nq,).
         mass_matrix: M(q*), shape (nv, nv).
         cable_jacobian: L(q*), shape (m, nv).
@@ -44,6 +66,13 @@ class Linearisation:
         stiffness: K = dq''/dq at the equilibrium, shape (nv, nv) [1/s^2].
         output: y* = h(q*), shape (p,).
         cable_names, output_names, state_names: labels of inputs, outputs, states.
+        rate_stiffness: K_v = dq''/dq' = -M^-1 D, shape (nv, nv) [1/s];
+            zero unless the URDF gives joint damping.
+        input_sign: +1 for cables at their lower bound (u >= 0), -1 at their
+            upper bound (u <= 0), 0 for free inputs, shape (m,).
+        equilibrium: the :class:`~cdpm.equilibrium.EquilibriumResult` used.
+        gravity_stiffness: dG/dq at q* (tangent space), shape (nv, nv).
+        cable_stiffness: d(L^T f*)/dq = sum_i f_i Hess(l_i), shape (nv, nv).
     """
 
     A: np.ndarray
@@ -60,15 +89,37 @@ class Linearisation:
     cable_names: tuple[str, ...] = ()
     output_names: tuple[str, ...] = ()
     state_names: tuple[str, ...] = field(default=())
+    rate_stiffness: np.ndarray | None = None
+    input_sign: np.ndarray | None = None
+    equilibrium: EquilibriumResult | None = None
+    gravity_stiffness: np.ndarray | None = None
+    cable_stiffness: np.ndarray | None = None
 
     @property
     def nilpotent(self) -> bool:
-        """True when K = 0, so that A^2 = 0 (zero tension, no gravity)."""
-        return not np.any(self.stiffness)
+        """True when K = 0 and K_v = 0, so that A^2 = 0 (zero tension, no
+        gravity, no damping)."""
+        rate = self.rate_stiffness
+        return not np.any(self.stiffness) and (rate is None or not np.any(rate))
+
+    @property
+    def B_cone(self) -> np.ndarray:
+        """B with the columns of cables at their upper bound negated (and of
+        pinned cables, f_min = f_max, zeroed), so that every sign-constrained
+        input of ``(A, B_cone)`` is u >= 0. Pass ``(A, B_cone, C,
+        sign_constrained)`` to the analysis; equal to B unless a cable sits
+        at its maximum tension."""
+        if self.input_sign is None:
+            return self.B.copy()
+        scale = np.where(self.input_sign < 0, -1.0, 1.0)
+        eq = self.equilibrium
+        if eq is not None and eq.tension_min.shape == scale.shape:
+            scale = np.where(eq.tension_min == eq.tension_max, 0.0, scale)
+        return self.B * scale[None, :]
 
     def as_dict(self) -> dict:
         """JSON-serialisable content."""
-        return {
+        out = {
             "q": self.q.tolist(),
             "A": self.A.tolist(),
             "B": self.B.tolist(),
@@ -80,6 +131,11 @@ class Linearisation:
             "output_names": list(self.output_names),
             "state_names": list(self.state_names),
         }
+        if self.input_sign is not None:
+            out["input_sign"] = self.input_sign.tolist()
+        if self.equilibrium is not None:
+            out["equilibrium"] = self.equilibrium.as_dict()
+        return out
 
     def __str__(self) -> str:
         with np.printoptions(precision=4, suppress=True, linewidth=100):
@@ -97,18 +153,16 @@ def state_names(robot) -> tuple[str, ...]:
     return tuple(coords + [f"{c}_dot" for c in coords])
 
 
-def _validate_tension(robot, tension: Any) -> np.ndarray:
-    try:
-        f = np.array(tension, dtype=float).reshape(-1)
-    except (TypeError, ValueError) as exc:
-        raise InputError(f"tension must be a vector of {robot.n_cables} numbers: {exc}") from exc
-    if f.shape[0] != robot.n_cables:
-        raise InputError(
-            f"tension has {f.shape[0]} entries, expected one per cable "
-            f"({robot.n_cables}: {', '.join(robot.cable_names)})"
-        )
-    if not np.all(np.isfinite(f)):
-        raise InputError(f"tension has non-finite entries: {f}")
+def _equilibrium(robot, q, tension, pretension) -> EquilibriumResult:
+    """The equilibrium to linearise at: solved for (None or a method name)
+    or checked (an array)."""
+    if tension is None or isinstance(tension, str):
+        eq = equilibrium_tension(robot, q, method=tension, pretension=pretension)
+        if not eq.feasible:
+            raise InfeasibleEquilibriumError(eq)
+        return eq
+    eq = check_equilibrium(robot, q, tension)
+    f = eq.tension
     low = f < robot.tension_min - BOUND_TOLERANCE
     high = f > robot.tension_max + BOUND_TOLERANCE
     if np.any(low | high):
@@ -118,40 +172,46 @@ def _validate_tension(robot, tension: Any) -> np.ndarray:
             for i in np.flatnonzero(low | high)
         ]
         raise InputError(f"tension outside the cable bounds: {'; '.join(bad)}")
-    return f
+    if not eq.feasible:
+        raise InputError(
+            f"the given tension is not an equilibrium at this pose: statics residual "
+            f"|L^T f + G + w_ext| = {eq.residual:.6g} (N or N m); pass tension=None or a "
+            "method name (zero, min_norm, pretension) to have one computed"
+        )
+    return eq
 
 
-def linearise(robot, q: Any, tension: Any = None) -> Linearisation:
-    """Linearise the robot at the equilibrium (q, q' = 0, f).
+def linearise(robot, q: Any, tension: Any = None, pretension: float | None = None) -> Linearisation:
+    """Linearise the robot at the equilibrium (q, q' = 0, f*).
 
     Args:
         robot: a :class:`~cdpm.robot.CableRobot`.
         q: configuration (nq,), natural coordinates (nv,), or a pose name.
-        tension: equilibrium tensions f* [N], shape (m,); ``None`` uses zero
-            tension (the seed paper's case).
+        tension: the equilibrium tension f*: ``None`` solves for it with the
+            spec's method (``min_norm`` by default, which gives f* = 0 for
+            the paper's model), a method name (``zero``, ``min_norm``,
+            ``pretension``) solves with that method, an array (m,) [N] is
+            checked against the statics and the bounds and used.
+        pretension: least tension [N] for the ``pretension`` method; None
+            uses the spec's ``equilibrium.pretension``.
 
     Returns:
         The :class:`Linearisation` (A, B, C, input cone, the matrices used).
 
     Raises:
-        UnsupportedError: the equilibrium needs gravity, an external wrench
-            or nonzero tension, which this version does not linearise.
+        InfeasibleEquilibriumError: no tension in bounds holds the pose
+            (``.result`` has the residual).
+        InputError: bad q, a tension array of the wrong length, outside the
+            bounds or not an equilibrium (the message gives the residual).
         ModelError: the mass matrix is singular or a cable has zero length.
-        InputError: bad q or tension.
     """
+    import pinocchio as pin
+
     kin = robot.kinematics(q)
     q = kin.q
     nv, m = robot.nv, robot.n_cables
-    f = np.zeros(m) if tension is None else _validate_tension(robot, tension)
-
-    gravity = robot.gravity_torque(q)
-    if np.any(f != 0) or np.any(np.abs(gravity) > 0) or np.any(robot.external_wrench):
-        raise UnsupportedError(
-            "only zero-tension equilibria without gravity or external wrench are "
-            "linearised (the seed paper's case); this pose has "
-            + ("nonzero tension" if np.any(f) else "gravity or an external wrench")
-            + ". Set gravity: [0, 0, 0] in the spec or pass tension=None"
-        )
+    eq = _equilibrium(robot, q, tension, pretension)
+    f = eq.tension
 
     M = robot.mass_matrix(q)
     L = kin.jacobian
@@ -162,24 +222,38 @@ def linearise(robot, q: Any, tension: Any = None) -> Linearisation:
             f"mass matrix is singular or not positive definite at q={q.tolist()}: "
             "check the URDF inertias (every moving joint needs mass or inertia beyond it)"
         ) from exc
-    Minv_LT = np.linalg.solve(chol.T, np.linalg.solve(chol, L.T))
-    stiffness = np.zeros((nv, nv))
+
+    def solve_m(rhs: np.ndarray) -> np.ndarray:
+        return np.linalg.solve(chol.T, np.linalg.solve(chol, rhs))
+
+    Minv_LT = solve_m(L.T)
+    # Rigid-body part: ABA derivative at rest with the equilibrium forces
+    # held fixed; at an equilibrium (q'' = 0) it equals -M^-1 dG/dq.
+    model = robot.model
+    data = model.createData()
+    tau = -L.T @ f - robot.external_wrench
+    ddq_dq = np.array(pin.computeABADerivatives(model, data, q, np.zeros(nv), tau)[0])
+    gravity_stiffness = -M @ ddq_dq
+    cable_stiffness = robot.cable_stiffness(q, f) if np.any(f) else np.zeros((nv, nv))
+    stiffness = ddq_dq - solve_m(cable_stiffness) if np.any(f) else ddq_dq + 0.0
+    damping = robot.joint_damping
+    rate_stiffness = -solve_m(np.diag(damping)) if np.any(damping) else np.zeros((nv, nv))
 
     A = np.zeros((2 * nv, 2 * nv))
     A[:nv, nv:] = np.eye(nv)
     A[nv:, :nv] = stiffness
+    A[nv:, nv:] = rate_stiffness
     B = np.zeros((2 * nv, m))
     B[nv:] = -Minv_LT
     C = np.zeros((robot.n_outputs, 2 * nv))
     C[:, :nv] = kin.output_jacobian
-    scale = max(1.0, float(np.max(np.abs(robot.tension_min), initial=0.0)))
-    sign_constrained = f <= robot.tension_min + BOUND_TOLERANCE * scale
+    input_sign = np.where(eq.at_lower_bound, 1, np.where(eq.at_upper_bound, -1, 0))
     return Linearisation(
         A=A,
         B=B,
         C=C,
-        tension=f,
-        sign_constrained=sign_constrained,
+        tension=f.copy(),
+        sign_constrained=input_sign != 0,
         q=q.copy(),
         mass_matrix=M,
         cable_jacobian=L.copy(),
@@ -189,4 +263,9 @@ def linearise(robot, q: Any, tension: Any = None) -> Linearisation:
         cable_names=robot.cable_names,
         output_names=robot.output_names,
         state_names=state_names(robot),
+        rate_stiffness=rate_stiffness,
+        input_sign=input_sign.astype(int),
+        equilibrium=eq,
+        gravity_stiffness=gravity_stiffness,
+        cable_stiffness=cable_stiffness,
     )

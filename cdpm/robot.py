@@ -376,6 +376,87 @@ class CableRobot:
         q = self.as_q(q)
         return np.array(self._pin.computeGeneralizedGravity(self.model, self._dyn_data, q))
 
+    @property
+    def joint_damping(self) -> np.ndarray:
+        """Viscous joint damping D [N s/m or N m s/rad], shape (nv,), from the
+        URDF ``<dynamics damping=...>`` tags (zero when absent). Its
+        generalised force is ``-D q'``."""
+        return np.array(self.model.damping, dtype=float)
+
+    # ------------------------------------------------------- cable stiffness
+
+    def _dof_support(self) -> np.ndarray:
+        """P[j, k] True when the joint of tangent direction k is the joint of
+        direction j or one of its ancestors, shape (nv, nv)."""
+        if getattr(self, "_dof_support_cache", None) is None:
+            model = self.model
+            joint_of_dof = np.zeros(self.nv, dtype=int)
+            for j in range(1, model.njoints):
+                jm = model.joints[j]
+                joint_of_dof[jm.idx_v : jm.idx_v + jm.nv] = j
+            support = np.zeros((self.nv, self.nv), dtype=bool)
+            for j in range(self.nv):
+                ancestors = set(model.supports[int(joint_of_dof[j])])
+                support[j] = [int(joint_of_dof[k]) in ancestors for k in range(self.nv)]
+            self._dof_support_cache = support
+            self._hess_data = model.createData()
+        return self._dof_support_cache
+
+    def cable_stiffness(self, q: Any, tension: Any) -> np.ndarray:
+        """Derivative of the cables' generalised force, ``d(L(q)^T f)/dq`` at fixed f.
+
+        Equals ``sum_i f_i Hess(l_i)`` (each cable summing its segments),
+        in the tangent space of q with Pinocchio's local convention: column k
+        is the derivative along ``pin.integrate(model, q, eps * e_k)``, the
+        convention of ``pin.computeABADerivatives``. For a segment from A to
+        B (``d = B - A``, ``l = |d|``, ``u = d/l``, ``J_d = J_B - J_A``) the
+        contribution is ``f (J_d^T (I - u u^T) J_d / l + sum_c u_c d^2 d_c/dq^2)``.
+        The second derivatives of a point p on a body come from the world
+        spatial Jacobian columns ``(v_k, w_k)``:
+        ``dJ_p[:, j]/dq_k = w_k x J_p[:, j]`` when the joint of k is (an
+        ancestor of) the joint of j, and ``w_j x J_p[:, k]`` otherwise.
+        For joints whose local coordinates do not commute (spherical,
+        free-flyer) the matrix is not symmetric.
+
+        Args:
+            q: configuration (nq,), natural coordinates (nv,) or pose name.
+            tension: cable tensions f [N], shape (m,).
+
+        Returns:
+            The stiffness matrix, shape (nv, nv) [N m/rad, N/m, ...]; the
+            cables' generalised force ``-L^T f`` changes by ``-H dq``.
+        """
+        q = self.as_q(q)
+        f = np.asarray(tension, dtype=float).reshape(-1)
+        if f.shape[0] != self.n_cables:
+            raise ModelError(f"tension has {f.shape[0]} entries, expected m={self.n_cables}")
+        support = self._dof_support()
+        kin = self.kinematics(q)
+        self._pin.computeJointJacobians(self.model, self._hess_data, q)
+        omega = np.array(self._hess_data.J[3:])  # (3, nv) world angular Jacobian
+        seg_f = f[self._segment_cable]
+        keep = np.flatnonzero(seg_f != 0)
+        if keep.size == 0:
+            return np.zeros((self.nv, self.nv))
+        seg_f = seg_f[keep]
+        a, b = self._segment_points[keep, 0], self._segment_points[keep, 1]
+        jac = kin.point_jacobians  # (n_route_points, 3, nv), masked
+        units = kin.segment_units[keep]
+        lengths = kin.segment_lengths[keep]
+        jac_d = jac[b] - jac[a]
+        proj = (np.eye(3)[None] - units[:, :, None] * units[:, None, :]) / lengths[:, None, None]
+        hess = np.einsum("s,sin,sij,sjk->nk", seg_f, jac_d, proj, jac_d)
+        # u x w_k for every segment and tangent direction: (S, 3, nv)
+        u_cross_w = np.cross(units[:, None, :], omega.T[None, :, :]).transpose(0, 2, 1)
+        for ends, sign in ((b, 1.0), (a, -1.0)):
+            jp = jac[ends]
+            first = np.einsum("sij,sik->sjk", jp, u_cross_w)  # J_p[:, j] . (u x w_k)
+            second = np.einsum("sij,sik->sjk", u_cross_w, jp)  # J_p[:, k] . (u x w_j)
+            mask = self._point_mask[ends][:, :, None]
+            term = np.where(support[None], first, second * mask)
+            hess += sign * np.einsum("s,sjk->jk", seg_f, term)
+        return hess
+
 
 def load_robot(path: str | os.PathLike) -> CableRobot:
     """Load a cable robot from its YAML cable spec (which names its URDF).

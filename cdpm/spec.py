@@ -19,7 +19,9 @@ Format (all lengths in metres, forces in newtons, angles in radians)::
     poses:
       nominal: [pi/6, pi/3]           # configuration vector (nq values) or
       other: {joint2: 0.5}            # joint name -> value(s), others neutral
-    equilibrium: {method: zero}       # optional default for linearise()
+    equilibrium: {method: min_norm}   # optional: default tension method of
+                                      # linearise() (zero, min_norm, pretension)
+                                      # and pretension [N]; default min_norm
     external_wrench: [0, 0]           # optional generalised force w_ext (nv,)
 
 ``relative_to: com`` gives the point relative to the link's centre of mass
@@ -142,7 +144,7 @@ class CableSpec:
     cables: tuple[CableDef, ...]
     outputs: tuple[OutputDef, ...]
     poses: dict[str, np.ndarray] = field(default_factory=dict)
-    equilibrium_method: str = "zero"
+    equilibrium_method: str = "min_norm"
     pretension: float = 0.0
     external_wrench: np.ndarray | None = None
     sha256: str = ""
@@ -583,18 +585,18 @@ def _parse_poses(problems: _Problems, raw: Any, model) -> dict[str, np.ndarray]:
 
 def _parse_equilibrium(problems: _Problems, raw: Any) -> tuple[str, float]:
     if raw is None:
-        return "zero", 0.0
+        return "min_norm", 0.0
     if not isinstance(raw, dict):
         problems.add("equilibrium", "expected {method: NAME, pretension: N}")
-        return "zero", 0.0
+        return "min_norm", 0.0
     _unknown_keys(problems, "equilibrium", raw, _EQUILIBRIUM_KEYS)
-    method = raw.get("method", "zero")
+    method = raw.get("method", "min_norm")
     if method not in EQUILIBRIUM_METHODS:
         problems.add(
             "equilibrium.method",
             f"{method!r} is not valid; use one of {', '.join(EQUILIBRIUM_METHODS)}",
         )
-        method = "zero"
+        method = "min_norm"
     pretension = 0.0
     if "pretension" in raw:
         try:
