@@ -139,6 +139,7 @@ def per_pose_costs(path: Path, n_ours: int, n_base: int, repeats: int, tension=N
         ours_t.append(best_of(lambda: evaluate_poses(robot, natural, tension, batch=batch), 1))
         floor_t.append(best_of(floor, 1))
     base_poses = natural[:n_base]
+    baseline_verdicts(robot, base_poses[:2], tension)  # imports
     base_t = best_of(lambda: baseline_verdicts(robot, base_poses, tension), 1)
     ours = min(ours_t) / n_ours
     return {
@@ -200,11 +201,11 @@ def main(argv=None) -> int:
 
     print("per-pose cost [us/pose] on the same random poses")
     print(f"{'model':<34} {'ours':>9} {'floor':>9} {'baseline':>10} {'vs base':>9} {'vs floor':>9}")
-    rows = [("two_link_planar (zero tension)", PAPER, n_ours, n_base)]
-    if VERTICAL.is_file():
-        rows.append(("two_link_vertical (gravity)", VERTICAL, max(n_ours // 16, 256), n_base))
-    for label, path, n1, n2 in rows:
-        r = per_pose_costs(path, n1, n2, repeats)
+    rows = [("two_link_planar (zero tension)", PAPER, n_ours, n_base, repeats)]
+    if VERTICAL.is_file():  # per-pose pipeline: few poses, few repeats
+        rows.append(("two_link_vertical (gravity)", VERTICAL, 32 if args.quick else 96, 20, 2))
+    for label, path, n1, n2, reps in rows:
+        r = per_pose_costs(path, n1, n2, reps)
         print(
             f"{label:<34} {r['ours'] * 1e6:9.2f} {r['floor'] * 1e6:9.2f} "
             f"{r['baseline'] * 1e6:10.1f} {r['baseline'] / r['ours']:8.0f}x "
