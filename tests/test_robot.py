@@ -142,3 +142,37 @@ def test_load_robot_accepts_model_folder(paper_robot):
 
     robot = cdpm.load_robot(MODELS / "two_link_planar")
     assert robot.cable_names == paper_robot.cable_names
+
+
+PENDULUM_URDF = """<?xml version="1.0"?>
+<robot name="pendulum">
+  <link name="base"/>
+  <link name="arm">
+    <inertial><origin xyz="0.5 0 0"/><mass value="2.0"/>
+      <inertia ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" izz="0"/></inertial>
+  </link>
+  <joint name="hinge" type="revolute">
+    <parent link="base"/><child link="arm"/><axis xyz="0 0 1"/>
+    <limit lower="-3" upper="3" effort="1" velocity="1"/>
+  </joint>
+</robot>
+"""
+
+
+def test_single_degree_of_freedom_robot(tmp_path):
+    (tmp_path / "pendulum.urdf").write_text(PENDULUM_URDF)
+    spec = tmp_path / "pendulum.yaml"
+    spec.write_text(
+        "urdf: pendulum.urdf\ngravity: [0, 0, 0]\n"
+        "cables:\n  - name: up\n    route:\n      - {frame: world, point: [0, 1, 0]}\n"
+        "      - {frame: arm, point: [1, 0, 0]}\n"
+        "outputs:\n  - {frame: arm, component: y}\n"
+    )
+    robot = cdpm.load_robot(spec)
+    assert (robot.nq, robot.nv) == (1, 1)
+    q = np.array([0.3])
+    # length of the segment from (0, 1) to (cos q, sin q): sqrt(2 - 2 sin q)
+    np.testing.assert_allclose(robot.cable_lengths(q), [math.sqrt(2 - 2 * math.sin(0.3))])
+    fd = central_difference(robot.cable_lengths, q)
+    np.testing.assert_allclose(robot.cable_jacobian(q), fd, rtol=0, atol=FD_TOL)
+    np.testing.assert_allclose(robot.mass_matrix(q), [[0.5]], atol=1e-12)  # 2 kg at 0.5 m
