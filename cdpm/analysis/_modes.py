@@ -31,6 +31,7 @@ class Evaluator:
     def __init__(self, A: np.ndarray, B: np.ndarray, C: np.ndarray):
         self.A, self.B, self.C = A, B, C
         self.lam = None
+        self.eigvals = np.zeros(0, dtype=complex)
         n = A.shape[0]
         if n == 0:
             return
@@ -58,6 +59,28 @@ class Evaluator:
     def coefficients(self, v: np.ndarray, j: int) -> np.ndarray:
         """kappa_i with v^T g_j(t) = Re sum_i kappa_i exp(lam_i t) (modal only)."""
         return (v @ self.CV) * self.WB[:, j]
+
+
+class ModalEvaluator:
+    """g(t) = Cq U diag(s_k(t)) U^-1 Bv for A = [[0, I], [K, 0]], B = [0; Bv],
+    C = [Cq, 0] with K = U diag(kappa) U^-1 real: s_k(t) = sin(w t)/w
+    (kappa = -w^2 < 0), t (kappa = 0) or sinh(w t)/w (kappa = w^2 > 0)."""
+
+    modal = False  # no complex modal sums: the NO proofs use the exact modal test
+
+    def __init__(self, kappa: np.ndarray, CqU: np.ndarray, beta: np.ndarray, zero: float):
+        self.kappa, self.CqU, self.beta = kappa, CqU, beta
+        self.w = np.sqrt(np.abs(kappa))
+        self.osc = kappa < -zero
+        self.grow = kappa > zero
+        self.eigvals = np.concatenate([1j * self.w, -1j * self.w])
+
+    def __call__(self, t: np.ndarray) -> np.ndarray:
+        t = np.asarray(t, dtype=float)
+        wt = np.outer(t, self.w)
+        w = np.where(self.w > 0, self.w, 1.0)
+        S = np.where(self.osc, np.sin(wt) / w, np.where(self.grow, np.sinh(wt) / w, t[:, None]))
+        return np.einsum("pi,ti,ij->tpj", self.CqU, S, self.beta)
 
 
 def default_horizon(eigvals: np.ndarray) -> float:

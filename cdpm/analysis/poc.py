@@ -290,15 +290,20 @@ class _Reduced:
         v = v_red if self.N is None else self.N @ v_red
         return v / np.linalg.norm(v)
 
-    def yes(self, times, jloc, weights):
+    def yes(self, times, jloc, weights, vectors=None):
         """YES certificate from reduced pairs (t, local j) with weights such
-        that sum w_k N^T g_k = 0."""
+        that sum w_k N^T g_k = 0; ``vectors`` (p, K) may give the full
+        outputs g_k when already known (no free-input projection)."""
         pairs = (
             np.asarray(times, float),
             self.cons[np.asarray(jloc, int)],
             np.asarray(weights, float),
         )
-        return _lift_yes(self.A, self.B, self.C, self.mask, pairs, self.Fpairs, self.square_zero)
+        if self.N is not None:
+            vectors = None
+        return _lift_yes(
+            self.A, self.B, self.C, self.mask, pairs, self.Fpairs, self.square_zero, vectors
+        )
 
     def no(self, v_red, proof):
         return POCCertificate("separator", self.mask, separator=self.lift(v_red), proof=proof)
@@ -325,12 +330,13 @@ def _free_pairs(A, B, C, free, r, horizon):
     _, _, piv = qr(S / (np.linalg.norm(S, axis=0) + 1e-300), mode="economic", pivoting=True)
     k = piv[:r]
     t = times[k // free.size] / rho
-    j = free[k % free.size]
-    vecs = np.stack([_g(A, B, C, ti, ji) for ti, ji in zip(t, j, strict=True)], axis=1)
-    return t, j, vecs
+    jl = k % free.size
+    # scaled g_s = row * g * col_j (see scaled_system)
+    vecs = G[k // free.size, :, jl].T / row[:, None] / col[jl]
+    return t, free[jl], vecs
 
 
-def _lift_yes(A, B, C, mask, pairs, Fpairs, square_zero=False):
+def _lift_yes(A, B, C, mask, pairs, Fpairs, square_zero=False, vectors=None):
     """Assemble a YES certificate in the full output space.
 
     ``pairs`` = (times, inputs, weights) of constrained inputs whose reduced
@@ -341,8 +347,8 @@ def _lift_yes(A, B, C, mask, pairs, Fpairs, square_zero=False):
     ts, js, ss, vs, ws = [], [], [], [], []
     total = np.zeros(p)
     if pairs is not None:
-        for t, j, w in zip(*pairs, strict=True):
-            g = _g(A, B, C, t, j, square_zero)
+        for i, (t, j, w) in enumerate(zip(*pairs, strict=True)):
+            g = _g(A, B, C, t, j, square_zero) if vectors is None else vectors[:, i]
             ts.append(t), js.append(j), ss.append(1.0), vs.append(g), ws.append(w)
             total += w * g
     if Fpairs is not None:
@@ -580,7 +586,8 @@ def _modal(sub: _Reduced, horizon, tol):
     T = horizon or _modal_horizon(kap)
     for group in cluster(kap, 1e-8 * sK):
         k = float(np.mean(kap[group]))
-        Ra = orth(U[:, group].T @ Q)  # modal coordinates reachable by outputs
+        # modal coordinates reachable by the outputs (all of them for a full pose)
+        Ra = np.eye(group.size) if Q.shape[1] == h else orth(U[:, group].T @ Q)
         if Ra.shape[1] == 0:
             continue
         Z = Ra.T @ beta[group]
@@ -611,11 +618,13 @@ def _modal(sub: _Reduced, horizon, tol):
             sub.no(vr, proof),
             T,
         )
+    sc = _ModalScaled(_modes.ModalEvaluator(kap, Cq @ U, beta, 1e-9 * sK))
     return _sampled_yes(
         sub,
         T,
         "modal",
         "every sign-definite mode is positively spanned and every oscillatory mode has full rank",
+        sc,
     )
 
 
@@ -675,9 +684,9 @@ def _brammer(sub: _Reduced, horizon, tol):
 # general: sampled exchange search with certificates
 
 
-def _sampled_yes(sub, T, method, reason):
+def _sampled_yes(sub, T, method, reason, sc=None):
     """YES certificate for an exact path: sample, then refine if needed."""
-    found = _sample_search(sub, T)
+    found = _sample_search(sub, T, sc)
     if found[0] == "yes":
         return Verdict.YES, method, reason, found[1], T
     return _marginal(
@@ -711,22 +720,34 @@ class _Scaled:
         return G.transpose(1, 0, 2).reshape(r, N * m), m, ts
 
 
+class _ModalScaled(_Scaled):
+    """The modal evaluator in original units (no scaling needed: span
+    decisions normalise each output vector)."""
+
+    def __init__(self, ev):
+        self.ev = ev
+        self.rho, self.t_max = 1.0, np.inf
+        m = ev.beta.shape[1]
+        self.col, self.row = np.ones(m), np.ones(ev.CqU.shape[0])
+
+
 def _sample_search(sub, T, sc=None, extra=None):
     """Positive span over samples; returns ("yes", cert) or ("no", v_s, S, ts, m)."""
     sc = sc or _Scaled(sub)
     Ts = T * sc.rho
-    ts = _modes.coarse_times(Ts)
+    # three stages, cheapest first: most YES answers need only a few times
+    grids = [np.linspace(0.0, Ts, 13), _modes.coarse_times(Ts), None]
     if extra is not None:
-        ts = np.unique(np.concatenate([ts, extra]))
-    for stage in range(2):
+        grids = grids[1:]
+    ts = np.zeros(0)
+    for grid in grids:
+        if grid is None:
+            grid = _modes.fine_times(Ts, sc.ev.eigvals)
+        ts = np.unique(np.concatenate([ts, grid] if extra is None else [ts, grid, extra]))
         S, m, ts = sc.columns(ts)
         yes, _, _, idx, w, v = span_core(S, SPAN_TOL)
         if yes:
             return "yes", _cert_from_columns(sub, sc, S, ts, m, idx, w)
-        if stage == 0:
-            ts = np.unique(
-                np.concatenate([ts, _modes.fine_times(Ts, sc.ev.eigvals if sc.ev.A.size else None)])
-            )
     return "no", v, S, ts, m
 
 
@@ -736,8 +757,9 @@ def _cert_from_columns(sub, sc, S, ts, m, idx, w):
     # span_core's weights refer to unit columns; re-evaluate the raw ones
     raw = sc.ev(ts[k])[np.arange(k.size), :, j]  # (K, r)
     wr = np.asarray(w) / np.linalg.norm(raw, axis=1)  # weights on raw scaled columns
+    vectors = raw.T / sc.row[:, None] / sc.col[j]  # the outputs in original units
     # raw scaled g_s = row * g * col_j, so sum wr g_s = 0 <=> sum (wr col_j) g = 0
-    return sub.yes(ts[k] / sc.rho, j, wr * sc.col[j])
+    return sub.yes(ts[k] / sc.rho, j, wr * sc.col[j], vectors)
 
 
 def _marginal(method, reason, sub, T, proof=None):

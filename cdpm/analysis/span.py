@@ -278,10 +278,12 @@ def _span_angular(U: np.ndarray, nz: np.ndarray, tol: float):
 def _span_general(U: np.ndarray, nz: np.ndarray, tol: float):
     """NNLS decision on normalised columns U (p, k); LP only as a fallback."""
     p, k = U.shape
-    Uu, s, _ = np.linalg.svd(U, full_matrices=True)
+    # left singular vectors from the p x p Gram matrix: k may be large
+    evals, evecs = np.linalg.eigh(U @ U.T)
+    s = np.sqrt(np.clip(evals[::-1], 0.0, None))
     rank = numerical_rank(s, 1e-9)
     if rank < p:
-        v = Uu[:, -1]
+        v = evecs[:, 0]
         return False, "rank", rank, None, None, v
     b = -U.sum(axis=1)
     mu, res = nnls(U, b, maxiter=50 * k + 100)
@@ -299,19 +301,26 @@ def _span_general(U: np.ndarray, nz: np.ndarray, tol: float):
 
 
 def _compact(U: np.ndarray, w: np.ndarray, tol: float):
-    """A small positively spanning subset (<= 2p columns typically)."""
+    """A positively spanning subset of at most 2p columns.
+
+    Take a basis b_1..b_p of columns (pivoted QR) and write -sum b_i as a
+    conic combination of the columns (NNLS: at most p active columns); the
+    basis plus that support then combine to 0 with positive weights.
+    """
     p, k = U.shape
-    if k <= 2 * p + 2:
+    if k <= 2 * p:
         return None
-    # columns carrying the largest weights, plus a well-conditioned basis
-    heavy = np.argsort(w)[::-1][: p + 1]
     _, _, piv = _qr_pivots(U)
-    cand = np.unique(np.concatenate([heavy, piv[:p]]))
-    sub = U[:, cand]
-    mu, res = nnls(sub, -sub.sum(axis=1), maxiter=50 * cand.size + 100)
-    if res <= 1e-10 * max(1.0, float(np.linalg.norm(sub.sum(axis=1)))):
-        return cand, 1.0 + mu
-    return None
+    basis = piv[:p]
+    target = -U[:, basis].sum(axis=1)
+    mu, res = nnls(U, target, maxiter=50 * k + 100)
+    if res > 1e-10 * max(1.0, float(np.linalg.norm(target))):
+        return None
+    weights = np.zeros(k)
+    weights[basis] = 1.0
+    weights += mu
+    cand = np.flatnonzero(weights > 0)
+    return cand, weights[cand]
 
 
 def _qr_pivots(U):

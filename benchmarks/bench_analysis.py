@@ -1,0 +1,118 @@
+"""Median cost per POC decision of cdpm.analysis against a baseline.
+
+Baseline: Theorem 1 sampled at 50 times with scipy.linalg.expm, then one
+HiGHS LP deciding whether the sampled output vectors positively span.
+
+Run: python benchmarks/bench_analysis.py
+"""
+
+from __future__ import annotations
+
+import statistics
+import time
+
+import numpy as np
+from scipy.linalg import expm
+from scipy.optimize import linprog
+
+from cdpm.analysis import positive_output_controllability
+
+
+def baseline(A, B, C, mask, T=10.0, samples=50):
+    """Sampled Theorem 1: 50 expm evaluations and one LP (free inputs +-)."""
+    ts = np.linspace(T / samples, T, samples)
+    cols = []
+    for t in ts:
+        G = C @ expm(A * t) @ B
+        cols += [G[:, mask], G[:, ~mask], -G[:, ~mask]]
+    S = np.hstack(cols)
+    S = S / (np.linalg.norm(S, axis=0) + 1e-300)
+    p, k = S.shape
+    res = linprog(
+        np.r_[np.zeros(k), -1.0],
+        A_ub=np.hstack([-np.eye(k), np.ones((k, 1))]),
+        b_ub=np.zeros(k),
+        A_eq=np.vstack([np.hstack([S, np.zeros((p, 1))]), np.r_[np.ones(k), 0.0]]),
+        b_eq=np.r_[np.zeros(p), k],
+        bounds=[(0, None)] * k + [(None, 1.0)],
+        method="highs",
+    )
+    return res.status == 0 and -res.fun > 1e-9
+
+
+def median_seconds(fn, repeat=200, min_time=0.2):
+    times = []
+    start = time.perf_counter()
+    while len(times) < repeat or time.perf_counter() - start < min_time:
+        t0 = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t0)
+        if len(times) >= 20 * repeat:
+            break
+    return statistics.median(times)
+
+
+def paper_system():
+    A = np.zeros((4, 4))
+    A[0, 2] = A[1, 3] = 1.0
+    B = np.zeros((4, 4))
+    B[2] = [0.500, -0.046, -0.337, -0.822]
+    B[3] = [-1.000, 3.088, 0.674, 2.310]
+    C = np.array([[-1.5, -1.0, 0.0, 0.0]])
+    return A, B, C, np.ones(4, dtype=bool)
+
+
+def mechanical_system(taut: int, p: int, seed: int = 1):
+    """12 states (nv = 6): random SPD mass, symmetric cable + gravity
+    stiffness at nonzero tension, 8 cables, the first ``taut`` free in sign."""
+    rng = np.random.default_rng(seed)
+    nv, m = 6, 8
+    X = rng.normal(size=(nv, nv))
+    M = X @ X.T + nv * np.eye(nv)
+    H = rng.normal(size=(nv, nv))
+    H = (H + H.T) / 2 + 3 * np.eye(nv)  # symmetric stiffness, mostly stable
+    L = rng.normal(size=(m, nv))
+    Minv = np.linalg.inv(M)
+    A = np.zeros((2 * nv, 2 * nv))
+    A[:nv, nv:] = np.eye(nv)
+    A[nv:, :nv] = -Minv @ H
+    B = np.vstack([np.zeros((nv, m)), -Minv @ L.T])
+    C = np.hstack([rng.normal(size=(p, nv)) if p < nv else np.eye(nv), np.zeros((p, nv))])
+    mask = np.ones(m, dtype=bool)
+    mask[:taut] = False
+    return A, B, C, mask
+
+
+def complex_system(seed: int = 2):
+    """Random 8-state system with complex, damped modes; p = 2, m = 4."""
+    rng = np.random.default_rng(seed)
+    A = rng.normal(size=(8, 8)) - 1.0 * np.eye(8)
+    return A, rng.normal(size=(8, 4)), rng.normal(size=(2, 8)), np.ones(4, dtype=bool)
+
+
+def main() -> None:
+    cases = [
+        ("paper (n=4, m=4, p=1, nilpotent)", paper_system()),
+        ("12-state mechanical, full pose, slack", mechanical_system(taut=0, p=6)),
+        ("12-state mechanical, full pose, 2 taut", mechanical_system(taut=2, p=6)),
+        ("12-state mechanical, p=3, slack", mechanical_system(taut=0, p=3)),
+        ("random 8-state, complex modes", complex_system()),
+    ]
+    print(
+        f"{'system':42s} {'verdict':>8s} {'method':>22s} {'cdpm':>10s} {'baseline':>10s} "
+        f"{'ratio':>7s}"
+    )
+    for name, (A, B, C, mask) in cases:
+        res = positive_output_controllability(A, B, C, mask)
+        ours = median_seconds(
+            lambda A=A, B=B, C=C, mask=mask: positive_output_controllability(A, B, C, mask)
+        )
+        base = median_seconds(lambda A=A, B=B, C=C, mask=mask: baseline(A, B, C, mask), repeat=20)
+        print(
+            f"{name:42s} {res.verdict.value:>8s} {res.method:>22s} {ours * 1e6:8.1f}us "
+            f"{base * 1e6:8.0f}us {base / ours:6.1f}x"
+        )
+
+
+if __name__ == "__main__":
+    main()
