@@ -39,6 +39,21 @@ _EXPORTS: dict[str, str] = {
     # pose report
     "PoseReport": "cdpm.report",
     "analyze_pose": "cdpm.report",
+    # workspace maps (xarray + zarr; Dask optional)
+    "workspace_map": "cdpm.maps",
+    "sample_axes": "cdpm.maps",
+    "SampledAxes": "cdpm.maps",
+    "open_map": "cdpm.maps",
+    "plot_map": "cdpm.plotting",
+    # viewer and pictures (extra: cdpm[viz])
+    "Viewer": "cdpm.viewer",
+    "PoseInspector": "cdpm.viewer",
+    "PoseState": "cdpm.viewer",
+    "pose_state": "cdpm.viewer",
+    "render_pose": "cdpm.picture",
+    # CASPR import (extra: cdpm[caspr])
+    "import_caspr": "cdpm.caspr",
+    "CasprImport": "cdpm.caspr",
 }
 
 __all__ = ["__version__", *_EXPORTS]
@@ -75,7 +90,12 @@ if TYPE_CHECKING:  # pragma: no cover - for static type checkers only
         SpecError,
         UnsupportedError,
     )
+    from cdpm.caspr import CasprImport, import_caspr  # noqa: F401
     from cdpm.linearise import Linearisation, linearise  # noqa: F401
+    from cdpm.maps import SampledAxes, open_map, sample_axes, workspace_map  # noqa: F401
+    from cdpm.picture import render_pose  # noqa: F401
+    from cdpm.plotting import plot_map  # noqa: F401
     from cdpm.report import PoseReport, analyze_pose  # noqa: F401
     from cdpm.robot import CableRobot, load_robot  # noqa: F401
     from cdpm.spec import CableSpec, load_spec  # noqa: F401
+    from cdpm.viewer import PoseInspector, PoseState, Viewer, pose_state  # noqa: F401
