@@ -736,7 +736,7 @@ def _sample_search(sub, T, sc=None, extra=None):
     sc = sc or _Scaled(sub)
     Ts = T * sc.rho
     # three stages, cheapest first: most YES answers need only a few times
-    grids = [np.linspace(0.0, Ts, 13), _modes.coarse_times(Ts), None]
+    grids = [np.linspace(0.0, Ts, 8)[1:], _modes.coarse_times(Ts), None]
     if extra is not None:
         grids = grids[1:]
     ts = np.zeros(0)
