@@ -34,6 +34,8 @@ class PoseReport:
         output_controllability: output controllability (rank test).
         controllability: Kalman controllability.
         wrench_closure: whether the columns of -L^T positively span R^nv.
+        equilibrium: the :class:`~cdpm.equilibrium.EquilibriumResult` the
+            linearisation is taken at (tensions, taut/slack cables, residual).
     """
 
     model_name: str
@@ -47,6 +49,7 @@ class PoseReport:
     output_controllability: Any
     controllability: Any
     wrench_closure: Any
+    equilibrium: Any = None
 
     def as_dict(self) -> dict:
         """JSON-serialisable content of the report."""
@@ -72,6 +75,7 @@ class PoseReport:
                     strict=True,
                 )
             ],
+            "equilibrium": None if self.equilibrium is None else self.equilibrium.as_dict(),
             "linearisation": lin.as_dict(),
             "positive_output_controllability": self.poc.as_dict(),
             "positive_controllability": self.positive_controllability.as_dict(),
@@ -94,14 +98,8 @@ class PoseReport:
             f"  coordinates: {coords}",
             f"  outputs:     {outputs or '(none)'}",
             "",
-            "Cables",
-            f"  {'name':<12} {'length [m]':>11} {'tension [N]':>12}  input",
+            *self._equilibrium_lines(),
         ]
-        for name, length, f, sc in zip(
-            lin.cable_names, self.cable_lengths, lin.tension, lin.sign_constrained, strict=True
-        ):
-            kind = "u >= 0 (slack, pull only)" if sc else "free (taut)"
-            lines.append(f"  {name:<12} {length:>11.6f} {f:>12.6g}  {kind}")
         with np.printoptions(precision=4, suppress=True, linewidth=100):
             lines += [
                 "",
@@ -121,6 +119,32 @@ class PoseReport:
         ]
         return "\n".join(lines)
 
+    def _equilibrium_lines(self) -> list[str]:
+        lin = self.linearisation
+        eq = self.equilibrium
+        if eq is None:
+            head = ["Cables (equilibrium tension given)"]
+            states = ["" for _ in lin.cable_names]
+        else:
+            status = "statics hold" if eq.feasible else "INFEASIBLE"
+            head = [
+                f"Equilibrium ({eq.method}"
+                + (f", pretension {eq.pretension:g} N" if eq.method == "pretension" else "")
+                + f"): {status}, residual |L^T f + G + w_ext| = {eq.residual:.3g}",
+                f"  {eq.message}",
+            ]
+            states = eq.cable_states()
+        inputs = {1: "u >= 0 (pull only)", -1: "u <= 0 (release only)", 0: "free"}
+        signs = lin.input_sign if lin.input_sign is not None else lin.sign_constrained.astype(int)
+        lines = head + [
+            f"  {'name':<12} {'length [m]':>11} {'tension [N]':>12}  {'state':<7} input"
+        ]
+        for name, length, f, state, sign in zip(
+            lin.cable_names, self.cable_lengths, lin.tension, states, signs, strict=True
+        ):
+            lines.append(f"  {name:<12} {length:>11.6f} {f:>12.6g}  {state:<7} {inputs[int(sign)]}")
+        return lines
+
     def _repr_html_(self) -> str:
         return f"<pre>{html.escape(str(self))}</pre>"
 
@@ -129,19 +153,26 @@ def _indent(text: str, prefix: str = "  ") -> str:
     return "\n".join(prefix + line for line in text.splitlines())
 
 
-def analyze_pose(robot, q: Any, tension: Any = None) -> PoseReport:
+def analyze_pose(robot, q: Any, tension: Any = None, pretension: float | None = None) -> PoseReport:
     """Linearise ``robot`` at ``q`` and decide every property at that pose.
 
     Args:
         robot: a :class:`~cdpm.robot.CableRobot`.
         q: a pose name from the spec, a configuration vector (nq,) or
             natural coordinates (nv,).
-        tension: equilibrium tension (see :func:`~cdpm.linearise.linearise`).
+        tension: equilibrium tension: None (the spec's method), a method
+            name or an array (see :func:`~cdpm.linearise.linearise`).
+        pretension: least tension [N] for the ``pretension`` method.
+
+    Raises:
+        InfeasibleEquilibriumError: no tension within the bounds holds the
+            pose; its ``result`` (and message) give the residual.
     """
     from cdpm import analysis
 
     pose_name = q if isinstance(q, str) else None
-    lin = linearise(robot, q, tension=tension)
+    lin = linearise(robot, q, tension=tension, pretension=pretension)
+    B_cone = lin.B_cone
     kin = robot.kinematics(lin.q)
     return PoseReport(
         model_name=robot.spec.path.name,
@@ -151,12 +182,13 @@ def analyze_pose(robot, q: Any, tension: Any = None) -> PoseReport:
         cable_lengths=kin.lengths.copy(),
         linearisation=lin,
         poc=analysis.positive_output_controllability(
-            lin.A, lin.B, lin.C, sign_constrained=lin.sign_constrained
+            lin.A, B_cone, lin.C, sign_constrained=lin.sign_constrained
         ),
         positive_controllability=analysis.positive_controllability(
-            lin.A, lin.B, sign_constrained=lin.sign_constrained
+            lin.A, B_cone, sign_constrained=lin.sign_constrained
         ),
         output_controllability=analysis.output_controllability(lin.A, lin.B, lin.C),
         controllability=analysis.controllability(lin.A, lin.B),
         wrench_closure=analysis.wrench_closure(lin.cable_jacobian),
+        equilibrium=lin.equilibrium,
     )

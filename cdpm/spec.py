@@ -6,7 +6,10 @@ parsed by a small whitelist parser, not evaluated as Python.
 
 Format (all lengths in metres, forces in newtons, angles in radians)::
 
-    urdf: two_link_planar.urdf        # path relative to this file
+    urdf: two_link_planar.urdf        # path relative to this file, or a file
+                                      # of an installed data package:
+                                      # {package: example-robot-data, path: robots/...urdf}
+                                      # or package://example-robot-data/robots/...urdf
     gravity: [0, 0, 0]                # m/s^2, world frame (default [0, 0, -9.81])
     cables:
       - name: c1
@@ -343,12 +346,81 @@ def load_spec(path: str | os.PathLike) -> CableSpec:
     )
 
 
+#: pip distribution that installs a ROS-style package's files, where the
+#: names differ (used in the install hint when a package is missing).
+_PACKAGE_PIP_NAMES = {"example-robot-data": "example-robot-data (or: pip install 'cdpm[robots]')"}
+
+
+def package_share_directory(package: str) -> Path | None:
+    """Directory of an installed ROS-style data package, or None.
+
+    Looks in the Python distribution of that name (cmeel layout, e.g.
+    ``example-robot-data`` installs ``<site-packages>/cmeel.prefix/share/
+    example-robot-data``), then in ``$ROS_PACKAGE_PATH`` and
+    ``$AMENT_PREFIX_PATH``.
+    """
+    from importlib import metadata
+
+    try:
+        dist = metadata.distribution(package)
+    except metadata.PackageNotFoundError:
+        dist = None
+    if dist is not None:
+        candidate = Path(str(dist.locate_file(f"cmeel.prefix/share/{package}")))
+        if candidate.is_dir():
+            return candidate
+    for var in ("ROS_PACKAGE_PATH", "AMENT_PREFIX_PATH"):
+        for root in filter(None, os.environ.get(var, "").split(os.pathsep)):
+            for candidate in (Path(root) / package, Path(root) / "share" / package):
+                if candidate.is_dir():
+                    return candidate
+    return None
+
+
+def _package_urdf(problems: _Problems, urdf: Any) -> Path | None:
+    """Resolve ``{package: NAME, path: REL}`` or ``package://NAME/REL``."""
+    if isinstance(urdf, str):
+        package, _, rel = urdf[len("package://") :].partition("/")
+    else:
+        _unknown_keys(problems, "urdf", urdf, ("package", "path"))
+        package, rel = urdf.get("package"), urdf.get("path")
+        if not isinstance(package, str) or not isinstance(rel, str):
+            problems.add(
+                "urdf",
+                "a packaged URDF needs {package: NAME, path: PATH/IN/PACKAGE.urdf}, got "
+                f"{urdf!r}",
+            )
+            return None
+    if not package or not rel:
+        problems.add("urdf", f"{urdf!r}: expected package://PACKAGE/PATH/TO/FILE.urdf")
+        return None
+    root = package_share_directory(package)
+    if root is None:
+        pip_name = _PACKAGE_PIP_NAMES.get(package, package)
+        problems.add(
+            "urdf",
+            f"package {package!r} is not installed (it provides the URDF {rel!r}); "
+            f"install it with: pip install {pip_name}",
+        )
+        return None
+    urdf_path = (root / rel).resolve()
+    if not urdf_path.is_file():
+        problems.add("urdf", f"{rel!r} not found in package {package!r} (looked for {urdf_path})")
+        return None
+    return urdf_path
+
+
 def _load_urdf(problems: _Problems, spec_path: Path, urdf: Any):
     if urdf is None:
         problems.add("urdf", "missing; give the URDF file's path relative to the spec")
         return None, None
+    if isinstance(urdf, dict) or (isinstance(urdf, str) and urdf.startswith("package://")):
+        urdf_path = _package_urdf(problems, urdf)
+        if urdf_path is None:
+            return None, None
+        return build_model(problems, urdf_path), urdf_path
     if not isinstance(urdf, str):
-        problems.add("urdf", f"expected a file path, got {urdf!r}")
+        problems.add("urdf", f"expected a file path or {{package, path}}, got {urdf!r}")
         return None, None
     urdf_path = (spec_path.parent / urdf).resolve()
     if not urdf_path.is_file():

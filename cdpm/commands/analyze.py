@@ -8,8 +8,10 @@ import json
 NAME = "analyze"
 HELP = "linearise at one pose and print POC, positive controllability and more"
 DESCRIPTION = """\
-Load a cable spec (YAML beside its URDF), linearise the robot at one pose and
-print the linearisation (A, B, C), the cables' tensions and input cone, and
+Load a cable spec (YAML beside its URDF), find the equilibrium tensions that
+hold the robot at one pose (against gravity and the spec's external wrench;
+which cables are taut, which slack), linearise there and print the
+linearisation (A, B, C), the cables' input cone, and
 each verdict with its certificate: positive output controllability (seed
 paper Theorem 1), positive controllability (Brammer; with its witness
 eigenvector when it fails), output and Kalman controllability, and wrench
@@ -19,10 +21,18 @@ examples:
   cdpm analyze models/two_link_planar/two_link_planar.yaml --pose nominal
   cdpm analyze models/two_link_planar/two_link_planar.yaml --q pi/6 pi/3
   cdpm analyze models/two_link_planar/two_link_planar.yaml --q 0.5 1.0 --json > report.json
+  cdpm analyze models/two_link_vertical --pose horizontal --tension pretension --pretension 10
+  cdpm analyze models/two_link_vertical --pose horizontal --tension 21.0921 8.60394 0 0
 
 Q values are a configuration vector (nq numbers) or natural coordinates (one
 per degree of freedom, nv numbers; angles in rad); arithmetic such as pi/6 is
-accepted."""
+accepted.
+
+--tension picks the equilibrium: a method (zero: no tension, only where that
+holds the pose; min_norm: least 2-norm tension within the bounds, the
+default; pretension: least 2-norm with every cable >= --pretension N) or
+one tension per cable [N], which must hold the pose. Cables at their lower
+bound are sign-constrained inputs (pull only); taut cables are free."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -32,6 +42,20 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--q", nargs="+", metavar="Q", help="configuration values, e.g. --q pi/6 pi/3"
     )
     where.add_argument("--pose", metavar="NAME", help="a named pose from the spec")
+    parser.add_argument(
+        "--tension",
+        nargs="+",
+        metavar="METHOD|F",
+        help="equilibrium method (zero, min_norm, pretension) or one tension per cable [N]; "
+        "default: the spec's equilibrium.method (min_norm if none)",
+    )
+    parser.add_argument(
+        "--pretension",
+        type=float,
+        metavar="N",
+        help="least tension of every cable for --tension pretension [N] "
+        "(default: the spec's equilibrium.pretension)",
+    )
     parser.add_argument(
         "--json", action="store_true", help="print the report as JSON instead of text"
     )
@@ -52,9 +76,29 @@ def run(args: argparse.Namespace) -> int:
     else:
         names = ", ".join(robot.poses) or "none defined"
         raise InputError(f"give --q Q1 Q2 ... or --pose NAME (poses in the spec: {names})")
-    report = analyze_pose(robot, q)
+    report = analyze_pose(
+        robot, q, tension=_tension_argument(args.tension), pretension=args.pretension
+    )
     if args.json:
         print(json.dumps(report.as_dict(), indent=2))
     else:
         print(report)
     return 0
+
+
+def _tension_argument(values: list[str] | None):
+    """None, a method name, or a list of tensions from ``--tension``."""
+    from cdpm.errors import InputError
+    from cdpm.spec import EQUILIBRIUM_METHODS, parse_number
+
+    if not values:
+        return None
+    if len(values) == 1 and values[0] in EQUILIBRIUM_METHODS:
+        return values[0]
+    try:
+        return [parse_number(v) for v in values]
+    except ValueError as exc:
+        raise InputError(
+            f"--tension takes a method ({', '.join(EQUILIBRIUM_METHODS)}) or one tension "
+            f"per cable in N: {exc}"
+        ) from exc
