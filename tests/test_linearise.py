@@ -38,8 +38,11 @@ def test_paper_eq28(paper_robot):
     np.testing.assert_allclose(cab, [[0.250, -3.018, -0.169, -1.077]], rtol=0, atol=0.5e-3)
 
 
-def test_linearise_rejects_what_it_cannot_do_yet(paper_robot, write_spec):
+def test_linearise_rejects_bad_tension(paper_robot, write_spec):
     with pytest.raises(cdpm.InputError, match="tension has 3 entries, expected one per cable"):
         cdpm.linearise(paper_robot, "nominal", tension=[0, 0, 0])
     with pytest.raises(cdpm.InputError, match=r"tension outside the cable bounds: c1=-1"):
         cdpm.linearise(paper_robot, "nominal", tension=[-1, 0, 0, 0])
+    # nonzero tension that does not hold the pose: rejected with its residual
+    with pytest.raises(cdpm.InputError, match=r"not an equilibrium .* residual"):
+        cdpm.linearise(paper_robot, "nominal", tension=[1, 0, 0, 0])

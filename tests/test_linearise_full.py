@@ -10,6 +10,7 @@ import pytest
 
 import cdpm
 from cdpm.equilibrium import equilibrium_tension
+from cdpm.linearise import linearise  # the function (cdpm.linearise may be the module)
 from tests.conftest import MODELS
 
 SEED = 20261122
@@ -104,7 +105,7 @@ def test_every_model_has_poses_and_loads(robot):
 def test_A_and_B_match_finite_differences_of_aba(robot):
     worst_a = worst_b = 0.0
     for q in equilibrium_poses(robot):
-        lin = cdpm.linearise(robot, q, tension="min_norm")
+        lin = linearise(robot, q, tension="min_norm")
         f = lin.tension
         A_fd = fd_state_matrix(robot, q, f)
         B_fd = fd_input_matrix(robot, q, f)
@@ -124,7 +125,7 @@ def test_A_with_pretension_matches_finite_differences(robot):
         eq = equilibrium_tension(robot, q, method="pretension", pretension=2.0)
         if not eq.feasible:
             continue
-        lin = cdpm.linearise(robot, q, tension=eq.tension)
+        lin = linearise(robot, q, tension=eq.tension)
         assert relative_error(lin.A, fd_state_matrix(robot, q, eq.tension)) <= REL_TOL
         assert not lin.sign_constrained.any()  # every cable taut: all inputs free
         checked += 1
@@ -162,7 +163,7 @@ def test_cable_jacobian_matches_finite_differences_of_lengths(robot):
 
 def test_output_matrix_matches_finite_differences(robot):
     for q in equilibrium_poses(robot, n=3):
-        lin = cdpm.linearise(robot, q)
+        lin = linearise(robot, q)
         fd = np.zeros((robot.n_outputs, robot.nv))
         for k in range(robot.nv):
             e = np.zeros(robot.nv)
@@ -182,7 +183,7 @@ def test_damping_block_is_minus_Minv_D():
     except cdpm.SpecError as exc:
         pytest.skip(f"needs example-robot-data: {exc}")
     np.testing.assert_array_equal(robot.joint_damping, [0.05, 0.05])
-    lin = cdpm.linearise(robot, "leaning")
+    lin = linearise(robot, "leaning")
     expected = -np.linalg.solve(lin.mass_matrix, np.diag([0.05, 0.05]))
     np.testing.assert_allclose(lin.rate_stiffness, expected, rtol=1e-12)
     np.testing.assert_allclose(lin.A[2:, 2:], expected, rtol=1e-12)
