@@ -187,3 +187,35 @@ def test_gravity_changes_the_verdict_at_the_paper_pose(paper_robot):
     witness = np.array([0, 0, -2, -1.0])
     assert np.allclose(flat.A.T @ witness, 0)
     assert not np.allclose(hung.A.T @ witness, 0)
+
+
+NOTEBOOK = MODELS.parent / "notebooks" / "gravity_and_pretension.ipynb"
+
+
+def test_gravity_notebook_is_committed_without_outputs():
+    nb = json.loads(NOTEBOOK.read_text())
+    code = [c for c in nb["cells"] if c["cell_type"] == "code"]
+    assert code and all(not c.get("outputs") and c.get("execution_count") is None for c in code)
+
+
+@pytest.mark.slow
+def test_gravity_notebook_executes():
+    nbformat = pytest.importorskip("nbformat")
+    nbclient = pytest.importorskip("nbclient")
+    nb = nbformat.read(NOTEBOOK, as_version=4)
+    nbclient.NotebookClient(
+        nb,
+        timeout=300,
+        kernel_name="python3",
+        resources={"metadata": {"path": str(NOTEBOOK.parent)}},
+    ).execute()
+    text = "\n".join(
+        out.get("text", "")
+        for cell in nb.cells
+        if cell.cell_type == "code"
+        for out in cell.get("outputs", [])
+    )
+    assert "POC: YES | positive controllability: NO" in text  # the paper's case
+    assert "Equilibrium (zero): INFEASIBLE" in text
+    assert "as found (c1 taut, others slack): NO" in text
+    assert "with c2 counted as taut: YES" in text
