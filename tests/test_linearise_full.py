@@ -10,8 +10,11 @@ import pytest
 
 import cdpm
 from cdpm.equilibrium import equilibrium_tension
-from cdpm.linearise import linearise  # the function (cdpm.linearise may be the module)
 from tests.conftest import MODELS
+
+# cdpm.linearise is the function unless the submodule was imported before
+# the package attribute was first read (then it is the module): take either.
+linearise = getattr(cdpm.linearise, "linearise", cdpm.linearise)
 
 SEED = 20261122
 N_POSES = 10

@@ -14,8 +14,11 @@ import yaml
 import cdpm
 from cdpm.cli import main
 from cdpm.equilibrium import equilibrium_tension
-from cdpm.linearise import linearise  # the function (cdpm.linearise may be the module)
 from tests.conftest import MODELS
+
+# cdpm.linearise is the function unless the submodule was imported before
+# the package attribute was first read (then it is the module): take either.
+linearise = getattr(cdpm.linearise, "linearise", cdpm.linearise)
 
 G = 9.81
 MODEL_SPECS = sorted(MODELS.glob("*/*.yaml"))
