@@ -26,8 +26,8 @@ _EXPORTS: dict[str, str] = {
     "CableRobot": "cdpm.robot",
     "load_robot": "cdpm.robot",
     # linearisation
-    "Linearisation": "cdpm.linearise",
-    "linearise": "cdpm.linearise",
+    "Linearisation": "cdpm.linearisation",
+    "linearise": "cdpm.linearisation",
     # analysis (pure LTI, no Pinocchio)
     "Verdict": "cdpm.analysis",
     "positive_output_controllability": "cdpm.analysis",
@@ -82,6 +82,7 @@ if TYPE_CHECKING:  # pragma: no cover - for static type checkers only
         positively_spans,
         wrench_closure,
     )
+    from cdpm.caspr import CasprImport, import_caspr  # noqa: F401
     from cdpm.errors import (  # noqa: F401
         CdpmError,
         InputError,
@@ -90,8 +91,7 @@ if TYPE_CHECKING:  # pragma: no cover - for static type checkers only
         SpecError,
         UnsupportedError,
     )
-    from cdpm.caspr import CasprImport, import_caspr  # noqa: F401
-    from cdpm.linearise import Linearisation, linearise  # noqa: F401
+    from cdpm.linearisation import Linearisation, linearise  # noqa: F401
     from cdpm.maps import SampledAxes, open_map, sample_axes, workspace_map  # noqa: F401
     from cdpm.picture import render_pose  # noqa: F401
     from cdpm.plotting import plot_map  # noqa: F401

@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from cdpm.linearise import Linearisation, linearise
+from cdpm.linearisation import Linearisation, linearise
 
 __all__ = ["PoseReport", "analyze_pose"]
 
@@ -28,7 +28,7 @@ class PoseReport:
         natural: natural coordinates of the pose, shape (nv,).
         coordinate_names: names of the natural coordinates.
         cable_lengths: cable lengths [m], shape (m,).
-        linearisation: the :class:`~cdpm.linearise.Linearisation` (A, B, C, f*).
+        linearisation: the :class:`~cdpm.linearisation.Linearisation` (A, B, C, f*).
         poc: positive output controllability result (paper Theorem 1).
         positive_controllability: Brammer positive (state) controllability.
         output_controllability: output controllability (rank test).
@@ -161,7 +161,7 @@ def analyze_pose(robot, q: Any, tension: Any = None, pretension: float | None = 
         q: a pose name from the spec, a configuration vector (nq,) or
             natural coordinates (nv,).
         tension: equilibrium tension: None (the spec's method), a method
-            name or an array (see :func:`~cdpm.linearise.linearise`).
+            name or an array (see :func:`~cdpm.linearise`).
         pretension: least tension [N] for the ``pretension`` method.
 
     Raises:

@@ -287,7 +287,7 @@ class CableRobot:
         compute, o_m_i = pin.computeJointJacobians, data.oMi
         for k in range(n):
             compute(model, data, qs[k])
-            jac[k] = data.J
+            jac[k] = np.asarray(data.J).reshape(6, -1)
             for j in used:
                 placements[k, j] = o_m_i[j].homogeneous
         at_point = placements[:, self._point_joint]  # (N, n_points, 4, 4)

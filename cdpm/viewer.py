@@ -37,7 +37,6 @@ import subprocess
 import sys
 import tempfile
 import time
-import types
 import warnings
 import weakref
 from dataclasses import dataclass
@@ -47,6 +46,7 @@ from typing import Any
 import numpy as np
 
 from cdpm.errors import CdpmError, InputError, MissingExtraError, ModelError
+from cdpm.linearisation import linearise
 
 __all__ = [
     "CableState",
@@ -317,7 +317,7 @@ def _coms(model) -> list[tuple[int, np.ndarray]]:
 def _analyse(robot, q: np.ndarray):
     """Equilibrium tension, cable states and POC verdict at q.
 
-    :func:`cdpm.linearise.linearise` finds the equilibrium tension (the
+    :func:`cdpm.linearise` finds the equilibrium tension (the
     spec's method via :func:`cdpm.equilibrium.equilibrium_tension`, zero
     tension where that module is absent) and the input cone.
 
@@ -326,7 +326,7 @@ def _analyse(robot, q: np.ndarray):
         four are None when the pose cannot be linearised (reason says why).
     """
     try:
-        lin = _linearise()(robot, q)
+        lin = linearise(robot, q)
     except CdpmError as exc:
         return None, None, None, None, str(exc)
     input_sign = getattr(lin, "input_sign", None)
@@ -344,20 +344,6 @@ def _analyse(robot, q: np.ndarray):
     margin = getattr(poc, "margin", None)
     margin = float(margin) if isinstance(margin, (int, float, np.floating)) else None
     return lin.tension, slack, poc.verdict, margin, None
-
-
-def _linearise():
-    """:func:`cdpm.linearise`, looked up through the package.
-
-    Importing the submodule ``cdpm.linearise`` by path before anything reads
-    ``cdpm.linearise`` would leave the package attribute bound to the module
-    instead of the function; reading it through the package first keeps the
-    public name a function for everyone.
-    """
-    import cdpm
-
-    linearise = cdpm.linearise
-    return linearise.linearise if isinstance(linearise, types.ModuleType) else linearise
 
 
 def pose_state(robot, q: Any, geometry: _Geometry | None = None) -> PoseState:

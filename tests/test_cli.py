@@ -82,3 +82,18 @@ def test_console_script_entry_point():
     )
     assert result.returncode == 0, result.stderr
     assert "Positive output controllability" in result.stdout
+
+
+def test_public_names_survive_submodule_imports():
+    import importlib
+    import pkgutil
+
+    import cdpm
+
+    for info in pkgutil.walk_packages(cdpm.__path__, "cdpm."):
+        if info.name.split(".")[-1] in ("viewer", "picture", "plotting"):
+            continue  # optional extras, imported by their own tests
+        importlib.import_module(info.name)
+    assert callable(cdpm.linearise) and callable(cdpm.positive_output_controllability)
+    for name in cdpm.__all__:
+        assert not isinstance(getattr(cdpm, name), type(cdpm)), name

@@ -18,9 +18,7 @@ from cdpm.equilibrium import (
 )
 from tests.conftest import MODELS
 
-# cdpm.linearise is the function unless the submodule was imported before
-# the package attribute was first read (then it is the module): take either.
-linearise = getattr(cdpm.linearise, "linearise", cdpm.linearise)
+linearise = cdpm.linearise
 
 G = 9.81
 VERTICAL = MODELS / "two_link_vertical" / "two_link_vertical.yaml"

@@ -12,9 +12,7 @@ import cdpm
 from cdpm.equilibrium import equilibrium_tension
 from tests.conftest import MODELS
 
-# cdpm.linearise is the function unless the submodule was imported before
-# the package attribute was first read (then it is the module): take either.
-linearise = getattr(cdpm.linearise, "linearise", cdpm.linearise)
+linearise = cdpm.linearise
 
 SEED = 20261122
 N_POSES = 10

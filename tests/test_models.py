@@ -16,9 +16,7 @@ from cdpm.cli import main
 from cdpm.equilibrium import equilibrium_tension
 from tests.conftest import MODELS
 
-# cdpm.linearise is the function unless the submodule was imported before
-# the package attribute was first read (then it is the module): take either.
-linearise = getattr(cdpm.linearise, "linearise", cdpm.linearise)
+linearise = cdpm.linearise
 
 G = 9.81
 MODEL_SPECS = sorted(MODELS.glob("*/*.yaml"))

@@ -1,7 +1,7 @@
 """Evaluate every map quantity at a batch of poses.
 
 :func:`evaluate_poses` is what one map chunk runs. Two paths give the same
-verdicts as the per-pose public API (:func:`cdpm.linearise.linearise`, then
+verdicts as the per-pose public API (:func:`cdpm.linearise`, then
 :func:`cdpm.analysis.positive_output_controllability` and friends):
 
 - ``nilpotent`` (zero tension, no gravity, no external wrench: the seed
@@ -407,7 +407,7 @@ def _public_wrench(L) -> int:
 
 def _evaluate_per_pose(robot, natural: np.ndarray, setting) -> dict:
     from cdpm.equilibrium import InfeasibleEquilibriumError, equilibrium_tension
-    from cdpm.linearise import linearise
+    from cdpm.linearisation import linearise
 
     n, p = natural.shape[0], robot.n_outputs
     out = _empty(n, p)
