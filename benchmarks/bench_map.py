@@ -82,7 +82,7 @@ def baseline_verdicts(robot, natural: np.ndarray, tension=None) -> list[bool | N
     from scipy.optimize import linprog
 
     from cdpm.errors import CdpmError
-    from cdpm.linearise import linearise
+    from cdpm.linearisation import linearise
 
     out = []
     times = np.linspace(0.0, 5.0, 50)

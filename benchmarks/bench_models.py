@@ -28,7 +28,7 @@ def main() -> None:
     args = parser.parse_args()
     import cdpm
     from cdpm.equilibrium import equilibrium_tension
-    from cdpm.linearise import linearise
+    from cdpm.linearisation import linearise
     from tests.test_linearise_full import (
         equilibrium_poses,
         fd_input_matrix,
