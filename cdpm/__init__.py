@@ -25,7 +25,11 @@ _EXPORTS: dict[str, str] = {
     "load_spec": "cdpm.spec",
     "CableRobot": "cdpm.robot",
     "load_robot": "cdpm.robot",
-    # linearisation
+    # equilibrium and linearisation
+    "EquilibriumResult": "cdpm.equilibrium",
+    "equilibrium_tension": "cdpm.equilibrium",
+    "check_equilibrium": "cdpm.equilibrium",
+    "InfeasibleEquilibriumError": "cdpm.equilibrium",
     "Linearisation": "cdpm.linearisation",
     "linearise": "cdpm.linearisation",
     # analysis (pure LTI, no Pinocchio)
@@ -36,6 +40,13 @@ _EXPORTS: dict[str, str] = {
     "controllability": "cdpm.analysis",
     "positively_spans": "cdpm.analysis",
     "wrench_closure": "cdpm.analysis",
+    "POCResult": "cdpm.analysis",
+    "POCCertificate": "cdpm.analysis",
+    "PositiveControllabilityResult": "cdpm.analysis",
+    "ControllabilityResult": "cdpm.analysis",
+    "OutputControllabilityResult": "cdpm.analysis",
+    "SpanResult": "cdpm.analysis",
+    "SpanCertificate": "cdpm.analysis",
     # pose report
     "PoseReport": "cdpm.report",
     "analyze_pose": "cdpm.report",
@@ -74,6 +85,13 @@ def __dir__() -> list[str]:
 
 if TYPE_CHECKING:  # pragma: no cover - for static type checkers only
     from cdpm.analysis import (  # noqa: F401
+        ControllabilityResult,
+        OutputControllabilityResult,
+        POCCertificate,
+        POCResult,
+        PositiveControllabilityResult,
+        SpanCertificate,
+        SpanResult,
         Verdict,
         controllability,
         output_controllability,
@@ -83,6 +101,12 @@ if TYPE_CHECKING:  # pragma: no cover - for static type checkers only
         wrench_closure,
     )
     from cdpm.caspr import CasprImport, import_caspr  # noqa: F401
+    from cdpm.equilibrium import (  # noqa: F401
+        EquilibriumResult,
+        InfeasibleEquilibriumError,
+        check_equilibrium,
+        equilibrium_tension,
+    )
     from cdpm.errors import (  # noqa: F401
         CdpmError,
         InputError,

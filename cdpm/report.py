@@ -111,8 +111,8 @@ class PoseReport:
         lines += [
             "",
             "Verdicts",
-            _indent(f"Positive output controllability (Theorem 1): {self.poc}"),
-            _indent(f"Positive controllability (Brammer): {self.positive_controllability}"),
+            _indent(_labelled("Positive output controllability (Theorem 1)", self.poc)),
+            _indent(_labelled("Positive controllability (Brammer)", self.positive_controllability)),
             _indent(f"Output controllability: {self.output_controllability}"),
             _indent(f"Controllability (Kalman): {self.controllability}"),
             _indent(f"Wrench closure: {self.wrench_closure}"),
@@ -147,6 +147,15 @@ class PoseReport:
 
     def _repr_html_(self) -> str:
         return f"<pre>{html.escape(str(self))}</pre>"
+
+
+def _labelled(label: str, result: Any) -> str:
+    """A result's text under ``label`` (without the result's own name)."""
+    text = str(result)
+    head, sep, rest = text.partition(": ")
+    if sep and head.lower() in label.lower():
+        text = rest
+    return f"{label}: {text}"
 
 
 def _indent(text: str, prefix: str = "  ") -> str:
