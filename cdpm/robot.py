@@ -255,16 +255,21 @@ class CableRobot:
             output_jacobian=batch["output_jacobian"][0],
         )
 
-    def kinematics_batch(self, qs: Any) -> dict[str, np.ndarray]:
-        """Cable and output kinematics at many configurations at once.
+    def kinematics_batch(self, qs: Any, dynamics: bool = False) -> dict[str, np.ndarray]:
+        """Cable and output kinematics (and optionally M, G) at many configurations.
 
-        The Pinocchio forward pass runs once per configuration; everything
-        else is vectorised over the batch, so this is the fast path for maps.
+        One Pinocchio call per configuration, ``crba`` with the WORLD
+        convention, fills the mass matrix, the world joint Jacobians and the
+        joint placements at once (plus ``computeGeneralizedGravity`` when
+        ``dynamics`` is asked for and gravity is nonzero); everything else
+        (cable points, their Jacobians, segments, L, outputs) is array
+        arithmetic over the whole batch, so this is the fast path for maps.
         Zero-length segments are not raised here: they show as
         ``segment_lengths == 0`` and NaN rows, for the caller to flag.
 
         Args:
             qs: configuration vectors, shape (N, nq) (validated by the caller).
+            dynamics: also return ``mass_matrix`` and ``gravity``.
 
         Returns:
             Arrays with a leading batch axis N: ``lengths`` (N, m),
@@ -272,72 +277,177 @@ class CableRobot:
             (N, p, nv), ``segment_lengths`` (N, n_segments), ``segment_units``
             (N, n_segments, 3), ``point_positions`` (N, n_points, 3) and
             ``point_jacobians`` (N, n_points, 3, nv) (route points first,
-            then output frame origins).
+            then output frame origins; world frame); with ``dynamics``:
+            ``mass_matrix`` M(q) (N, nv, nv) and ``gravity`` G(q) (N, nv).
+            The arrays are computed with the batch axis last and returned
+            as views with it first: ``np.moveaxis(a, 0, -1)`` gives the
+            contiguous batch-last array back without a copy.
         """
         qs = np.asarray(qs, dtype=float)
-        return self._kinematics_batch(qs.reshape(-1, self.nq))
+        return self._kinematics_batch(qs.reshape(-1, self.nq), dynamics)
 
-    def _kinematics_batch(self, qs: np.ndarray) -> dict[str, np.ndarray]:
-        pin, model, data = self._pin, self.model, self._data
-        n = qs.shape[0]
-        used = [int(j) for j in self._used_joints if j]
-        placements = np.zeros((n, model.njoints, 4, 4))
-        placements[:, 0] = np.eye(4)
-        jac = np.empty((n, 6, self.nv))
-        compute, o_m_i = pin.computeJointJacobians, data.oMi
-        for k in range(n):
-            compute(model, data, qs[k])
-            jac[k] = np.asarray(data.J).reshape(6, -1)
-            for j in used:
-                placements[k, j] = o_m_i[j].homogeneous
-        at_point = placements[:, self._point_joint]  # (N, n_points, 4, 4)
-        positions = (
-            np.einsum("nkij,kj->nki", at_point[:, :, :3, :3], self._point_local)
-            + at_point[:, :, :3, 3]
+    def _batch_views(self):
+        """Pinocchio data for batches and live numpy views of what one
+        ``crba(..., WORLD)`` call fills: J (6, nv), M (nv, nv) and the joint
+        placements, as one (njoints, 12) array (each row the column-major
+        rotation then the translation) when ``data.oMi`` is laid out that
+        way in memory (checked), else one (rotation, translation) pair per
+        joint; plus the indices of the tracked points not fixed in the world."""
+        views = getattr(self, "_batch_views_cache", None)
+        if views is not None:
+            return views
+        import ctypes
+
+        pin, model = self._pin, self.model
+        data = model.createData()
+        nj = model.njoints
+        placements = None
+        first = data.oMi[0].rotation
+        base = first.__array_interface__["data"][0]
+        stride = 12 * first.itemsize
+        layout_ok = first.flags["F_CONTIGUOUS"] and all(
+            data.oMi[j].rotation.__array_interface__["data"][0] == base + j * stride
+            and data.oMi[j].translation.__array_interface__["data"][0] == base + j * stride + 72
+            for j in range(nj)
         )
+        if layout_ok:
+            buffer = (ctypes.c_double * (12 * nj)).from_address(base)
+            flat = np.frombuffer(buffer, dtype=float).reshape(nj, 12)
+            # a pose where every placement differs from the neutral one
+            q = pin.integrate(model, pin.neutral(model), 0.3 + 0.1 * np.arange(model.nv))
+            pin.crba(model, data, q, pin.Convention.WORLD)
+            layout_ok = all(
+                np.array_equal(flat[j, :9].reshape(3, 3, order="F"), data.oMi[j].rotation)
+                and np.array_equal(flat[j, 9:], data.oMi[j].translation)
+                for j in range(nj)
+            )
+            if layout_ok:
+                placements = flat
+        if placements is None:
+            placements = [(data.oMi[j].rotation, data.oMi[j].translation) for j in range(nj)]
+        moving = np.flatnonzero(self._point_joint != 0)  # points not fixed in the world
+        # one-DOF models: eigenpy hands out J as (6,) and M as (1,) views
+        jac, mass = data.J, data.M
+        jac = jac if jac.ndim == 2 else jac.reshape(6, self.nv)
+        mass = mass if mass.ndim == 2 else mass.reshape(self.nv, self.nv)
+        views = (data, jac, mass, placements, moving)
+        self._batch_views_cache = views
+        return views
+
+    def _kinematics_batch(self, qs: np.ndarray, dynamics: bool = False) -> dict[str, np.ndarray]:
+        pin, model = self._pin, self.model
+        data, J, M, placements, moving = self._batch_views()
+        n, nv, nj = qs.shape[0], self.nv, model.njoints
+        jac = np.empty((n, 6, nv))
+        pl = np.empty((n, nj, 12))
+        mass = np.empty((n, nv, nv)) if dynamics else None
+        gravity = np.zeros((n, nv)) if dynamics else None
+        crba, world = pin.crba, pin.Convention.WORLD
+        # one crba per pose fills data.M (upper triangle), data.J and
+        # data.oMi; the views read them without temporaries
+        if isinstance(placements, np.ndarray):
+            if dynamics and np.any(self.gravity):
+                g_of = pin.computeGeneralizedGravity
+                for k in range(n):
+                    q = qs[k]
+                    crba(model, data, q, world)
+                    jac[k] = J
+                    mass[k] = M
+                    pl[k] = placements
+                    gravity[k] = g_of(model, data, q)
+            elif dynamics:
+                for k in range(n):
+                    crba(model, data, qs[k], world)
+                    jac[k] = J
+                    mass[k] = M
+                    pl[k] = placements
+            else:
+                for k in range(n):
+                    crba(model, data, qs[k], world)
+                    jac[k] = J
+                    pl[k] = placements
+        else:  # pragma: no cover - Pinocchio builds with another SE3 layout
+            for k in range(n):
+                crba(model, data, qs[k], world)
+                jac[k] = J
+                if dynamics:
+                    mass[k] = M
+                    if np.any(self.gravity):
+                        gravity[k] = pin.computeGeneralizedGravity(model, data, qs[k])
+                for j, (r, t) in enumerate(placements):
+                    pl[k, j, :9] = r.reshape(-1, order="F")
+                    pl[k, j, 9:] = t
+        # batch axis last from here: element-wise work on contiguous rows
+        pl_t = np.ascontiguousarray(pl.transpose(2, 1, 0))  # (12, nj, N)
+        jac_t = np.ascontiguousarray(jac.transpose(1, 2, 0))  # (6, nv, N)
+        pj = self._point_joint
+        rot = pl_t[:9, pj]  # (9, P, N), rot[i + 3 c] = R[i, c]
+        local = self._point_local.T[:, :, None]  # (3, P, 1)
+        pos = pl_t[9:, pj] + rot[0:3] * local[0] + rot[3:6] * local[1] + rot[6:9] * local[2]
         # velocity of a point p fixed on a body, from the spatial (world)
         # Jacobian [v; w]: v + w x p, restricted to the joints that move it
-        w = jac[:, None, 3:, :]  # (N, 1, 3, nv)
-        p = positions[:, :, :, None]  # (N, n_points, 3, 1)
-        w_cross_p = np.stack(
-            (
-                w[:, :, 1] * p[:, :, 2] - w[:, :, 2] * p[:, :, 1],
-                w[:, :, 2] * p[:, :, 0] - w[:, :, 0] * p[:, :, 2],
-                w[:, :, 0] * p[:, :, 1] - w[:, :, 1] * p[:, :, 0],
-            ),
-            axis=2,
-        )
-        point_jac = (jac[:, None, :3, :] + w_cross_p) * self._point_mask[None, :, None, :]
+        # (points fixed in the world have none)
+        v, w = jac_t[:3, None], jac_t[3:, None]  # (3, 1, nv, N)
+        p = pos[:, moving, None, :]  # (3, P_moving, 1, N)
+        pjac_m = np.empty((3, moving.size, nv, n))
+        np.subtract(w[1] * p[2], w[2] * p[1], out=pjac_m[0])
+        np.subtract(w[2] * p[0], w[0] * p[2], out=pjac_m[1])
+        np.subtract(w[0] * p[1], w[1] * p[0], out=pjac_m[2])
+        pjac_m += v
+        pjac_m *= self._point_mask[moving][None, :, :, None]
+        pjac = np.zeros((3, pos.shape[1], nv, n))  # (3, P, nv, N)
+        pjac[:, moving] = pjac_m
 
         a, b = self._segment_points[:, 0], self._segment_points[:, 1]
-        diff = positions[:, b] - positions[:, a]
-        seg_len = np.sqrt(np.einsum("nsi,nsi->ns", diff, diff))
+        diff = pos[:, b] - pos[:, a]  # (3, S, N)
+        seg_len = np.sqrt(diff[0] * diff[0] + diff[1] * diff[1] + diff[2] * diff[2])
         with np.errstate(invalid="ignore", divide="ignore"):
-            units = diff / seg_len[:, :, None]
-        seg_rows = np.einsum("nsi,nsiv->nsv", units, point_jac[:, b] - point_jac[:, a])
-        to_cable = self._segment_to_cable  # (m, n_segments) 0/1
-        flat_pos = positions.reshape(n, -1)
-        flat_jac = point_jac.reshape(n, -1, self.nv)
-        rows = self._output_rows_arr
-        return {
-            "lengths": seg_len @ to_cable.T,
-            "jacobian": np.einsum("cs,nsv->ncv", to_cable, seg_rows),
-            "segment_lengths": seg_len,
-            "segment_units": units,
-            "point_positions": positions,
-            "point_jacobians": point_jac,
-            "output": flat_pos[:, rows],
-            "output_jacobian": flat_jac[:, rows],
+            units = diff / seg_len
+        jd = pjac[:, b]  # (3, S, nv, N)
+        a_moves = pj[a] != 0
+        if a_moves.any():
+            jd[:, a_moves] -= pjac[:, a[a_moves]]
+        seg_rows = units[0, :, None] * jd[0] + units[1, :, None] * jd[1] + units[2, :, None] * jd[2]
+        to_cable = self._segment_to_cable  # (m, S) 0/1
+        if to_cable.shape[0] == to_cable.shape[1]:  # one segment per cable
+            lengths, rows_l = seg_len, seg_rows
+        else:
+            lengths = np.einsum("cs,sn->cn", to_cable, seg_len)
+            rows_l = np.einsum("cs,svn->cvn", to_cable, seg_rows)
+        out_pts = self._output_rows_arr // 3
+        out_comp = self._output_rows_arr % 3
+        out = {
+            "lengths": lengths.T,
+            "jacobian": rows_l.transpose(2, 0, 1),
+            "segment_lengths": seg_len.T,
+            "segment_units": units.transpose(2, 1, 0),
+            "point_positions": pos.transpose(2, 1, 0),
+            "point_jacobians": pjac.transpose(3, 1, 0, 2),
+            "output": pos[out_comp, out_pts].T,
+            "output_jacobian": pjac[out_comp, out_pts].transpose(2, 0, 1),
         }
+        if dynamics:
+            if nv > 1:  # crba fills the upper triangle
+                iu, ju = np.triu_indices(nv, 1)
+                mass[:, ju, iu] = mass[:, iu, ju]
+            out["mass_matrix"] = mass
+            out["gravity"] = gravity
+        return out
 
     def mass_matrix_batch(self, qs: Any) -> np.ndarray:
         """Mass matrices at many configurations, shape (N, nv, nv)."""
         qs = np.asarray(qs, dtype=float).reshape(-1, self.nq)
+        pin, model = self._pin, self.model
+        data, _, M, _, _ = self._batch_views()
+        crba, world = pin.crba, pin.Convention.WORLD
         out = np.empty((qs.shape[0], self.nv, self.nv))
         for k in range(qs.shape[0]):
-            out[k] = self._pin.crba(self.model, self._dyn_data, qs[k])
-        upper = np.triu(out)
-        return upper + np.swapaxes(np.triu(out, 1), 1, 2)
+            crba(model, data, qs[k], world)
+            out[k] = M
+        if self.nv > 1:  # crba fills the upper triangle
+            iu, ju = np.triu_indices(self.nv, 1)
+            out[:, ju, iu] = out[:, iu, ju]
+        return out
 
     def cable_lengths(self, q: Any) -> np.ndarray:
         """Cable lengths l(q) [m], shape (m,): sum of each route's segment lengths."""
