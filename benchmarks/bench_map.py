@@ -127,16 +127,14 @@ def baseline_verdicts(robot, natural: np.ndarray, tension=None) -> list[bool | N
 def per_pose_costs(path: Path, n_ours: int, n_base: int, repeats: int, tension=None) -> dict:
     import cdpm
     from cdpm.maps import evaluate_poses
-    from cdpm.maps._kinematics import BatchKinematics
 
     robot = cdpm.load_robot(path)
     natural = poses(robot, n_ours)
-    batch = BatchKinematics(robot)
     floor = floor_cost(robot, natural)
-    evaluate_poses(robot, natural[:8], tension, batch=batch)  # imports, caches
+    evaluate_poses(robot, natural[:8], tension)  # imports, caches
     ours_t, floor_t = [], []
     for _ in range(repeats):  # interleaved: load affects both alike
-        ours_t.append(best_of(lambda: evaluate_poses(robot, natural, tension, batch=batch), 1))
+        ours_t.append(best_of(lambda: evaluate_poses(robot, natural, tension), 1))
         floor_t.append(best_of(floor, 1))
     base_poses = natural[:n_base]
     baseline_verdicts(robot, base_poses[:2], tension)  # imports

@@ -17,7 +17,6 @@ import pytest
 import cdpm
 from cdpm.errors import InputError
 from cdpm.maps import STATUS_CODES, VERDICT_CODES, open_map, sample_axes, workspace_map
-from cdpm.maps._kinematics import BatchKinematics
 from tests.conftest import MODELS, PAPER_SPEC
 
 CODE = {"yes": 1, "no": 0, "marginal": 2}
@@ -110,22 +109,100 @@ def paper_map():
 # batched kinematics
 
 
-@pytest.mark.parametrize("model", ["paper", "mixed"])
-def test_batch_kinematics_equals_robot(model, mixed_robot, paper_robot):
-    robot = paper_robot if model == "paper" else mixed_robot()
-    batch = BatchKinematics(robot)
-    assert batch.supported
+def _reference_kinematics(robot, q):
+    """Cable rows, outputs and their Jacobians at q from Pinocchio's own
+    computeJointJacobians / getFrameJacobian (independent of the batch)."""
+    import pinocchio as pin
+
+    from cdpm.spec import OUTPUT_COMPONENTS, WORLD_FRAME_NAMES
+
+    model = robot.model
+    data = model.createData()
+    pin.computeJointJacobians(model, data, q)
+    pin.updateFramePlacements(model, data)
+    world = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+
+    def point(frame, local):
+        if frame in WORLD_FRAME_NAMES:
+            return np.asarray(local, float), np.zeros((3, robot.nv))
+        fid = model.getFrameId(frame)
+        placement = data.oMf[fid]
+        p = placement.act(np.asarray(local, float))
+        jf = pin.getFrameJacobian(model, data, fid, world)
+        # velocity of a point fixed to the frame: v_frame + w x (p - origin)
+        arm = p - placement.translation
+        return p, jf[:3] + np.cross(jf[3:].T, arm).T
+
+    lengths, rows = [], []
+    for cable in robot.spec.cables:
+        pts = [point(r.frame, r.point_in_frame) for r in cable.route]
+        length, row = 0.0, np.zeros(robot.nv)
+        for (pa, ja), (pb, jb) in zip(pts[:-1], pts[1:], strict=True):
+            d = pb - pa
+            length += np.linalg.norm(d)
+            row += (d / np.linalg.norm(d)) @ (jb - ja)
+        lengths.append(length)
+        rows.append(row)
+    outs = [point(o.frame, np.zeros(3)) for o in robot.spec.outputs]
+    comps = [OUTPUT_COMPONENTS[o.component] for o in robot.spec.outputs]
+    y = np.array([p[c] for (p, _), c in zip(outs, comps, strict=True)])
+    cq = np.array([j[c] for (_, j), c in zip(outs, comps, strict=True)])
+    return np.array(lengths), np.array(rows), y, cq
+
+
+@pytest.mark.parametrize("model", ["paper", "mixed", "spatial_8cable", "multilink_arm"])
+def test_batch_kinematics_equal_pinocchio_per_pose(model, mixed_robot, paper_robot):
+    """kinematics_batch (one crba per pose plus array arithmetic) against
+    Pinocchio's frame Jacobians and the single-pose robot methods."""
+    from cdpm.maps._batch import configurations
+
+    if model == "paper":
+        robot = paper_robot
+    elif model == "mixed":
+        robot = mixed_robot()  # free-flyer, unaligned prismatic and revolute
+    else:
+        robot = cdpm.load_robot(MODELS / model / f"{model}.yaml")
     natural = np.random.default_rng(7).uniform(-1.5, 1.5, (25, robot.nv))
-    res = batch.evaluate(natural)
+    qs = configurations(robot, natural)
+    res = robot.kinematics_batch(qs, dynamics=True)
     for i, x in enumerate(natural):
         q = robot.from_natural(x)
-        kin = robot.kinematics(q)
-        np.testing.assert_allclose(res.lengths[:, i], kin.lengths, atol=1e-12)
-        np.testing.assert_allclose(res.jacobian[..., i], kin.jacobian, atol=1e-12)
-        np.testing.assert_allclose(res.output[:, i], kin.output, atol=1e-12)
-        np.testing.assert_allclose(res.output_jacobian[..., i], kin.output_jacobian, atol=1e-12)
-        np.testing.assert_allclose(res.mass_matrix[..., i], robot.mass_matrix(q), atol=1e-12)
-        np.testing.assert_allclose(res.gravity[:, i], robot.gravity_torque(q), atol=1e-11)
+        # a quaternion may differ in sign only
+        np.testing.assert_allclose(
+            robot.to_natural(qs[i]), robot.to_natural(q), atol=1e-12, err_msg="configuration"
+        )
+        lengths, rows, y, cq = _reference_kinematics(robot, q)
+        np.testing.assert_allclose(res["lengths"][i], lengths, atol=1e-12)
+        np.testing.assert_allclose(res["jacobian"][i], rows, atol=1e-12)
+        np.testing.assert_allclose(res["output"][i], y, atol=1e-12)
+        np.testing.assert_allclose(res["output_jacobian"][i], cq, atol=1e-12)
+        np.testing.assert_allclose(res["mass_matrix"][i], robot.mass_matrix(q), atol=1e-12)
+        np.testing.assert_allclose(res["gravity"][i], robot.gravity_torque(q), atol=1e-11)
+    np.testing.assert_array_equal(robot.mass_matrix_batch(qs), res["mass_matrix"])
+    assert np.array_equal(res["mass_matrix"], np.swapaxes(res["mass_matrix"], 1, 2))
+    # without dynamics: the same kinematics, no M or G
+    plain = robot.kinematics_batch(qs)
+    assert "mass_matrix" not in plain
+    np.testing.assert_array_equal(plain["jacobian"], res["jacobian"])
+
+
+def test_one_crba_fills_jacobians_placements_and_mass(mixed_robot):
+    """The batch relies on crba(WORLD) filling data.J, data.oMi and the
+    upper triangle of data.M exactly as the dedicated calls do."""
+    import pinocchio as pin
+
+    robot = mixed_robot()
+    model = robot.model
+    for seed in range(3):
+        q = robot.from_natural(np.random.default_rng(seed).uniform(-1, 1, robot.nv))
+        a, b = model.createData(), model.createData()
+        pin.crba(model, a, q, pin.Convention.WORLD)
+        pin.computeJointJacobians(model, b, q)
+        M = pin.crba(model, b, q)
+        np.testing.assert_array_equal(a.J, b.J)
+        for j in range(model.njoints):
+            np.testing.assert_array_equal(a.oMi[j].homogeneous, b.oMi[j].homogeneous)
+        np.testing.assert_allclose(np.triu(a.M), np.triu(M), atol=1e-14)
 
 
 # --------------------------------------------------------------------------

@@ -94,7 +94,6 @@ def workspace_map(
     """
     from cdpm import __version__
     from cdpm.maps._evaluate import _zero_equilibrium
-    from cdpm.maps._kinematics import BatchKinematics
     from cdpm.maps._plan import make_plan
     from cdpm.maps._runner import ProgressPrinter, run_chunks
     from cdpm.maps._store import MemorySink, ZarrSink
@@ -108,7 +107,7 @@ def workspace_map(
         axes = sample_axes(axes, samples, seed)
     setting = resolve_tension(robot, tension)
     if chunk_size is None:
-        fast = BatchKinematics(robot).supported and _zero_equilibrium(robot, setting)
+        fast = _zero_equilibrium(robot, setting)
         chunk_size = DEFAULT_CHUNK_SIZE if fast else PER_POSE_CHUNK_SIZE
     plan = make_plan(robot, axes, base, setting, chunk_size, __version__)
     if workers is None:

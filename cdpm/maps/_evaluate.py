@@ -119,56 +119,60 @@ def _code(verdict) -> int:
     return {"yes": YES, "no": NO, "marginal": MARGINAL}[verdict.value]
 
 
-def evaluate_poses(robot, natural: np.ndarray, tension: Any = None, batch=None) -> dict:
+def evaluate_poses(robot, natural: np.ndarray, tension: Any = None) -> dict:
     """Every map quantity at the poses ``natural`` (N, nv natural coordinates).
 
     Args:
         robot: a :class:`~cdpm.robot.CableRobot`.
         natural: poses, shape (N, nv).
         tension: equilibrium tension setting (see :func:`resolve_tension`).
-        batch: a cached :class:`~cdpm.maps._kinematics.BatchKinematics` for
-            ``robot`` (built when None).
 
     Returns:
         dict of arrays with leading dimension N: the ``CODE_FIELDS`` (int8),
         the ``FLOAT_FIELDS``, ``y`` (N, p), ``output_frame_position`` (N, 3)
         and ``status`` (int8).
     """
+    from cdpm.maps._batch import configurations
+
     natural = np.asarray(natural, dtype=float).reshape(-1, robot.nv)
     setting = resolve_tension(robot, tension)
-    if batch is None:
-        from cdpm.maps._kinematics import BatchKinematics
-
-        batch = BatchKinematics(robot)
-    if batch.supported and _zero_equilibrium(robot, setting):
-        return _evaluate_nilpotent(robot, batch, natural)
+    qs = configurations(robot, natural)
+    kin = robot.kinematics_batch(qs, dynamics=True)
+    if _zero_equilibrium(robot, setting):
+        return _evaluate_nilpotent(robot, kin, natural.shape[0])
     return _evaluate_per_pose(robot, natural, setting)
+
+
+def _pose_last(a: np.ndarray) -> np.ndarray:
+    """A batch-first array of :meth:`~cdpm.robot.CableRobot.kinematics_batch`
+    with the batch axis moved last (a view, contiguous for its arrays)."""
+    return np.moveaxis(a, 0, -1)
 
 
 # --------------------------------------------------------------------------
 # nilpotent path
 
 
-def _evaluate_nilpotent(robot, batch, natural: np.ndarray) -> dict:
-    # arrays from the batch keep the pose axis last
-    n, p = natural.shape[0], robot.n_outputs
+def _evaluate_nilpotent(robot, kin: dict, n: int) -> dict:
+    # arrays keep the pose axis last from here
+    p = robot.n_outputs
     out = _empty(n, p)
-    kin = batch.evaluate(natural)
-    out["y"][:] = kin.output.T
-    out["output_frame_position"][:] = kin.frame_position.T
+    out["y"][:] = kin["output"]
+    _frame_positions(robot, kin, out)
     status = out["status"]
-    status[kin.segment_min < MIN_SEGMENT_LENGTH] = STATUS_CODES["zero_length_cable"]
+    seg_min = kin["segment_lengths"].min(axis=1, initial=np.inf)
+    status[seg_min < MIN_SEGMENT_LENGTH] = STATUS_CODES["zero_length_cable"]
     ok = np.flatnonzero(status == 0)
-    M = kin.mass_matrix[..., ok]
+    M = _pose_last(kin["mass_matrix"])[..., ok]
     Minv, regular = _spd_inverse(M)
     status[ok[~regular]] = STATUS_CODES["singular_mass_matrix"]
     ok, M, Minv = ok[regular], M[..., regular], Minv[..., regular]
     if ok.size == 0:
         return out
-    L = kin.jacobian[..., ok]  # (m, nv, k)
-    Cq = kin.output_jacobian[..., ok]  # (p, nv, k)
-    X = np.einsum("cdk,jdk->cjk", Minv, L)  # M^-1 L^T, (nv, m, k)
-    CAB = -np.einsum("ick,cjk->ijk", Cq, X)  # (p, m, k)
+    L = _pose_last(kin["jacobian"])[..., ok]  # (m, nv, k)
+    Cq = _pose_last(kin["output_jacobian"])[..., ok]  # (p, nv, k)
+    X = _times_transpose(Minv, L)  # M^-1 L^T, (nv, m, k)
+    CAB = -_times(Cq, X)  # (p, m, k)
 
     # without any load f* = 0 holds every pose, within the bounds (f_min = 0)
     out["tension_min"][ok] = 0.0
@@ -194,6 +198,26 @@ def _evaluate_nilpotent(robot, batch, natural: np.ndarray) -> dict:
     out["wrench_closure"][ok] = wc
     out["positive_controllable"][ok] = pc
     return out
+
+
+def _times(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Batched product a b of (r, s, k) and (s, t, k) arrays, pose axis last."""
+    out = a[:, 0, None] * b[0]
+    for j in range(1, a.shape[1]):
+        out += a[:, j, None] * b[j]
+    return out
+
+
+def _times_transpose(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Batched product a b^T of (r, s, k) and (t, s, k) arrays, pose axis last."""
+    return _times(a, np.swapaxes(b, 0, 1))
+
+
+def _frame_positions(robot, kin: dict, out: dict) -> None:
+    """World position of the first output's frame (its tracked point)."""
+    if robot.n_outputs:  # tracked points: every route point, then the outputs
+        first = robot.route_point_slices[-1].stop if robot.route_point_slices else 0
+        out["output_frame_position"][:] = kin["point_positions"][:, first]
 
 
 def _spd_inverse(M: np.ndarray):

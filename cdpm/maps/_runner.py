@@ -72,16 +72,13 @@ _LOCAL = threading.local()
 
 
 def _state(source: RobotSource):
-    """(robot, batch kinematics) of this thread, built once per spec hash
-    (robots hold Pinocchio data buffers, so threads do not share them)."""
+    """The robot of this thread, built once per spec hash (robots hold
+    Pinocchio data buffers, so threads do not share them)."""
     cache = getattr(_LOCAL, "cache", None)
     if cache is None:
         cache = _LOCAL.cache = {}
     if source.sha256 not in cache:
-        from cdpm.maps._kinematics import BatchKinematics
-
-        robot = source.load()
-        cache[source.sha256] = (robot, BatchKinematics(robot))
+        cache[source.sha256] = source.load()
     return cache[source.sha256]
 
 
@@ -89,8 +86,7 @@ def compute_chunk(source: RobotSource, setting, index: int, natural) -> tuple[in
     """Evaluate one chunk in a worker; returns (index, arrays)."""
     from cdpm.maps._evaluate import evaluate_poses
 
-    robot, batch = _state(source)
-    return index, evaluate_poses(robot, natural, setting, batch=batch)
+    return index, evaluate_poses(_state(source), natural, setting)
 
 
 def _init_process() -> None:
@@ -188,11 +184,9 @@ def run_chunks(
         _run_dask(robot, plan, setting, todo, finished, scheduler)
     elif workers <= 1 or len(todo) == 1:
         from cdpm.maps._evaluate import evaluate_poses
-        from cdpm.maps._kinematics import BatchKinematics
 
-        batch = BatchKinematics(robot)
         for index in todo:
-            finished(index, evaluate_poses(robot, plan.natural(index), setting, batch=batch))
+            finished(index, evaluate_poses(robot, plan.natural(index), setting))
     else:
         _run_processes(robot, plan, setting, todo, finished, workers)
 

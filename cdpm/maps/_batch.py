@@ -1,0 +1,63 @@
+"""Batched helpers for maps: configurations from natural coordinates.
+
+Everything here works on a whole chunk of poses at once with array
+arithmetic; the rigid-body quantities themselves come from Pinocchio
+through :meth:`cdpm.robot.CableRobot.kinematics_batch`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from cdpm.configuration import _kind
+
+__all__ = ["configurations"]
+
+
+def _rpy_quaternions(rpy: np.ndarray) -> np.ndarray:
+    """Unit quaternions (x, y, z, w) of ZYX Euler angles (roll, pitch, yaw)
+    (N, 3) [rad]: the rotation ``Rz(yaw) Ry(pitch) Rx(roll)`` of
+    ``pinocchio.rpy.rpyToMatrix``, shape (N, 4)."""
+    half = 0.5 * rpy
+    c, s = np.cos(half), np.sin(half)
+    cr, cp, cy = c[:, 0], c[:, 1], c[:, 2]
+    sr, sp, sy = s[:, 0], s[:, 1], s[:, 2]
+    return np.stack(
+        [
+            sr * cp * cy - cr * sp * sy,
+            cr * sp * cy + sr * cp * sy,
+            cr * cp * sy - sr * sp * cy,
+            cr * cp * cy + sr * sp * sy,
+        ],
+        axis=1,
+    )
+
+
+def configurations(robot, natural: np.ndarray) -> np.ndarray:
+    """Configuration vectors (N, nq) of natural coordinates (N, nv), the
+    batched :meth:`cdpm.robot.CableRobot.from_natural` (quaternions may
+    differ in sign, which is the same rotation)."""
+    model = robot.model
+    natural = np.asarray(natural, dtype=float).reshape(-1, robot.nv)
+    if robot.nq == robot.nv and all(
+        _kind(model.joints[j]) == "euclidean" for j in range(1, model.njoints)
+    ):
+        return natural
+    qs = np.empty((natural.shape[0], robot.nq))
+    for j in range(1, model.njoints):
+        joint = model.joints[j]
+        iq, iv, kind = joint.idx_q, joint.idx_v, _kind(joint)
+        part = natural[:, iv : iv + joint.nv]
+        if kind == "euclidean":
+            qs[:, iq : iq + joint.nq] = part
+        elif kind == "continuous":
+            qs[:, iq], qs[:, iq + 1] = np.cos(part[:, 0]), np.sin(part[:, 0])
+        elif kind == "planar":
+            qs[:, iq : iq + 2] = part[:, :2]
+            qs[:, iq + 2], qs[:, iq + 3] = np.cos(part[:, 2]), np.sin(part[:, 2])
+        elif kind == "spherical":
+            qs[:, iq : iq + 4] = _rpy_quaternions(part)
+        else:  # freeflyer: position, then the quaternion of roll, pitch, yaw
+            qs[:, iq : iq + 3] = part[:, :3]
+            qs[:, iq + 3 : iq + 7] = _rpy_quaternions(part[:, 3:6])
+    return qs
