@@ -169,11 +169,18 @@ def complement(Q: np.ndarray, dim: int) -> np.ndarray:
     return U[:, Q.shape[1] :]
 
 
-def null_space(M: np.ndarray, rtol: float = 1e-8) -> np.ndarray:
-    """Orthonormal basis of the (right) null space of M, relative tolerance."""
+def null_space(M: np.ndarray, rtol: float = 1e-8, atol: float = 0.0) -> np.ndarray:
+    """Orthonormal basis of the (right) null space of M.
+
+    Singular values at most ``max(rtol * s_max, atol)`` count as zero: pass
+    ``atol`` when M is known to be small against a scale of its own (a
+    relative tolerance alone turns a matrix of round-off into full rank).
+    """
+    if M.shape[0] == 0:
+        return np.eye(M.shape[1])
     _, s, Vt = np.linalg.svd(M, full_matrices=True)
     scale = max(s[0] if s.size else 0.0, 1e-300)
-    r = int(np.count_nonzero(s > rtol * scale))
+    r = int(np.count_nonzero(s > max(rtol * scale, atol)))
     return Vt[r:].T.conj()
 
 

@@ -40,6 +40,9 @@ __all__ = ["PositiveControllabilityResult", "positive_controllability"]
 #: eigenvalues of the normalised A (|A| = 1) closer than this are one cluster;
 #: imaginary parts below it count as real (a Jordan block splits by ~sqrt(eps))
 EIG_ATOL = 1e-6
+#: products v^T b_j of unit eigenvectors and unit input columns at most this
+#: are zero (an eigenvector computed to ~1e-9 sees an orthogonal input so)
+ZERO_ATOL = 1e-8
 
 
 @dataclass(frozen=True)
@@ -87,7 +90,7 @@ class PositiveControllabilityResult:
         if np.any(np.abs(v @ A - lam * v) > tol * np.linalg.norm(scale) + 1e-12 * scale):
             return False
         prod = v @ B
-        ref = np.abs(v) @ np.abs(B) + 1e-300
+        ref = np.linalg.norm(v) * np.linalg.norm(B, axis=0) + 1e-300
         ok_c = np.all(prod[mask] <= tol * ref[mask])
         ok_f = np.all(np.abs(prod[~mask]) <= tol * ref[~mask])
         return bool(ok_c and ok_f and np.linalg.norm(v) > 0)
@@ -206,14 +209,20 @@ def left_eigen_separator(A: np.ndarray, B: np.ndarray, mask: np.ndarray, tol: fl
         checked.append((mu * rho, E.shape[1]))
         if E.shape[1] == 0:
             continue
+        # Bs has unit columns and E orthonormal columns: the products are
+        # measured against 1, so round-off (1e-16) is zero, not a direction
         Z = E.T @ Bs
-        Nf = null_space(Z[:, ~mask].T) if (~mask).any() else np.eye(E.shape[1])
+        Nf = null_space(Z[:, ~mask].T, atol=ZERO_ATOL) if (~mask).any() else np.eye(E.shape[1])
         if Nf.shape[1] == 0:
             continue
         Y = Nf.T @ Z[:, mask]
-        yes, _, _, _, _, c = span_core(Y, tol)
-        if yes:
-            continue
+        Y[:, np.linalg.norm(Y, axis=0) <= ZERO_ATOL] = 0.0
+        if not Y.any():
+            c = np.eye(Nf.shape[1])[:, 0]  # v^T b_j = 0 for every input
+        else:
+            yes, _, _, _, _, c = span_core(Y, tol)
+            if yes:
+                continue
         v = (E @ (Nf @ c)) / d
         v = v / np.linalg.norm(v)
         return v, mu * rho, checked

@@ -154,19 +154,23 @@ def _dense_grid_ok(A, B, C, mask, v, horizon, extra, tol) -> bool:
     X = np.eye(n)
     w = v @ C
     wn = np.linalg.norm(w)
-    vals, refs = [], []
-    for _ in range(601):
+    # round-off scale of w^T X b_j: |v| |C| |X| |b_j| (|v| = 1)
+    bn = np.linalg.norm(C) * np.linalg.norm(B, axis=0)
+    vals, allow = [], []
+
+    def record(X):
         Y = X @ B
         vals.append(w @ Y)
-        refs.append(wn * np.linalg.norm(Y, axis=0) + 1e-300)
+        # relative to |g_j| plus the round-off of X = e^{At} itself: a slow
+        # direction next to a fast-growing one is known only to eps |X| |b_j|
+        allow.append(tol * wn * np.linalg.norm(Y, axis=0) + 1e-10 * np.linalg.norm(X) * bn)
+
+    for _ in range(601):
+        record(X)
         X = Eh @ X
     for t in list(horizon * np.arange(1.5, 20.5, 0.5)) + [float(x) for x in extra]:
-        Y = expm(A * t) @ B
-        vals.append(w @ Y)
-        refs.append(wn * np.linalg.norm(Y, axis=0) + 1e-300)
-    vals, refs = np.array(vals), np.array(refs)
-    # a drifting product X over many steps: allow its round-off, relative to |g|
-    allow = tol * refs
+        record(expm(A * t))
+    vals, allow = np.array(vals), np.array(allow) + 1e-300
     return bool(
         np.all(vals[:, mask] <= allow[:, mask])
         and np.all(np.abs(vals[:, ~mask]) <= allow[:, ~mask])

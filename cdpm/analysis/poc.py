@@ -47,6 +47,9 @@ from cdpm.analysis.rank import output_reachable_basis, reachable_basis
 from cdpm.analysis.span import SPAN_TOL, span_core, span_margin
 from cdpm.errors import InputError
 
+#: singular values of C with unit rows at most this (relative) are zero
+RANK_TOL = 1e-10
+
 __all__ = ["POCResult", "positive_output_controllability"]
 
 
@@ -227,6 +230,17 @@ def _decide(A, B, C, mask, horizon, tol):
     if p == 0:
         cert = POCCertificate("positive-span", mask, proof={"path": "trivial"})
         return Verdict.YES, "trivial", "the output space is R^0", cert, horizon or 1.0
+    # output rank first: POC needs rank C [B AB ...] = p (every input, free
+    # or not); after this check the reduced outputs N^T C below are never
+    # round-off that a row scaling would blow up into a direction
+    rn = np.linalg.norm(C, axis=1)
+    v = _output_rank_defect(A, B, C, rn)
+    if v is not None:
+        T = horizon or 1.0
+        cert = POCCertificate(
+            "separator", mask, separator=v, proof={"path": "output-rank", "horizon": T}
+        )
+        return Verdict.NO, "output-rank", _REASON_RANK, cert, T
     free = ~mask
     prefix = ""
     N = None
@@ -235,7 +249,8 @@ def _decide(A, B, C, mask, horizon, tol):
         F = output_reachable_basis(A, B[:, free], C)
         if F.shape[1]:
             prefix = "mixed-cone+"
-            N = complement(F, p)
+            # complement in row-normalised output coordinates (Cw = C / rn)
+            N = complement(orth(F / rn[:, None]), p)
             Fpairs = _free_pairs(A, B, C, np.flatnonzero(free), F.shape[1], horizon)
             if N.shape[1] == 0:
                 cert = _lift_yes(A, B, C, mask, None, Fpairs)
@@ -247,7 +262,7 @@ def _decide(A, B, C, mask, horizon, tol):
                     cert,
                     T,
                 )
-    Cr = C if N is None else N.T @ C
+    Cr = C if N is None else N.T @ (C / rn[:, None])
     cons = np.flatnonzero(mask)
     if cons.size == 0:
         v = N[:, 0]
@@ -262,7 +277,7 @@ def _decide(A, B, C, mask, horizon, tol):
             cert,
             T,
         )
-    sub = _Reduced(A, B[:, cons], Cr, cons, N, Fpairs, mask, C, B)
+    sub = _Reduced(A, B[:, cons], Cr, cons, N, Fpairs, mask, C, B, rn)
     for path in (_nilpotent, _modal, _brammer, _general):
         out = path(sub, horizon, tol)
         if out is not None:
@@ -284,10 +299,11 @@ class _Reduced:
     mask: np.ndarray
     C: np.ndarray
     B: np.ndarray
+    rn: np.ndarray  # row norms of C: Cr = N^T (C / rn) when reduced
     square_zero: bool = False
 
     def lift(self, v_red: np.ndarray) -> np.ndarray:
-        v = v_red if self.N is None else self.N @ v_red
+        v = v_red if self.N is None else (self.N @ v_red) / self.rn
         return v / np.linalg.norm(v)
 
     def yes(self, times, jloc, weights, vectors=None):
@@ -321,13 +337,17 @@ def _g(A, B, C, t, j, square_zero=False):
 def _free_pairs(A, B, C, free, r, horizon):
     """(t, j) pairs of free inputs whose outputs span their reachable subspace."""
     As, Bs, Cs, _, col, row, rho = scaled_system(A, B[:, free], C)
-    # early times suffice to span the free reachable subspace (|As| = 1)
-    times = np.linspace(0.0, 2.0, max(2 * A.shape[0] + 1, 8))
+    # early nonzero times suffice to span the free reachable subspace
+    # (|As| = 1); g(0) = C b is often exactly 0 (velocity inputs)
+    times = np.linspace(0.0, 2.0, max(2 * A.shape[0] + 1, 8))[1:]
     G = _modes.Evaluator(As, Bs, Cs)(times)  # (N, p, mf)
     S = G.transpose(1, 0, 2).reshape(C.shape[0], -1)
     from scipy.linalg import qr
 
-    _, _, piv = qr(S / (np.linalg.norm(S, axis=0) + 1e-300), mode="economic", pivoting=True)
+    norms = np.linalg.norm(S, axis=0)
+    # round-off columns must not be normalised into directions
+    norms = np.where(norms > 1e-9 * norms.max(), norms, np.inf)
+    _, _, piv = qr(S / norms, mode="economic", pivoting=True)
     k = piv[:r]
     t = times[k // free.size] / rho
     jl = k % free.size
@@ -382,6 +402,50 @@ def _is_square_zero(A: np.ndarray) -> bool:
     if not AA.any():
         return True
     return bool(np.all(np.abs(AA) <= 1e-12 * (np.abs(A) @ np.abs(A))))
+
+
+_REASON_RANK = (
+    "not output controllable: some output direction v has v.C A^k B = 0 for every k "
+    "(rank C [B AB ...] < p)"
+)
+
+
+def _output_rank_defect(A, B, C, rn):
+    """A unit v with v^T C A^k B = 0 for all k (rank C[B AB ...] < p), or None.
+
+    First the rank of C with unit rows (a stretched arm: tip x and z rows
+    parallel), then a sufficient test on [CB, CAB], then the Krylov basis.
+    """
+    p, n = C.shape
+    if np.any(rn == 0):
+        v = np.zeros(p)
+        v[int(np.argmin(rn))] = 1.0
+        return v
+    Cw = C / rn[:, None]
+    if p > n:
+        U, _, _ = np.linalg.svd(Cw, full_matrices=True)
+        return _unit(U[:, -1] / rn)
+    U, s, _ = np.linalg.svd(Cw, full_matrices=True)
+    if s[-1] <= RANK_TOL * s[0]:
+        return _unit(U[:, -1] / rn)
+    bn = np.linalg.norm(B, axis=0)
+    Bn = B[:, bn > 0] / bn[bn > 0]
+    if Bn.shape[1] == 0:
+        return _unit(U[:, -1] / rn)
+    a = float(np.abs(A).max())
+    X = Cw @ Bn
+    X = np.hstack([X, Cw @ (A @ Bn) / a]) if a > 0 else X
+    sx = np.linalg.svd(X, compute_uv=False)
+    if sx.size >= p and sx[p - 1] > 1e-8 * sx[0]:
+        return None
+    Y = output_reachable_basis(A, B, C)
+    if Y.shape[1] == p:
+        return None
+    return _unit(complement(Y, p)[:, 0])
+
+
+def _unit(v):
+    return v / np.linalg.norm(v)
 
 
 _REASON_NIL_YES = "A^2 = 0 and the columns of [CB, CAB] positively span the output space"
@@ -583,14 +647,19 @@ def _modal(sub: _Reduced, horizon, tol):
         return None  # output rows not an invariant subspace: not exact
     Uinv = np.linalg.inv(U)
     beta = Uinv @ Bv
+    bscale = np.linalg.norm(beta, axis=0) + 1e-300
     T = horizon or _modal_horizon(kap)
     for group in cluster(kap, 1e-8 * sK):
         k = float(np.mean(kap[group]))
-        # modal coordinates reachable by the outputs (all of them for a full pose)
-        Ra = np.eye(group.size) if Q.shape[1] == h else orth(U[:, group].T @ Q)
+        # modal coordinates seen by the outputs (all of them for a full pose):
+        # range(U_g^T Q). U has unit columns and Q orthonormal ones, so the
+        # tolerance is absolute: an invisible mode gives round-off (1e-16)
+        # that must not be normalised into a visible direction
+        Ra = np.eye(group.size) if Q.shape[1] == h else _visible(U[:, group].T @ Q)
         if Ra.shape[1] == 0:
             continue
         Z = Ra.T @ beta[group]
+        Z[:, np.linalg.norm(Z, axis=0) <= 1e-10 * bscale] = 0.0
         definite = k >= -1e-9 * sK
         if definite:
             yes, _, _, _, _, c = span_core(Z, tol)
@@ -626,6 +695,12 @@ def _modal(sub: _Reduced, horizon, tol):
         "every sign-definite mode is positively spanned and every oscillatory mode has full rank",
         sc,
     )
+
+
+def _visible(M: np.ndarray) -> np.ndarray:
+    """Orthonormal basis of range(M) with an absolute tolerance (M of unit scale)."""
+    U, s, _ = np.linalg.svd(M, full_matrices=False)
+    return U[:, s > 1e-8]
 
 
 def _modal_horizon(kap):
