@@ -73,7 +73,7 @@ def workspace_map(
             store made with the same settings is resumed (only chunks not
             yet done are computed). None keeps the map in memory.
         overwrite: replace an existing ``store`` instead of resuming it.
-        chunk_size: poses per chunk (default 4096; 256 when poses need the
+        chunk_size: poses per chunk (default 16384; 256 when poses need the
             per-pose pipeline, e.g. under gravity).
         progress: True prints a progress bar on stderr; a callable is called
             as ``progress(done_poses, total_poses, chunk_index)``.

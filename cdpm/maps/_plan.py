@@ -22,7 +22,7 @@ from cdpm.errors import InputError
 __all__ = ["SampledAxes", "MapPlan", "sample_axes", "make_plan", "coordinate_units"]
 
 #: default number of poses per chunk
-DEFAULT_CHUNK_SIZE = 4096
+DEFAULT_CHUNK_SIZE = 16384
 
 
 @dataclass(frozen=True)

@@ -1,9 +1,12 @@
 """Running map chunks: in-process, in local worker processes, or on Dask.
 
-Every executor runs the same function on the same chunks (the poses of a
-chunk are computed by the driver from the :class:`~cdpm.maps._plan.MapPlan`
-and sent along), returns the chunk's arrays to the driver, and the driver
-writes them, so results do not depend on where a chunk ran.
+Every executor runs the same function on the same chunks (the poses of
+chunk k come from the :class:`~cdpm.maps._plan.MapPlan`), so results do not
+depend on where a chunk ran. Local worker processes get the plan once and
+then only chunk indices; with a zarr store they write their own chunks
+(region and done marker), so the driver does no serial I/O. Dask tasks
+return the chunk's arrays and the driver writes them (remote workers may
+not see the store).
 
 Workers rebuild the robot from its spec: local processes from the spec
 path, Dask workers from the spec and URDF bytes shipped with each task (a
@@ -89,12 +92,31 @@ def compute_chunk(source: RobotSource, setting, index: int, natural) -> tuple[in
     return index, evaluate_poses(_state(source), natural, setting)
 
 
-def _init_process() -> None:
+#: what a local worker process computes: set once by :func:`_init_process`
+_WORKER: dict = {}
+
+
+def _init_process(source: RobotSource | None = None, plan=None, setting=None, writer=None) -> None:
     # Ctrl-C goes to the whole process group: the driver handles it and
     # stops the workers, which must not print tracebacks of their own
     import signal
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if source is not None:
+        _WORKER.update(robot=_state(source), plan=plan, setting=setting, writer=writer)
+
+
+def _process_chunk(index: int) -> tuple[int, dict | None]:
+    """Compute chunk ``index`` in a local worker process; with a writer the
+    worker stores it itself (data and done marker) and returns no data."""
+    from cdpm.maps._evaluate import evaluate_poses
+
+    plan, writer = _WORKER["plan"], _WORKER["writer"]
+    data = evaluate_poses(_WORKER["robot"], plan.natural(index), _WORKER["setting"])
+    if writer is None:
+        return index, data
+    writer.write(index, data)
+    return index, None
 
 
 # --------------------------------------------------------------------------
@@ -170,8 +192,9 @@ def run_chunks(
     total = sum(plan.chunk_size(k) for k in todo)
     state = {"done": 0}
 
-    def finished(index: int, data: dict) -> None:
-        sink.write(index, data)
+    def finished(index: int, data: dict | None) -> None:
+        if data is not None:  # None: a worker wrote the chunk itself
+            sink.write(index, data)
         state["done"] += plan.chunk_size(index)
         if progress is not None:
             progress(state["done"], total, index)
@@ -188,30 +211,43 @@ def run_chunks(
         for index in todo:
             finished(index, evaluate_poses(robot, plan.natural(index), setting))
     else:
-        _run_processes(robot, plan, setting, todo, finished, workers)
+        writer = getattr(sink, "writer", None)
+        _run_processes(robot, plan, setting, todo, finished, workers, writer)
+
+
+#: modules the fork server imports once, so that workers start warm
+_PRELOAD = ["cdpm.maps._evaluate", "cdpm.maps._store", "cdpm.analysis", "pinocchio", "zarr"]
 
 
 def _context():
     methods = multiprocessing.get_all_start_methods()
-    return multiprocessing.get_context("forkserver" if "forkserver" in methods else "spawn")
+    if "forkserver" in methods:
+        ctx = multiprocessing.get_context("forkserver")
+        ctx.set_forkserver_preload(_PRELOAD + ["cdpm.maps._runner"])
+        return ctx
+    return multiprocessing.get_context("spawn")
 
 
-def _run_processes(robot, plan, setting, todo, finished, workers: int) -> None:
+def _run_processes(robot, plan, setting, todo, finished, workers: int, writer=None) -> None:
+    """Chunks on local worker processes. Each worker builds the robot once
+    (initializer) and gets only chunk indices; with a ``writer`` (a store on
+    this file system) workers write their chunks themselves, so the driver
+    only follows progress."""
     from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
     source = RobotSource.from_robot(robot)
     pending = list(reversed(todo))
     executor = ProcessPoolExecutor(
-        max_workers=min(workers, len(todo)), mp_context=_context(), initializer=_init_process
+        max_workers=min(workers, len(todo)),
+        mp_context=_context(),
+        initializer=_init_process,
+        initargs=(source, plan, setting, writer),
     )
     running = set()
     try:
         while pending or running:
             while pending and len(running) < 2 * workers:
-                index = pending.pop()
-                running.add(
-                    executor.submit(compute_chunk, source, setting, index, plan.natural(index))
-                )
+                running.add(executor.submit(_process_chunk, pending.pop()))
             done, running = wait(running, return_when=FIRST_COMPLETED)
             for future in done:
                 finished(*future.result())

@@ -26,7 +26,7 @@ from cdpm.errors import InputError
 from cdpm.maps._evaluate import CODE_FIELDS, STATUS_CODES, VERDICT_CODES
 from cdpm.maps._plan import MapPlan, coordinate_units, settings_difference
 
-__all__ = ["ZarrSink", "MemorySink", "open_map", "variable_specs"]
+__all__ = ["ZarrSink", "MemorySink", "ChunkWriter", "open_map", "variable_specs"]
 
 _META = ".cdpm"
 _VERDICT_DOC = {
@@ -189,7 +189,7 @@ class ZarrSink:
         if not created.is_file():
             self._create()
         self._done_dir = self.path / _META / "done"
-        self._group = None
+        self._writer: ChunkWriter | None = None
 
     def _remove(self) -> None:
         if (
@@ -255,21 +255,56 @@ class ZarrSink:
             return set()
         return {int(p.name) for p in self._done_dir.iterdir() if p.name.isdigit()}
 
+    @property
+    def writer(self) -> ChunkWriter:
+        """A picklable writer of this store's chunks, for worker processes
+        that see the same file system."""
+        return ChunkWriter(str(self.path), self.plan, tuple(self.specs))
+
     def write(self, index: int, data: dict) -> None:
         """Write chunk ``index`` (region write), then its done marker."""
-        import zarr
-
-        if self._group is None:
-            self._group = zarr.open_group(str(self.path), mode="r+")
-        region = self.plan.region(index)
-        shape = tuple(s.stop - s.start for s in region)
-        for name in self.specs:
-            value = data[name]
-            self._group[name][region] = value.reshape(shape + value.shape[1:])
-        _touch(self._done_dir / str(index))
+        if self._writer is None:
+            self._writer = self.writer
+        self._writer.write(index, data)
 
     def dataset(self):
         return open_map(self.path)
+
+
+class ChunkWriter:
+    """Writes map chunks into an existing store: the region of each data
+    variable, then the chunk's done marker (so a marker always means the
+    chunk is complete). Chunks are whole zarr chunks, so processes writing
+    different chunks never touch the same file. Picklable: a worker opens
+    the store on its first write.
+
+    Args:
+        path: the store directory.
+        plan: the map's :class:`~cdpm.maps._plan.MapPlan`.
+        names: the data variables to write.
+    """
+
+    def __init__(self, path: str, plan: MapPlan, names: tuple[str, ...]):
+        self.path, self.plan, self.names = path, plan, names
+        self._group = None
+
+    def __getstate__(self) -> dict:
+        return {"path": self.path, "plan": self.plan, "names": self.names}
+
+    def __setstate__(self, state: dict) -> None:
+        self.__init__(state["path"], state["plan"], state["names"])
+
+    def write(self, index: int, data: dict) -> None:
+        import zarr
+
+        if self._group is None:
+            self._group = zarr.open_group(self.path, mode="r+")
+        region = self.plan.region(index)
+        shape = tuple(s.stop - s.start for s in region)
+        for name in self.names:
+            value = data[name]
+            self._group[name][region] = value.reshape(shape + value.shape[1:])
+        _touch(Path(self.path) / _META / "done" / str(index))
 
 
 def _touch(path: Path) -> None:
