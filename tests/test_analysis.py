@@ -234,11 +234,25 @@ def test_positively_spans_known_cases(vectors, verdict):
 
 
 def test_positively_spans_margin_is_inradius():
-    # the square's vertices (+-1, +-1): inradius about 0 is 1
+    # the square's vertices (+-1, +-1): inradius about 0 is 1 (exact for p <= 3)
     S = np.array([[1.0, -1.0, -1.0, 1.0], [1.0, 1.0, -1.0, -1.0]])
     assert positively_spans(S).margin == pytest.approx(1.0)
+    assert positively_spans(S).margin_bracket == pytest.approx((1.0, 1.0))
     # shifted away by 3 along x: distance from 0 to the square is 2
     assert positively_spans(S + [[3.0], [0.0]]).margin == pytest.approx(-2.0)
+
+
+def test_positively_spans_margin_brackets_the_inradius_in_4d():
+    # the 4-cube's vertices (+-1, ...): inradius 1; the largest cross-polytope
+    # |y|_1 <= r inside has r = 1, so the margin is 1/sqrt(4) and hi >= 1
+    S = np.array(np.meshgrid(*[[-1.0, 1.0]] * 4)).reshape(4, -1)
+    lo, hi = positively_spans(S).margin_bracket
+    assert lo == pytest.approx(0.5, rel=1e-7)
+    assert hi >= 1.0 * (1 - 1e-7)
+    # the cross-polytope |y|_1 <= 2 itself: the index is exact, 2/sqrt(4)
+    D = np.hstack([2 * np.eye(4), -2 * np.eye(4)])
+    lo, hi = positively_spans(D).margin_bracket
+    assert lo == pytest.approx(1.0, rel=1e-7) and 1.0 - 1e-7 <= hi <= 2.0 + 1e-7
 
 
 def test_positively_spans_separator_is_a_witness():

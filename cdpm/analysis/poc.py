@@ -44,7 +44,7 @@ from cdpm.analysis._common import (
 from cdpm.analysis.brammer import left_eigen_separator
 from cdpm.analysis.certificate import POCCertificate
 from cdpm.analysis.rank import output_reachable_basis, reachable_basis
-from cdpm.analysis.span import SPAN_TOL, span_core, span_margin
+from cdpm.analysis.span import SPAN_TOL, span_core, span_margin_bracket
 from cdpm.errors import InputError
 
 #: singular values of C with unit rows at most this (relative) are zero
@@ -971,15 +971,16 @@ def poc_margin(res: POCResult) -> tuple[float, float]:
         cols += [Gf, -Gf]
     S = np.hstack(cols)
     yes = span_core(S, SPAN_TOL)[0]
-    mu = span_margin(S, yes)
+    mu, hi = span_margin_bracket(S, yes)
     if res.verdict is Verdict.YES and cert.vectors is not None:
-        # conv(certificate) lies in conv(samples): its inradius is a lower
+        # conv(certificate) lies in conv(samples): its index is a lower
         # bound too, and robust when a growing system dwarfs early samples
         s_in = np.ones(B.shape[1]) if res.input_scale is None else res.input_scale
         w_out = np.ones(p) if res.output_weight is None else res.output_weight
         Sc = cert.vectors * cert.signs * s_in[cert.inputs] * w_out[:, None]
-        mu = max(mu, span_margin(Sc, True))
-    hi = mu + lip * (ts[1] - ts[0]) / 2 if ts.size > 1 else mu
+        mu = max(mu, span_margin_bracket(Sc, True)[0])
+    # the curve between grid points is within lip * h / 2 of the samples
+    hi = max(hi, mu) + (lip * (ts[1] - ts[0]) / 2 if ts.size > 1 else 0.0)
     if res.verdict is not Verdict.YES:
         mu, hi = min(mu, 0.0), min(hi, 0.0)
     return float(mu), float(hi)

@@ -125,10 +125,15 @@ class SpanResult:
         certificate: :class:`SpanCertificate`.
         vectors: copy of the input, shape (p, k).
         tol: tolerance used.
-        margin: ``min_{|v|=1} max_i v^T s_i`` on the raw vectors: the inradius
-            about 0 of conv(S) when YES, minus the distance from 0 to conv(S)
-            when NO (0 when 0 is on its boundary). Continuous in S; computed
-            on first access.
+        margin: a polynomial-time index of ``mu = min_{|v|=1} max_i v^T s_i``
+            (the inradius about 0 of conv(S) when YES, minus the distance
+            from 0 to conv(S) when NO): for NO exactly ``-dist(0, conv S)``
+            (min-norm point); for YES and p <= 3 exactly mu (the facets of a
+            planar or spatial convex hull); for YES and p >= 4 ``r1 / sqrt(p)``
+            where ``r1`` is the largest r with the cross-polytope
+            ``{|y|_1 <= r}`` inside conv(S) (2p small LPs), a lower bound of
+            mu. Continuous in S, polynomial in p and k; computed on first access.
+        margin_bracket: ``(lower, upper)`` bounds of mu; lower is ``margin``.
     """
 
     verdict: Verdict
@@ -143,8 +148,12 @@ class SpanResult:
         return self.verdict is Verdict.YES
 
     @functools.cached_property
+    def margin_bracket(self) -> tuple[float, float]:
+        return span_margin_bracket(self.vectors, self.verdict is Verdict.YES)
+
+    @property
     def margin(self) -> float:
-        return span_margin(self.vectors, self.verdict is Verdict.YES)
+        return self.margin_bracket[0]
 
     @property
     def reason(self) -> str:
@@ -380,45 +389,105 @@ def min_norm_separator(S: np.ndarray):
 
 
 def span_margin(S: np.ndarray, yes: bool) -> float:
-    """``min_{|v|=1} max_i v^T s_i`` (see :class:`SpanResult`)."""
+    """The margin index of :class:`SpanResult` (lower end of the bracket)."""
+    return span_margin_bracket(S, yes)[0]
+
+
+def span_margin_bracket(S: np.ndarray, yes: bool) -> tuple[float, float]:
+    """(lower, upper) bounds of ``mu = min_{|v|=1} max_i v^T s_i``.
+
+    NO: ``-dist(0, conv S)`` exactly (one NNLS). YES with p <= 3: exactly
+    mu, the smallest facet offset of conv(S) (a convex hull in the plane or
+    in space costs O(k log k)). YES with p >= 4: ``(r1 / sqrt(p), hi)`` with
+    ``r1`` the cross-polytope radius (:func:`cross_polytope_radius`) and
+    ``hi <= r1`` the best support value ``max_i v^T s_i / |v|`` among the LP
+    solutions (a hull in R^p has up to k^(p/2) facets: never built).
+    """
     p, k = S.shape
     if p == 0:
-        return math.inf
+        return math.inf, math.inf
     if k == 0:
-        return 0.0
+        return 0.0, 0.0
     if p == 1:
-        return float(min(S.max(), -S.min()))
+        mu = float(min(S.max(), -S.min()))
+        return mu, mu
     if not yes:
         sep = min_norm_separator(S)
-        return 0.0 if sep is None else -float(sep[1])
-    try:
-        hull = ConvexHull(S.T)
-        return float(max(np.min(-hull.equations[:, -1]), 0.0))
-    except QhullError:
-        return _inradius_lower_bound(S)
+        mu = 0.0 if sep is None else -float(sep[1])
+        return mu, mu
+    if p <= 3:
+        norms = np.linalg.norm(S, axis=0)
+        try:
+            hull = ConvexHull(S[:, norms > 1e-14 * norms.max()].T)
+            mu = float(max(np.min(-hull.equations[:, -1]), 0.0))
+            return mu, mu
+        except QhullError:  # degenerate input: the LP bracket below
+            pass
+    r1, hi = cross_polytope_radius(S)
+    return r1 / math.sqrt(p), hi
 
 
-def _inradius_lower_bound(S: np.ndarray) -> float:
-    """r/sqrt(p) where r is the smallest radial extent of conv S along +-e_i
-    (the cross-polytope of radius r lies in conv S)."""
+def cross_polytope_radius(S: np.ndarray) -> tuple[float, float]:
+    """Largest r with ``{y : |y|_1 <= r}`` inside conv(S), and an upper bound
+    of the inradius ``mu``.
+
+    Polar duality: the cross-polytope of radius r lies in conv(S) iff the
+    polar ``P = {v : S^T v <= 1}`` lies in the cube ``|v|_inf <= 1/r``, so
+    ``r = 1 / max_{v in P} |v|_inf``: 2p LPs in p variables with k
+    constraints (DAQP, dual active set; HiGHS if it fails). Every LP solution
+    v also gives ``mu <= max_i v^T s_i / |v|``. Since ``r e_i`` lies in
+    conv(S), ``mu <= r``, and the Euclidean ball of radius ``r / sqrt(p)``
+    lies in the cross-polytope, so ``r / sqrt(p) <= mu``.
+
+    Returns:
+        (r, hi); (0, 0) when 0 is not interior to conv(S).
+    """
     p, k = S.shape
-    radii = []
+    scale = float(np.linalg.norm(S, axis=0).max())
+    if scale == 0:
+        return 0.0, 0.0
+    norms = np.linalg.norm(S, axis=0)
+    # zero vectors add only 0 <= 1 constraints
+    G = np.ascontiguousarray(S[:, norms > 1e-14 * scale].T / scale)  # (k, p)
+    vmax, hi = 0.0, math.inf
     for i in range(p):
         for sign in (1.0, -1.0):
-            d = np.zeros(p)
-            d[i] = sign
-            # max rho s.t. rho d = S lam, lam >= 0, sum lam = 1
-            c = np.zeros(k + 1)
-            c[-1] = -1.0
-            A_eq = np.zeros((p + 1, k + 1))
-            A_eq[:p, :k] = S
-            A_eq[:p, -1] = -d
-            A_eq[p, :k] = 1.0
-            b_eq = np.zeros(p + 1)
-            b_eq[p] = 1.0
-            res = linprog(c, A_eq=A_eq, b_eq=b_eq, bounds=[(0, None)] * (k + 1), method="highs")
-            radii.append(-res.fun if res.status == 0 else 0.0)
-    return float(min(radii) / math.sqrt(p))
+            x = _polar_lp(G, i, sign)
+            if x is None:
+                return 0.0, 0.0
+            val = sign * x[i]
+            if not val > 0:
+                return 0.0, 0.0
+            # the solver meets S^T x <= 1 to ~1e-9: rescale to feasible first
+            support = float(np.max(G @ x))
+            x = x / max(support, 1.0)
+            vmax = max(vmax, sign * x[i])
+            hi = min(hi, support / float(np.linalg.norm(x)) / max(support, 1.0))
+    r = 1.0 / vmax
+    return r * scale, min(hi, r) * scale
+
+
+def _polar_lp(G: np.ndarray, i: int, sign: float):
+    """argmax sign * v_i subject to G v <= 1 (G (k, p)), or None if unbounded."""
+    k, p = G.shape
+    f = np.zeros(p)
+    f[i] = -sign
+    try:
+        import daqp
+    except ImportError:  # pragma: no cover - daqp is a core dependency
+        daqp = None
+    if daqp is not None:
+        H, lo, up = np.zeros((p, p)), np.full(k, -1e30), np.ones(k)
+        # default proximal step first; a larger one when degenerate
+        # (duplicate or near-parallel constraints) makes it cycle
+        for eps in (-1e-6, 1e-3):
+            x, _, flag, _ = daqp.solve(
+                H, f, G, up, lo, primal_tol=1e-9, fval_bound=1e12, eps_prox=eps
+            )
+            if flag >= 1 and np.all(np.isfinite(x)):
+                return np.asarray(x, dtype=float)
+    res = linprog(f, A_ub=G, b_ub=np.ones(k), bounds=[(None, None)] * p, method="highs")
+    return res.x if res.status == 0 else None
 
 
 # --------------------------------------------------------------------------

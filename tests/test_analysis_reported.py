@@ -1,0 +1,153 @@
+"""Verdicts reported wrong on the model library, reproduced on two_link_vertical
+(gravity, min-norm equilibrium tension) and on matrices of the same shape."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.linalg import expm
+
+import cdpm
+from cdpm.analysis import (
+    Verdict,
+    output_controllability,
+    positive_controllability,
+    positive_output_controllability,
+    positively_spans,
+    wrench_closure,
+)
+from tests.conftest import MODELS
+
+G = 9.81
+
+
+@pytest.fixture(scope="module")
+def vertical():
+    return cdpm.load_robot(MODELS / "two_link_vertical")
+
+
+def rows(robot, *names):
+    return [robot.output_names.index(n) for n in names]
+
+
+def checked(A, B, C, mask):
+    res = positive_output_controllability(A, B, C, mask)
+    assert res.verdict is not Verdict.MARGINAL, res
+    assert res.certificate.verify(A, B, C), res
+    assert (res.margin > 0) == (res.verdict is Verdict.YES)
+    return res
+
+
+def test_tip_height_alone_all_cables_slack_is_poc(vertical):
+    # q = (-pi, -pi/2): the tip height sees only the mode kappa = 6.18 of K
+    # (its row is a left eigenvector); g_1 > 0 and g_3 < 0 for all t > 0
+    lin = cdpm.linearise(vertical, np.array([-math.pi, -math.pi / 2]))
+    A, B = lin.A, lin.B_cone
+    C = lin.C[rows(vertical, "tip_z")]
+    mask = np.ones(B.shape[1], dtype=bool)
+    for t in (0.1, 1.0, 5.0):
+        g = C @ expm(A * t) @ B
+        assert g[0, 0] > 0 and g[0, 2] < 0
+    res = checked(A, B, C, mask)
+    assert res.verdict is Verdict.YES
+    # and with the equilibrium's own cone (c1 taut) too
+    res = checked(A, B, C, lin.sign_constrained)
+    assert res.verdict is Verdict.YES
+    assert np.all(np.abs(res.certificate.vectors) > 1e-6)  # no zero output vector
+
+
+def test_modal_path_projects_the_output_onto_visible_modes():
+    # K lower triangular: e1 is a left eigenvector (kappa = 1); the mode
+    # kappa = 4 is invisible from y = q1 and must not decide
+    K = np.array([[1.0, 0.0], [3.0, 4.0]])
+    A = np.block([[np.zeros((2, 2)), np.eye(2)], [K, np.zeros((2, 2))]])
+    Bv = np.array([[1.0, -1.0], [-5.0, -5.0]])  # the kappa = 4 mode is pushed one way
+    B = np.vstack([np.zeros((2, 2)), Bv])
+    C = np.array([[1.0, 0.0, 0.0, 0.0]])
+    res = checked(A, B, C, np.ones(2, dtype=bool))
+    assert res.verdict is Verdict.YES
+    # seen from q2 the kappa = 4 mode dominates: NO
+    res = checked(A, B, np.array([[0.0, 1.0, 0.0, 0.0]]), np.ones(2, dtype=bool))
+    assert res.verdict is Verdict.NO
+
+
+@pytest.mark.parametrize("q", [(math.pi / 6, 0.0), (0.0, 0.0), (-math.pi / 3, 0.0)])
+def test_stretched_arm_tip_position_is_not_output_controllable(vertical, q):
+    lin = cdpm.linearise(vertical, np.array(q))
+    A, B, C = lin.A, lin.B_cone, lin.C[rows(vertical, "tip_x", "tip_z")]
+    assert np.linalg.matrix_rank(C[:, :2]) == 1
+    assert not output_controllability(A, B, C)
+    res = checked(A, B, C, lin.sign_constrained)
+    assert res.verdict is Verdict.NO
+    assert res.method.endswith("output-rank")
+    assert res.output_rank == 1 and not res.output_controllable
+    # every cable free does not help either
+    res = checked(A, B, C, np.zeros(B.shape[1], dtype=bool))
+    assert res.verdict is Verdict.NO
+
+
+def test_rank_deficient_output_after_reduction():
+    # the free input reaches y1; y2 = y1 + 1e-18 noise: the reduced output is
+    # round-off and must not be rescaled into a direction
+    A = np.array([[0.0, 1.0], [-1.0, 0.0]])
+    B = np.array([[0.0, 0.0], [1.0, 1.0]])
+    C = np.array([[1.0, 0.0], [1.0 + 1e-16, 0.0]])
+    res = checked(A, B, C, np.array([False, True]))
+    assert res.verdict is Verdict.NO
+
+
+def test_elbow_up_has_a_brammer_witness(vertical):
+    lin = cdpm.linearise(vertical, "elbow_up")
+    A, B, mask = lin.A, lin.B_cone, lin.sign_constrained
+    assert mask.tolist() == [False, True, True, True]
+    v = np.r_[math.sqrt(2 * G) * np.ones(2), np.ones(2)]
+    lam = math.sqrt(2 * G)
+    np.testing.assert_allclose(v @ A, lam * v, rtol=1e-9)
+    assert np.all(v @ B[:, mask] >= 0) and abs(v @ B[:, 0]) < 1e-12
+    res = positive_controllability(A, B, mask)
+    assert res.verdict is Verdict.NO
+    assert res.verify(A, B, mask)
+    # v and its mirror (-sqrt(2g)(1, 1), (1, 1)) (eigenvalue -sqrt(2g)) both separate
+    mu = res.witness_eigenvalue
+    assert abs(mu) == pytest.approx(lam, rel=1e-9)
+    w = res.witness / res.witness[-1]
+    np.testing.assert_allclose(w, np.r_[mu * np.ones(2), np.ones(2)], rtol=1e-7)
+    # the same eigenvector separates the full-state output: POC is NO too
+    res = checked(A, B, np.eye(4), mask)
+    assert res.verdict is Verdict.NO
+
+
+def test_brammer_free_input_orthogonal_to_a_positive_eigenvector():
+    # x' = diag(2, -1) x: the left eigenvector e1 of lambda = 2 sees the
+    # free input as 0 and the constrained one positively: a witness
+    A = np.diag([2.0, -1.0])
+    B = np.array([[1e-17, 1.0], [1.0, 0.5]])
+    res = positive_controllability(A, B, [False, True])
+    assert res.verdict is Verdict.NO and res.verify(A, B, [False, True])
+    np.testing.assert_allclose(np.abs(res.witness), [1.0, 0.0], atol=1e-12)
+
+
+def test_wrench_closure_margin_is_polynomial_in_dimension():
+    # nv = 24, 76 cables: a convex hull in R^24 would not finish
+    rng = np.random.default_rng(24)
+    L = rng.normal(size=(76, 24))
+    res = wrench_closure(L)
+    assert res.verdict is Verdict.YES and res.verify()
+    lo, hi = res.margin_bracket
+    assert 0 < res.margin == lo <= hi
+    # the bracket holds: a ball of radius lo lies in conv(S), so every
+    # direction's support value is at least lo; some direction is below hi
+    S = -L.T
+    V = rng.normal(size=(2000, 24))
+    V /= np.linalg.norm(V, axis=1, keepdims=True)
+    assert (V @ S).max(axis=1).min() >= lo
+    assert lo <= hi
+
+
+def test_span_margin_bracket_on_a_square():
+    S = np.array([[1.0, -1.0, -1.0, 1.0], [1.0, 1.0, -1.0, -1.0]])
+    res = positively_spans(S)
+    lo, hi = res.margin_bracket
+    assert lo <= 1.0 <= hi + 1e-12  # the inradius is 1
