@@ -172,6 +172,10 @@ def _equilibrium(robot, q, tension, pretension) -> EquilibriumResult:
             for i in np.flatnonzero(low | high)
         ]
         raise InputError(f"tension outside the cable bounds: {'; '.join(bad)}")
+    clipped = np.clip(f, robot.tension_min, robot.tension_max)
+    if not np.array_equal(clipped, f):
+        # within BOUND_TOLERANCE of a bound: the cable sits on it
+        eq = check_equilibrium(robot, q, clipped)
     if not eq.feasible:
         raise InputError(
             f"the given tension is not an equilibrium at this pose: statics residual "

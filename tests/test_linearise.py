@@ -46,3 +46,23 @@ def test_linearise_rejects_bad_tension(paper_robot, write_spec):
     # nonzero tension that does not hold the pose: rejected with its residual
     with pytest.raises(cdpm.InputError, match=r"not an equilibrium .* residual"):
         cdpm.linearise(paper_robot, "nominal", tension=[1, 0, 0, 0])
+
+
+def test_given_tension_within_round_off_of_a_bound_is_accepted():
+    # elbow_up of two_link_vertical: c1 alone holds the arm. Adding a multiple
+    # of the null-space direction of L^T that loads c1 and c3 together gives
+    # another equilibrium; a round-off negative on a slack cable must not
+    # turn it into "not an equilibrium".
+    from tests.conftest import MODELS
+
+    robot = cdpm.load_robot(MODELS / "two_link_vertical" / "two_link_vertical.yaml")
+    base = cdpm.linearise(robot, "elbow_up")
+    L = base.cable_jacobian
+    n = np.array([L[2, 0], 0.0, -L[0, 0], 0.0])  # L^T n = 0: c1 and c3 act on joint 1 only
+    n = n / n[2]
+    tension = base.tension + 5.0 * n
+    tension[[1, 3]] = -1e-13
+    lin = cdpm.linearise(robot, "elbow_up", tension=tension)
+    np.testing.assert_allclose(lin.tension[[1, 3]], 0.0, atol=0)
+    assert lin.sign_constrained.tolist() == [False, True, False, True]
+    assert lin.tension[2] == pytest.approx(5.0)
