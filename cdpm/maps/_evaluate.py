@@ -1,22 +1,26 @@
 """Evaluate every map quantity at a batch of poses.
 
-:func:`evaluate_poses` is what one map chunk runs. Two paths give the same
-verdicts as the per-pose public API (:func:`cdpm.linearise`, then
+:func:`evaluate_poses` is what one map chunk runs. Both paths start from
+the robot's batched Pinocchio pass (:meth:`cdpm.robot.CableRobot.kinematics_batch`:
+L, outputs, M and G of the whole chunk) and give the same verdicts as the
+per-pose public API (:func:`cdpm.linearise`, then
 :func:`cdpm.analysis.positive_output_controllability` and friends):
 
 - ``nilpotent`` (zero tension, no gravity, no external wrench: the seed
-  paper's case, A^2 = 0): batched kinematics, then the exact tests
-  vectorised across poses. With ``C = [Cq, 0]`` and ``B = [0; -M^-1 L^T]``,
-  ``CB = 0`` and ``C e^{At} B = t CAB`` with ``CAB = -Cq M^-1 L^T``, so POC is
-  a sign test (p = 1) or an angular-gap test (p = 2) on the columns of CAB
-  (THEORY.md section 3), the same decisions and tolerances as the
-  analyser's nilpotent path. Positive (Brammer) controllability reduces to
-  the columns of ``-M^-1 L^T`` positively spanning R^nv, wrench closure to
+  paper's case, A^2 = 0): the exact tests vectorised across poses. With
+  ``C = [Cq, 0]`` and ``B = [0; -M^-1 L^T]``, ``CB = 0`` and
+  ``C e^{At} B = t CAB`` with ``CAB = -Cq M^-1 L^T``, so POC is a sign test
+  (p = 1) or an angular-gap test (p = 2) on the columns of CAB (THEORY.md
+  section 3), the same decisions and tolerances as the analyser's
+  nilpotent path. Positive (Brammer) controllability reduces to the
+  columns of ``-M^-1 L^T`` positively spanning R^nv, wrench closure to
   those of ``-L^T``. Poses whose numbers fall within a small band of a
   decision threshold, and every decision the vectorised code does not
   cover (p >= 3, nv >= 3), are handed to the public analyser, so the map
   never disagrees with it because of a different rounding.
-- ``per-pose`` (anything else, e.g. gravity): the public pipeline at each pose.
+- ``general`` (gravity, loads, pretension, damping):
+  :mod:`cdpm.maps._general`, batched equilibria and linearisations, then
+  the analyser's decision per pose.
 
 Degenerate poses never raise: they get a ``status`` code and the verdicts
 ``NOT_ANALYSED``.
@@ -28,8 +32,6 @@ import math
 from typing import Any
 
 import numpy as np
-
-from cdpm.errors import CdpmError, ModelError
 
 __all__ = [
     "VERDICT_CODES",
@@ -87,6 +89,17 @@ def resolve_tension(robot, tension: Any) -> str | list[float]:
             f"tension must be a method name or {robot.n_cables} finite tensions [N] "
             f"(cables {', '.join(robot.cable_names)}), got {tension!r}"
         )
+    outside = (f < robot.tension_min) | (f > robot.tension_max)
+    if outside.any():
+        bad = [
+            f"{robot.cable_names[i]}={f[i]:g} not in [{robot.tension_min[i]:g}, "
+            f"{robot.tension_max[i]:g}]"
+            for i in np.flatnonzero(outside)
+        ]
+        raise InputError(
+            f"tension outside the cable bounds: {'; '.join(bad)}; give tensions within the "
+            "spec's tension_min/tension_max or a method name (zero, min_norm, pretension)"
+        )
     return [float(x) for x in f]
 
 
@@ -140,7 +153,9 @@ def evaluate_poses(robot, natural: np.ndarray, tension: Any = None) -> dict:
     kin = robot.kinematics_batch(qs, dynamics=True)
     if _zero_equilibrium(robot, setting):
         return _evaluate_nilpotent(robot, kin, natural.shape[0])
-    return _evaluate_per_pose(robot, natural, setting)
+    from cdpm.maps._general import evaluate_general
+
+    return evaluate_general(robot, qs, kin, setting)
 
 
 def _pose_last(a: np.ndarray) -> np.ndarray:
@@ -153,16 +168,34 @@ def _pose_last(a: np.ndarray) -> np.ndarray:
 # nilpotent path
 
 
-def _evaluate_nilpotent(robot, kin: dict, n: int) -> dict:
-    # arrays keep the pose axis last from here
-    p = robot.n_outputs
-    out = _empty(n, p)
+def prelude(robot, kin: dict, n: int) -> tuple[dict, np.ndarray]:
+    """The output arrays with what every path fills alike: outputs, the
+    zero-length cable flag and wrench closure. Returns (arrays, indices of
+    the poses whose cables are all well defined)."""
+    out = _empty(n, robot.n_outputs)
     out["y"][:] = kin["output"]
     _frame_positions(robot, kin, out)
     status = out["status"]
     seg_min = kin["segment_lengths"].min(axis=1, initial=np.inf)
     status[seg_min < MIN_SEGMENT_LENGTH] = STATUS_CODES["zero_length_cable"]
     ok = np.flatnonzero(status == 0)
+    # wrench closure: the analyser tests the same vectors (round-off only)
+    L = _pose_last(kin["jacobian"])[..., ok]  # (m, nv, k)
+    wc, todo_wc = _span_codes(-np.swapaxes(L, 0, 1), _WRENCH_DEFER)
+    for i in np.flatnonzero(todo_wc):
+        wc[i] = _public_wrench(L[..., i])
+    out["wrench_closure"][ok] = wc
+    return out, ok
+
+
+def _evaluate_nilpotent(robot, kin: dict, n: int) -> dict:
+    # arrays keep the pose axis last from here
+    out, ok = prelude(robot, kin, n)
+    # without any load f* = 0 holds every pose, within the bounds (f_min = 0)
+    out["tension_min"][ok] = 0.0
+    out["tension_max"][ok] = 0.0
+    out["static_feasible"][ok] = YES
+    status = out["status"]
     M = _pose_last(kin["mass_matrix"])[..., ok]
     Minv, regular = _spd_inverse(M)
     status[ok[~regular]] = STATUS_CODES["singular_mass_matrix"]
@@ -174,28 +207,18 @@ def _evaluate_nilpotent(robot, kin: dict, n: int) -> dict:
     X = _times_transpose(Minv, L)  # M^-1 L^T, (nv, m, k)
     CAB = -_times(Cq, X)  # (p, m, k)
 
-    # without any load f* = 0 holds every pose, within the bounds (f_min = 0)
-    out["tension_min"][ok] = 0.0
-    out["tension_max"][ok] = 0.0
-    out["static_feasible"][ok] = YES
-
     poc, margin, todo = _nilpotent_poc(CAB)
     oc, todo_oc = _output_rank_full(CAB, Cq, X)
     todo |= todo_oc
-    # wrench closure: the analyser tests the same vectors (round-off only);
     # Brammer's test sees a linear image of -M^-1 L^T
-    wc, todo_wc = _span_codes(-np.swapaxes(L, 0, 1), _WRENCH_DEFER)
     pc, todo_pc = _span_codes(-X, _BRAMMER_DEFER)
     todo |= todo_pc
-    for i in np.flatnonzero(todo_wc):
-        wc[i] = _public_wrench(L[..., i])
     for i in np.flatnonzero(todo):
         res = _public_nilpotent(M[..., i], L[..., i], Cq[..., i])
         poc[i], margin[i], oc[i], pc[i] = res
     out["poc"][ok] = poc
     out["poc_margin"][ok] = margin
     out["output_controllable"][ok] = oc
-    out["wrench_closure"][ok] = wc
     out["positive_controllable"][ok] = pc
     return out
 
@@ -423,86 +446,3 @@ def _public_wrench(L) -> int:
     from cdpm.analysis import wrench_closure
 
     return _code(wrench_closure(L).verdict)
-
-
-# --------------------------------------------------------------------------
-# per-pose path (gravity, pretension, unsupported joints)
-
-
-def _evaluate_per_pose(robot, natural: np.ndarray, setting) -> dict:
-    from cdpm.equilibrium import InfeasibleEquilibriumError, equilibrium_tension
-    from cdpm.linearisation import linearise
-
-    n, p = natural.shape[0], robot.n_outputs
-    out = _empty(n, p)
-    for i in range(n):
-        q = robot.from_natural(natural[i])
-        try:
-            kin = robot.kinematics(q)
-        except ModelError:
-            out["status"][i] = STATUS_CODES["zero_length_cable"]
-            _fill_outputs(robot, q, out, i)
-            continue
-        out["y"][i] = kin.output
-        out["output_frame_position"][i] = _frame_position(robot, q)
-        out["wrench_closure"][i] = _public_wrench(kin.jacobian)
-        # static feasibility: some tension within the bounds holds the pose
-        if setting == "min_norm":
-            feasible = None  # known from the equilibrium below
-        else:
-            feasible = equilibrium_tension(robot, q, method="min_norm").feasible
-            out["static_feasible"][i] = YES if feasible else NO
-        M = robot.mass_matrix(q)
-        eig = np.linalg.eigvalsh(M)
-        if not eig[0] > eig[-1] / MASS_COND_MAX:
-            out["status"][i] = STATUS_CODES["singular_mass_matrix"]
-            continue
-        try:
-            lin = linearise(robot, q, tension=setting)
-        except InfeasibleEquilibriumError:
-            out["status"][i] = STATUS_CODES["no_equilibrium"]
-            if feasible is None:
-                out["static_feasible"][i] = NO
-            continue
-        if feasible is None:
-            out["static_feasible"][i] = YES
-        try:
-            B = lin.B_cone if hasattr(lin, "B_cone") else lin.B
-            poc, margin, oc, pc = _analyse(lin.A, B, lin.C, lin.sign_constrained)
-        except (CdpmError, np.linalg.LinAlgError):
-            out["status"][i] = STATUS_CODES["analysis_failed"]
-            continue
-        out["poc"][i], out["poc_margin"][i] = poc, margin
-        out["output_controllable"][i], out["positive_controllable"][i] = oc, pc
-        out["tension_min"][i] = float(lin.tension.min()) if lin.tension.size else 0.0
-        out["tension_max"][i] = float(lin.tension.max()) if lin.tension.size else 0.0
-    return out
-
-
-def _frame_position(robot, q) -> np.ndarray:
-    """World position of the first output's frame [m] (NaN without outputs)."""
-    if not robot.spec.outputs:
-        return np.full(3, np.nan)
-    import pinocchio as pin
-
-    data = robot.model.createData()
-    pin.forwardKinematics(robot.model, data, q)
-    pin.updateFramePlacements(robot.model, data)
-    fid = robot.model.getFrameId(robot.spec.outputs[0].frame)
-    return np.array(data.oMf[fid].translation)
-
-
-def _fill_outputs(robot, q, out: dict, i: int) -> None:
-    """Outputs at a pose whose cables are degenerate (outputs stay defined)."""
-    from cdpm.spec import OUTPUT_COMPONENTS
-
-    pos = _frame_position(robot, q)
-    out["output_frame_position"][i] = pos
-    import pinocchio as pin
-
-    data = robot.model.createData()
-    pin.forwardKinematics(robot.model, data, q)
-    pin.updateFramePlacements(robot.model, data)
-    for k, o in enumerate(robot.spec.outputs):
-        fid = robot.model.getFrameId(o.frame)
-        out["y"][i, k] = data.oMf[fid].translation[OUTPUT_COMPONENTS[o.component]]
