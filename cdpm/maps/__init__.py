@@ -29,9 +29,10 @@ __all__ = [
     "STATUS_CODES",
 ]
 
-#: chunk size when every pose goes through the per-pose pipeline (slower
-#: per pose, so smaller chunks keep progress and interruption responsive)
-PER_POSE_CHUNK_SIZE = 256
+#: chunk size when poses need the analyser's per-pose decision (under load:
+#: milliseconds per pose, so small chunks keep progress, interruption and
+#: the spread over workers responsive)
+PER_POSE_CHUNK_SIZE = 64
 
 
 def workspace_map(
@@ -65,16 +66,17 @@ def workspace_map(
             name (``zero``, ``min_norm``, ``pretension``) or tensions [N] (m,).
         samples: draw this many random poses uniformly in the ``axes`` ranges.
         seed: random seed for ``samples``.
-        workers: local worker processes; default one per CPU (at most one
-            per chunk); 1 runs in this process.
+        workers: local processes computing chunks, this one included
+            (``workers - 1`` worker processes are started); default one per
+            CPU (at most one per chunk); 1 runs in this process only.
         scheduler: address ``"tcp://host:port"`` of a Dask distributed
             scheduler (or a ``distributed.Client``) to run the chunks on.
         store: path of a zarr store to write chunk by chunk; an existing
             store made with the same settings is resumed (only chunks not
             yet done are computed). None keeps the map in memory.
         overwrite: replace an existing ``store`` instead of resuming it.
-        chunk_size: poses per chunk (default 16384; 256 when poses need the
-            per-pose pipeline, e.g. under gravity).
+        chunk_size: poses per chunk (default 16384; 64 when poses need the
+            analyser per pose, e.g. under gravity).
         progress: True prints a progress bar on stderr; a callable is called
             as ``progress(done_poses, total_poses, chunk_index)``.
 

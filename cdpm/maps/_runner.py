@@ -2,9 +2,11 @@
 
 Every executor runs the same function on the same chunks (the poses of
 chunk k come from the :class:`~cdpm.maps._plan.MapPlan`), so results do not
-depend on where a chunk ran. Local worker processes get the plan once and
-then only chunk indices; with a zarr store they write their own chunks
-(region and done marker), so the driver does no serial I/O. Dask tasks
+depend on where a chunk ran. With ``workers=N`` locally, N - 1 worker
+processes get the plan once and then only chunk indices, and the calling
+process computes chunks too while none of theirs is ready; with a zarr
+store workers write their own chunks (region and done marker), so the
+driver does no serial I/O for them. Dask tasks
 return the chunk's arrays and the driver writes them (remote workers may
 not see the store).
 
@@ -229,16 +231,23 @@ def _context():
 
 
 def _run_processes(robot, plan, setting, todo, finished, workers: int, writer=None) -> None:
-    """Chunks on local worker processes. Each worker builds the robot once
-    (initializer) and gets only chunk indices; with a ``writer`` (a store on
-    this file system) workers write their chunks themselves, so the driver
-    only follows progress."""
+    """Chunks on ``workers - 1`` local worker processes plus this process.
+
+    Each worker builds the robot once (initializer) and then gets only
+    chunk indices; with a ``writer`` (a store on this file system) workers
+    write their chunks themselves. This process computes a chunk whenever
+    none of the workers' chunks is ready, so the workers' start-up overlaps
+    useful work and small maps gain from workers too.
+    """
     from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+
+    from cdpm.maps._evaluate import evaluate_poses
 
     source = RobotSource.from_robot(robot)
     pending = list(reversed(todo))
+    n_proc = min(workers - 1, len(todo) - 1)
     executor = ProcessPoolExecutor(
-        max_workers=min(workers, len(todo)),
+        max_workers=n_proc,
         mp_context=_context(),
         initializer=_init_process,
         initargs=(source, plan, setting, writer),
@@ -246,9 +255,15 @@ def _run_processes(robot, plan, setting, todo, finished, workers: int, writer=No
     running = set()
     try:
         while pending or running:
-            while pending and len(running) < 2 * workers:
+            while pending and len(running) < 2 * n_proc:
                 running.add(executor.submit(_process_chunk, pending.pop()))
-            done, running = wait(running, return_when=FIRST_COMPLETED)
+            done, running = wait(running, timeout=0, return_when=FIRST_COMPLETED)
+            if not done and pending:  # nothing ready: compute one here
+                index = pending.pop()
+                finished(index, evaluate_poses(robot, plan.natural(index), setting))
+                continue
+            if not done:
+                done, running = wait(running, return_when=FIRST_COMPLETED)
             for future in done:
                 finished(*future.result())
     except BaseException:
