@@ -398,6 +398,24 @@ def test_gravity_map_equals_public_per_pose(tension):
     assert seen == {"feasible", "infeasible"}
 
 
+def test_map_without_margin_has_the_same_verdicts(tmp_path):
+    """margin=False: NaN margins, every verdict as with margins (the taut
+    cables' mixed-cone exit decides most gravity poses without the analyser)."""
+    robot = cdpm.load_robot(VERTICAL_SPEC)
+    axes = {"q1": np.linspace(-3, 3, 7), "q2": np.linspace(-3, 3, 6)}
+    full = workspace_map(robot, axes, workers=1)
+    fast = workspace_map(robot, axes, workers=1, margin=False, store=tmp_path / "m.zarr")
+    assert fast.attrs["cdpm_settings"] != full.attrs["cdpm_settings"]
+    assert np.isnan(fast["poc_margin"].values).all()
+    assert (full["poc"].values == VERDICT_CODES["yes"]).any()
+    for name in full.data_vars:
+        if name != "poc_margin":
+            np.testing.assert_array_equal(fast[name].values, full[name].values, err_msg=name)
+    paper = workspace_map(PAPER_SPEC, {"q1": [0.1, 0.5]}, base="nominal", workers=1, margin=False)
+    assert np.isnan(paper["poc_margin"].values).all()
+    assert paper["poc"].values.tolist() == [VERDICT_CODES["yes"]] * 2
+
+
 def test_batched_equilibria_equal_the_solver():
     """min_norm_tensions: solved poses are the QP's optimum, 'infeasible'
     ones have no equilibrium (Farkas), on models with 2 to 8 cables."""

@@ -132,13 +132,15 @@ def _code(verdict) -> int:
     return {"yes": YES, "no": NO, "marginal": MARGINAL}[verdict.value]
 
 
-def evaluate_poses(robot, natural: np.ndarray, tension: Any = None) -> dict:
+def evaluate_poses(robot, natural: np.ndarray, tension: Any = None, *, margin: bool = True) -> dict:
     """Every map quantity at the poses ``natural`` (N, nv natural coordinates).
 
     Args:
         robot: a :class:`~cdpm.robot.CableRobot`.
         natural: poses, shape (N, nv).
         tension: equilibrium tension setting (see :func:`resolve_tension`).
+        margin: compute ``poc_margin`` (else NaN; see
+            :func:`cdpm.workspace_map`).
 
     Returns:
         dict of arrays with leading dimension N: the ``CODE_FIELDS`` (int8),
@@ -152,10 +154,13 @@ def evaluate_poses(robot, natural: np.ndarray, tension: Any = None) -> dict:
     qs = configurations(robot, natural)
     kin = robot.kinematics_batch(qs, dynamics=True)
     if _zero_equilibrium(robot, setting):
-        return _evaluate_nilpotent(robot, kin, natural.shape[0])
+        out = _evaluate_nilpotent(robot, kin, natural.shape[0])
+        if not margin:
+            out["poc_margin"][:] = np.nan
+        return out
     from cdpm.maps._general import evaluate_general
 
-    return evaluate_general(robot, qs, kin, setting)
+    return evaluate_general(robot, qs, kin, setting, margin=margin)
 
 
 def _pose_last(a: np.ndarray) -> np.ndarray:

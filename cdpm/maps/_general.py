@@ -138,7 +138,9 @@ def _linear_systems(robot, qs, kin, idx, f, Minv):
 
 def _output_controllable(A, B, C):
     """YES where rank [CB, CAB, ..., CA^{n-1}B] = p beyond doubt (unit
-    columns, singular-value ratio above _RANK_RATIO), else NOT_ANALYSED."""
+    columns, singular-value ratio above _RANK_RATIO), else NOT_ANALYSED.
+    With B restricted to the free inputs this is the analyser's mixed-cone
+    exit: those inputs alone reach every output direction, so POC holds."""
     k, p, n = C.shape
     codes = np.full(k, ev.NOT_ANALYSED, dtype=np.int8)
     if p == 0 or k == 0:
@@ -157,9 +159,11 @@ def _output_controllable(A, B, C):
     return codes
 
 
-def evaluate_general(robot, qs: np.ndarray, kin: dict, setting) -> dict:
+def evaluate_general(robot, qs: np.ndarray, kin: dict, setting, margin: bool = True) -> dict:
     """Every map quantity at poses qs (N, nq) whose batch kinematics (with
-    dynamics) are ``kin``, under the tension setting ``setting``."""
+    dynamics) are ``kin``, under the tension setting ``setting``; without
+    ``margin`` the POC margin stays NaN and poses whose free (taut) inputs
+    reach every output direction are decided YES without the analyser."""
     from cdpm.analysis.brammer import _positive_controllability
     from cdpm.analysis.poc import _poc
 
@@ -183,13 +187,20 @@ def evaluate_general(robot, qs: np.ndarray, kin: dict, setting) -> dict:
     out["tension_max"][idx] = f.max(axis=1) if f.shape[1] else 0.0
     A, B, C, mask = _linear_systems(robot, qs, kin, idx, f, Minv[..., use])
     oc = _output_controllable(A, B, C)
+    mixed_yes = np.zeros(idx.size, dtype=bool)
+    if not margin:
+        mixed_yes = _output_controllable(A, B * ~mask[:, None, :], C) == ev.YES
+        out["poc"][idx[mixed_yes]] = ev.YES
     status = out["status"]
     for j, i in enumerate(idx):
         try:
-            res = _poc(A[j], B[j], C[j], mask[j])
-            out["poc"][i], out["poc_margin"][i] = ev._code(res.verdict), float(res.margin)
-            if oc[j] == ev.NOT_ANALYSED:
-                oc[j] = ev.YES if res.output_controllable else ev.NO
+            if not mixed_yes[j]:
+                res = _poc(A[j], B[j], C[j], mask[j])
+                out["poc"][i] = ev._code(res.verdict)
+                if margin:
+                    out["poc_margin"][i] = float(res.margin)
+                if oc[j] == ev.NOT_ANALYSED:
+                    oc[j] = ev.YES if res.output_controllable else ev.NO
             brammer = _positive_controllability(A[j], B[j], mask[j])
             out["positive_controllable"][i] = ev._code(brammer.verdict)
         except (CdpmError, np.linalg.LinAlgError):

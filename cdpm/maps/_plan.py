@@ -224,6 +224,7 @@ def make_plan(
     tension_setting,
     chunk_size: int,
     version: str,
+    margin: bool = True,
 ) -> MapPlan:
     """Validate the axes and the base pose and lay out the chunks."""
     if not isinstance(chunk_size, (int, np.integer)) or chunk_size < 1:
@@ -273,6 +274,7 @@ def make_plan(
         "base": [float(x) for x in base_nat],
         "tension": tension_setting,
         "chunk_size": int(chunk_size),
+        "margin": bool(margin),
     }
     if mode == "sample":
         settings["seed"] = axes.seed

@@ -87,25 +87,26 @@ def _state(source: RobotSource):
     return cache[source.sha256]
 
 
-def compute_chunk(source: RobotSource, setting, index: int, natural) -> tuple[int, dict]:
-    """Evaluate one chunk in a worker; returns (index, arrays)."""
+def compute_chunk(source: RobotSource, job, index: int, natural) -> tuple[int, dict]:
+    """Evaluate one chunk in a worker; ``job`` is (tension setting, margin);
+    returns (index, arrays)."""
     from cdpm.maps._evaluate import evaluate_poses
 
-    return index, evaluate_poses(_state(source), natural, setting)
+    return index, evaluate_poses(_state(source), natural, job[0], margin=job[1])
 
 
 #: what a local worker process computes: set once by :func:`_init_process`
 _WORKER: dict = {}
 
 
-def _init_process(source: RobotSource | None = None, plan=None, setting=None, writer=None) -> None:
+def _init_process(source: RobotSource | None = None, plan=None, job=None, writer=None) -> None:
     # Ctrl-C goes to the whole process group: the driver handles it and
     # stops the workers, which must not print tracebacks of their own
     import signal
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     if source is not None:
-        _WORKER.update(robot=_state(source), plan=plan, setting=setting, writer=writer)
+        _WORKER.update(robot=_state(source), plan=plan, job=job, writer=writer)
 
 
 def _process_chunk(index: int) -> tuple[int, dict | None]:
@@ -114,7 +115,8 @@ def _process_chunk(index: int) -> tuple[int, dict | None]:
     from cdpm.maps._evaluate import evaluate_poses
 
     plan, writer = _WORKER["plan"], _WORKER["writer"]
-    data = evaluate_poses(_WORKER["robot"], plan.natural(index), _WORKER["setting"])
+    tension, margin = _WORKER["job"]
+    data = evaluate_poses(_WORKER["robot"], plan.natural(index), tension, margin=margin)
     if writer is None:
         return index, data
     writer.write(index, data)
@@ -183,14 +185,15 @@ def _clock(seconds: float) -> str:
 def run_chunks(
     robot,
     plan,
-    setting,
+    job,
     todo: list[int],
     sink,
     workers: int,
     scheduler,
     progress: Callable[[int, int, int], None] | None,
 ) -> None:
-    """Compute the chunks ``todo`` and write each to ``sink`` as it finishes."""
+    """Compute the chunks ``todo`` and write each to ``sink`` as it finishes;
+    ``job`` is (tension setting, margin) (see :func:`evaluate_poses`)."""
     total = sum(plan.chunk_size(k) for k in todo)
     state = {"done": 0}
 
@@ -206,15 +209,15 @@ def run_chunks(
     if not todo:
         return
     if scheduler is not None:
-        _run_dask(robot, plan, setting, todo, finished, scheduler)
+        _run_dask(robot, plan, job, todo, finished, scheduler)
     elif workers <= 1 or len(todo) == 1:
         from cdpm.maps._evaluate import evaluate_poses
 
         for index in todo:
-            finished(index, evaluate_poses(robot, plan.natural(index), setting))
+            finished(index, evaluate_poses(robot, plan.natural(index), job[0], margin=job[1]))
     else:
         writer = getattr(sink, "writer", None)
-        _run_processes(robot, plan, setting, todo, finished, workers, writer)
+        _run_processes(robot, plan, job, todo, finished, workers, writer)
 
 
 #: modules the fork server imports once, so that workers start warm
@@ -230,7 +233,7 @@ def _context():
     return multiprocessing.get_context("spawn")
 
 
-def _run_processes(robot, plan, setting, todo, finished, workers: int, writer=None) -> None:
+def _run_processes(robot, plan, job, todo, finished, workers: int, writer=None) -> None:
     """Chunks on ``workers - 1`` local worker processes plus this process.
 
     Each worker builds the robot once (initializer) and then gets only
@@ -250,7 +253,7 @@ def _run_processes(robot, plan, setting, todo, finished, workers: int, writer=No
         max_workers=n_proc,
         mp_context=_context(),
         initializer=_init_process,
-        initargs=(source, plan, setting, writer),
+        initargs=(source, plan, job, writer),
     )
     running = set()
     try:
@@ -260,7 +263,7 @@ def _run_processes(robot, plan, setting, todo, finished, workers: int, writer=No
             done, running = wait(running, timeout=0, return_when=FIRST_COMPLETED)
             if not done and pending:  # nothing ready: compute one here
                 index = pending.pop()
-                finished(index, evaluate_poses(robot, plan.natural(index), setting))
+                finished(index, evaluate_poses(robot, plan.natural(index), job[0], margin=job[1]))
                 continue
             if not done:
                 done, running = wait(running, return_when=FIRST_COMPLETED)
@@ -277,7 +280,7 @@ def _run_processes(robot, plan, setting, todo, finished, workers: int, writer=No
     executor.shutdown(wait=True)
 
 
-def _run_dask(robot, plan, setting, todo, finished, scheduler) -> None:
+def _run_dask(robot, plan, job, todo, finished, scheduler) -> None:
     try:
         import distributed
     except ImportError as exc:
@@ -305,9 +308,7 @@ def _run_dask(robot, plan, setting, todo, finished, scheduler) -> None:
         def submit() -> None:
             index = pending.pop()
             queue.add(
-                client.submit(
-                    compute_chunk, source, setting, index, plan.natural(index), pure=False
-                )
+                client.submit(compute_chunk, source, job, index, plan.natural(index), pure=False)
             )
 
         for _ in range(min(len(pending), 2 * n_workers)):
