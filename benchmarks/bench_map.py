@@ -2,7 +2,8 @@
 
 Prints, on the same random poses:
 
-- ours: :func:`cdpm.maps.evaluate_poses` per pose (everything a map stores);
+- ours: :func:`cdpm.maps.evaluate_poses` per pose (everything a map stores;
+  for the gravity model also without the POC margin, ``margin=False``);
 - baseline: a straightforward Theorem 1 check written here: linearise, then
   C e^{At} B at 50 times with scipy.linalg.expm, then one HiGHS LP deciding
   whether the 50 m output vectors positively span R^p;
@@ -126,17 +127,19 @@ def baseline_verdicts(robot, natural: np.ndarray, tension=None) -> list[bool | N
     return out
 
 
-def per_pose_costs(path: Path, n_ours: int, n_base: int, repeats: int, tension=None) -> dict:
+def per_pose_costs(
+    path: Path, n_ours: int, n_base: int, repeats: int, tension=None, margin: bool = True
+) -> dict:
     import cdpm
     from cdpm.maps import evaluate_poses
 
     robot = cdpm.load_robot(path)
     natural = poses(robot, n_ours)
     floor = floor_cost(robot, natural)
-    evaluate_poses(robot, natural[:8], tension)  # imports, caches
+    evaluate_poses(robot, natural[:8], tension, margin=margin)  # imports, caches
     ours_t, floor_t = [], []
     for _ in range(repeats):  # interleaved: load affects both alike
-        ours_t.append(best_of(lambda: evaluate_poses(robot, natural, tension), 1))
+        ours_t.append(best_of(lambda: evaluate_poses(robot, natural, tension, margin=margin), 1))
         floor_t.append(best_of(floor, 1))
     base_poses = natural[:n_base]
     baseline_verdicts(robot, base_poses[:2], tension)  # imports
@@ -221,11 +224,13 @@ def main(argv=None) -> int:
 
     print("per-pose cost [us/pose] on the same random poses")
     print(f"{'model':<34} {'ours':>9} {'floor':>9} {'baseline':>10} {'vs base':>9} {'vs floor':>9}")
-    rows = [("two_link_planar (zero tension)", PAPER, n_ours, n_base, repeats)]
-    if VERTICAL.is_file():  # per-pose pipeline: few poses, few repeats
-        rows.append(("two_link_vertical (gravity)", VERTICAL, 32 if args.quick else 96, 20, 2))
-    for label, path, n1, n2, reps in rows:
-        r = per_pose_costs(path, n1, n2, reps)
+    rows = [("two_link_planar (zero tension)", PAPER, n_ours, n_base, repeats, True)]
+    if VERTICAL.is_file():  # the analyser per pose: few poses, few repeats
+        n_grav = 32 if args.quick else 96
+        rows.append(("two_link_vertical (gravity)", VERTICAL, n_grav, 20, 2, True))
+        rows.append(("two_link_vertical, margin=False", VERTICAL, n_grav, 20, 2, False))
+    for label, path, n1, n2, reps, margin in rows:
+        r = per_pose_costs(path, n1, n2, reps, margin=margin)
         print(
             f"{label:<34} {r['ours'] * 1e6:9.2f} {r['floor'] * 1e6:9.2f} "
             f"{r['baseline'] * 1e6:10.1f} {r['baseline'] / r['ours']:8.0f}x "
