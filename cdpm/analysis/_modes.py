@@ -36,11 +36,16 @@ class Evaluator:
         if n == 0:
             return
         lam, V = np.linalg.eig(A)
-        cond = np.linalg.cond(V)
+        try:
+            Vinv = np.linalg.inv(V)
+        except np.linalg.LinAlgError:
+            Vinv = None
+        # |V|_F |V^-1|_F >= cond_2(V): a conservative bound without an SVD
+        cond = np.inf if Vinv is None else float(np.linalg.norm(V) * np.linalg.norm(Vinv))
         if np.isfinite(cond) and cond <= MODAL_COND_MAX:
             self.lam = lam
             self.CV = C @ V
-            self.WB = np.linalg.solve(V, B)
+            self.WB = Vinv @ B
         self.eigvals = lam
 
     @property
@@ -105,9 +110,13 @@ def default_horizon(eigvals: np.ndarray) -> float:
     return min(T, HORIZON_MAX)
 
 
+#: the coarse grid on [0, 1]: uniform plus logarithmic near 0 (sorted, unique)
+_COARSE = np.unique(np.concatenate([np.linspace(0.0, 1.0, 25), np.geomspace(1e-3, 1 / 24, 8)]))
+
+
 def coarse_times(T: float) -> np.ndarray:
     """A small mixed grid on [0, T]: uniform plus logarithmic near 0."""
-    return np.unique(np.concatenate([np.linspace(0.0, T, 25), np.geomspace(T * 1e-3, T / 24, 8)]))
+    return T * _COARSE
 
 
 def fine_times(T: float, eigvals) -> np.ndarray:

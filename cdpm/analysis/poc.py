@@ -44,7 +44,13 @@ from cdpm.analysis._common import (
 from cdpm.analysis.brammer import left_eigen_separator
 from cdpm.analysis.certificate import POCCertificate
 from cdpm.analysis.rank import output_reachable_basis, reachable_basis
-from cdpm.analysis.span import SPAN_TOL, span_core, span_margin_bracket
+from cdpm.analysis.span import (
+    SPAN_TOL,
+    ZERO_RTOL,
+    independent_columns,
+    span_core,
+    span_margin_bracket,
+)
 from cdpm.errors import InputError
 
 #: singular values of C with unit rows at most this (relative) are zero
@@ -301,6 +307,8 @@ class _Reduced:
     B: np.ndarray
     rn: np.ndarray  # row norms of C: Cr = N^T (C / rn) when reduced
     square_zero: bool = False
+    modal_ev: object = None  # closed-form evaluator of an undamped mechanical system
+    modal_T: float | None = None  # its default horizon
 
     def lift(self, v_red: np.ndarray) -> np.ndarray:
         v = v_red if self.N is None else (self.N @ v_red) / self.rn
@@ -339,16 +347,19 @@ def _free_pairs(A, B, C, free, r, horizon):
     As, Bs, Cs, _, col, row, rho = scaled_system(A, B[:, free], C)
     # early nonzero times suffice to span the free reachable subspace
     # (|As| = 1); g(0) = C b is often exactly 0 (velocity inputs)
-    times = np.linspace(0.0, 2.0, max(2 * A.shape[0] + 1, 8))[1:]
-    G = _modes.Evaluator(As, Bs, Cs)(times)  # (N, p, mf)
+    N = max(2 * A.shape[0], 7)
+    times = np.arange(1, N + 1) * (2.0 / N)
+    # step x(t + h) = e^{As h} x(t): one small expm, no eigen-solve
+    E = expm(As * (2.0 / N))
+    X, G = Bs, np.empty((N, C.shape[0], free.size))
+    for i in range(N):
+        X = E @ X
+        G[i] = Cs @ X
     S = G.transpose(1, 0, 2).reshape(C.shape[0], -1)
-    from scipy.linalg import qr
-
     norms = np.linalg.norm(S, axis=0)
     # round-off columns must not be normalised into directions
     norms = np.where(norms > 1e-9 * norms.max(), norms, np.inf)
-    _, _, piv = qr(S / norms, mode="economic", pivoting=True)
-    k = piv[:r]
+    k = independent_columns(S / norms, r)
     t = times[k // free.size] / rho
     jl = k % free.size
     # scaled g_s = row * g * col_j (see scaled_system)
@@ -364,6 +375,19 @@ def _lift_yes(A, B, C, mask, pairs, Fpairs, square_zero=False, vectors=None):
     reachable subspace, which the free pairs (used with both signs) cancel.
     """
     p = C.shape[0]
+    if Fpairs is None and vectors is not None:
+        # no free inputs and the outputs known: plain arrays
+        times, inputs, weights = pairs
+        return POCCertificate(
+            "positive-span",
+            mask,
+            times=times,
+            inputs=np.asarray(inputs, dtype=int),
+            signs=np.ones(times.size),
+            vectors=vectors,
+            weights=weights,
+            proof={"path": "sampled-pairs"},
+        )
     ts, js, ss, vs, ws = [], [], [], [], []
     total = np.zeros(p)
     if pairs is not None:
@@ -422,16 +446,13 @@ def _output_rank_defect(A, B, C, rn):
         v[int(np.argmin(rn))] = 1.0
         return v
     Cw = C / rn[:, None]
-    if p > n:
+    if p > n or (s := np.linalg.svd(Cw, compute_uv=False))[-1] <= RANK_TOL * s[0]:
         U, _, _ = np.linalg.svd(Cw, full_matrices=True)
-        return _unit(U[:, -1] / rn)
-    U, s, _ = np.linalg.svd(Cw, full_matrices=True)
-    if s[-1] <= RANK_TOL * s[0]:
         return _unit(U[:, -1] / rn)
     bn = np.linalg.norm(B, axis=0)
     Bn = B[:, bn > 0] / bn[bn > 0]
     if Bn.shape[1] == 0:
-        return _unit(U[:, -1] / rn)
+        return _unit(np.linalg.svd(Cw, full_matrices=True)[0][:, -1] / rn)
     a = float(np.abs(A).max())
     X = Cw @ Bn
     X = np.hstack([X, Cw @ (A @ Bn) / a]) if a > 0 else X
@@ -636,26 +657,40 @@ def _modal(sub: _Reduced, horizon, tol):
     if sK == 0 or np.abs(kap.imag).max() > 1e-9 * sK:
         return None
     kap, U = kap.real, U.real
-    cond = np.linalg.cond(U)
+    try:
+        Uinv = np.linalg.inv(U)
+    except np.linalg.LinAlgError:
+        return None
+    # |U|_F |U^-1|_F bounds the condition number from above: no SVD needed
+    cond = float(np.linalg.norm(U) * np.linalg.norm(Uinv))
     if not np.isfinite(cond) or cond > 1e8:
         return None
-    Q = orth(Cq.T)
-    if Q.shape[1] < Cq.shape[0]:
-        return None  # Cq rank deficient: the general path gives the rank certificate
-    R = K.T @ Q
-    if np.linalg.norm(R - Q @ (Q.T @ R)) > 1e-9 * np.linalg.norm(K):
-        return None  # output rows not an invariant subspace: not exact
-    Uinv = np.linalg.inv(U)
     beta = Uinv @ Bv
+    # g(t) in closed form (sin / t / sinh): the general path samples with it
+    sub.modal_ev = _modes.ModalEvaluator(kap, Cq @ U, beta, 1e-9 * sK)
+    sub.modal_T = _modal_horizon(kap)
+    if Cq.shape[0] == h:
+        full = True  # square Cq, invertible (output rank checked): the full pose
+    else:
+        Q = orth(Cq.T)
+        if Q.shape[1] < Cq.shape[0]:
+            return None  # Cq rank deficient: the general path gives the rank certificate
+        R = K.T @ Q
+        if np.linalg.norm(R - Q @ (Q.T @ R)) > 1e-9 * np.linalg.norm(K):
+            return None  # output rows not an invariant subspace: not exact
+        full = Q.shape[1] == h
     bscale = np.linalg.norm(beta, axis=0) + 1e-300
     T = horizon or _modal_horizon(kap)
-    for group in cluster(kap, 1e-8 * sK):
+    groups = cluster(kap, 1e-8 * sK)
+    if full and len(groups) == h and _modal_rows_ok(kap, beta, bscale, sK):
+        groups = []  # full pose, simple eigenvalues: every mode passed at once
+    for group in groups:
         k = float(np.mean(kap[group]))
         # modal coordinates seen by the outputs (all of them for a full pose):
         # range(U_g^T Q). U has unit columns and Q orthonormal ones, so the
         # tolerance is absolute: an invisible mode gives round-off (1e-16)
         # that must not be normalised into a visible direction
-        Ra = np.eye(group.size) if Q.shape[1] == h else _visible(U[:, group].T @ Q)
+        Ra = np.eye(group.size) if full else _visible(U[:, group].T @ Q)
         if Ra.shape[1] == 0:
             continue
         Z = Ra.T @ beta[group]
@@ -687,7 +722,7 @@ def _modal(sub: _Reduced, horizon, tol):
             sub.no(vr, proof),
             T,
         )
-    sc = _ModalScaled(_modes.ModalEvaluator(kap, Cq @ U, beta, 1e-9 * sK))
+    sc = _ModalScaled(sub.modal_ev)
     return _sampled_yes(
         sub,
         T,
@@ -695,6 +730,18 @@ def _modal(sub: _Reduced, horizon, tol):
         "every sign-definite mode is positively spanned and every oscillatory mode has full rank",
         sc,
     )
+
+
+def _modal_rows_ok(kap, beta, bscale, sK) -> bool:
+    """Vectorised form of the per-mode test when every mode is its own group:
+    a sign-definite mode's input row has both signs, an oscillatory one is
+    nonzero (the same thresholds as the loop: 1e-10 of the input's size,
+    then the sign test's 1e-11 of the row's largest entry)."""
+    Z = np.where(np.abs(beta) <= 1e-10 * bscale, 0.0, beta)
+    big = np.abs(Z).max(axis=1)
+    thr = (ZERO_RTOL * big)[:, None]
+    both = (Z > thr).any(axis=1) & (Z < -thr).any(axis=1)
+    return bool(np.all(np.where(kap >= -1e-9 * sK, both, big > 0)))
 
 
 def _visible(M: np.ndarray) -> np.ndarray:
@@ -806,12 +853,16 @@ class _ModalScaled(_Scaled):
         self.col, self.row = np.ones(m), np.ones(ev.CqU.shape[0])
 
 
+#: the first, cheapest sample times on [0, 1] (most YES answers need no more)
+_FIRST = np.arange(1, 8) / 7.0
+
+
 def _sample_search(sub, T, sc=None, extra=None):
     """Positive span over samples; returns ("yes", cert) or ("no", v_s, S, ts, m)."""
     sc = sc or _Scaled(sub)
     Ts = T * sc.rho
     # three stages, cheapest first: most YES answers need only a few times
-    grids = [np.linspace(0.0, Ts, 8)[1:], _modes.coarse_times(Ts), None]
+    grids = [Ts * _FIRST, _modes.coarse_times(Ts), None]
     if extra is not None:
         grids = grids[1:]
     ts = np.zeros(0)
@@ -843,19 +894,30 @@ def _marginal(method, reason, sub, T, proof=None):
 
 
 def _general(sub: _Reduced, horizon, tol):
-    r = sub.Cr.shape[0]
-    Y = output_reachable_basis(sub.A, sub.Bp, sub.Cr)
+    # output rank of the reduced system (implied by the full system's rank,
+    # re-checked here: cheap [CB, CAB] test first)
+    v = None
+    if sub.N is not None or sub.cons.size < sub.B.shape[1]:
+        # (with every input constrained and nothing projected out this is
+        # the full system's check, already passed)
+        v = _output_rank_defect(sub.A, sub.Bp, sub.Cr, np.linalg.norm(sub.Cr, axis=1))
     T0 = horizon
-    if Y.shape[1] < r:
-        v = complement(Y, r)[:, 0]
+    if v is not None:
         T = T0 or 1.0
         return (
             Verdict.NO,
             "output-rank",
-            f"not output controllable: the output rank is {Y.shape[1]} < {r}",
+            "not output controllable by the sign-constrained inputs in the directions "
+            "the free inputs miss",
             sub.no(v, {"path": "output-rank", "horizon": T}),
             T,
         )
+    if sub.modal_ev is not None:
+        # undamped mechanical: sample the closed form first (no eigen-solve)
+        T = T0 or sub.modal_T
+        found = _sample_search(sub, T, _ModalScaled(sub.modal_ev))
+        if found[0] == "yes":
+            return Verdict.YES, "general", _REASON_GENERAL_YES, found[1], T
     sc = _Scaled(sub)
     Ts = T0 * sc.rho if T0 else _modes.default_horizon(sc.ev.eigvals)
     T = Ts / sc.rho
@@ -864,13 +926,7 @@ def _general(sub: _Reduced, horizon, tol):
     for _ in range(6):
         found = _sample_search(sub, T, sc, extra)
         if found[0] == "yes":
-            return (
-                Verdict.YES,
-                "general",
-                "finitely many sampled output vectors positively span the output space",
-                found[1],
-                T,
-            )
+            return Verdict.YES, "general", _REASON_GENERAL_YES, found[1], T
         _, v, S, ts, m = found
         sep = _separator(S, v)
         proofs, viol = [], []
@@ -909,6 +965,9 @@ def _general(sub: _Reduced, horizon, tol):
         T,
         {"reason": last, "candidate_separator": (sub.lift(sep * sc.row)).tolist()},
     )
+
+
+_REASON_GENERAL_YES = "finitely many sampled output vectors positively span the output space"
 
 
 def _separator(S, v):

@@ -294,14 +294,32 @@ def _span_general(U: np.ndarray, nz: np.ndarray, tol: float):
     if rank < p:
         v = evecs[:, 0]
         return False, "rank", rank, None, None, v
-    b = -U.sum(axis=1)
-    mu, res = nnls(U, b, maxiter=50 * k + 100)
-    if res <= 1e-10 * max(1.0, float(np.linalg.norm(b))):
-        w = 1.0 + mu
-        idx = _compact(U, w, tol)
-        if idx is not None:
-            return True, "nnls", p, nz[idx[0]], idx[1], None
-        return True, "nnls", p, nz, w, None
+    # one NNLS decides: with a basis b_1..b_p of columns (pivoted QR), the
+    # cone is R^p iff -sum b_i is in it; then the basis (weights >= 1) and
+    # the NNLS support (at most p columns) combine to 0 with positive weights
+    # (any b not in the cone proves NO, so the basis only matters for YES:
+    # the columns most aligned with the principal directions, re-checked
+    # for rank p, else a pivoted-QR basis)
+    for attempt in range(2):
+        if k <= 2 * p:
+            basis = np.arange(k)
+        elif attempt == 0:
+            basis = np.unique(np.argmax(np.abs(evecs.T @ U), axis=1))
+        else:
+            basis = _qr_pivots(U)[2][:p]
+        b = -U[:, basis].sum(axis=1)
+        mu, res = nnls(U, b, maxiter=50 * k + 100)
+        if res > 1e-10 * max(1.0, float(np.linalg.norm(b))):
+            break
+        w = mu.copy()
+        w[basis] += 1.0
+        idx = np.flatnonzero(w > 0)
+        sv = np.linalg.svd(U[:, idx], compute_uv=False)
+        if sv.size >= p and sv[p - 1] > 1e-9 * sv[0]:
+            return True, "nnls", p, nz[idx], w[idx], None
+        if k <= 2 * p:
+            break  # pragma: no cover - all columns have rank p here
+    # KKT: U^T (U mu - b) >= 0, so v = -(U mu - b) separates
     r = U @ mu - b
     v = -r / np.linalg.norm(r)
     if np.max(v @ U) <= tol:
@@ -309,27 +327,18 @@ def _span_general(U: np.ndarray, nz: np.ndarray, tol: float):
     return _span_lp(U, nz, tol, rank)
 
 
-def _compact(U: np.ndarray, w: np.ndarray, tol: float):
-    """A positively spanning subset of at most 2p columns.
-
-    Take a basis b_1..b_p of columns (pivoted QR) and write -sum b_i as a
-    conic combination of the columns (NNLS: at most p active columns); the
-    basis plus that support then combine to 0 with positive weights.
-    """
-    p, k = U.shape
-    if k <= 2 * p:
-        return None
-    _, _, piv = _qr_pivots(U)
-    basis = piv[:p]
-    target = -U[:, basis].sum(axis=1)
-    mu, res = nnls(U, target, maxiter=50 * k + 100)
-    if res > 1e-10 * max(1.0, float(np.linalg.norm(target))):
-        return None
-    weights = np.zeros(k)
-    weights[basis] = 1.0
-    weights += mu
-    cand = np.flatnonzero(weights > 0)
-    return cand, weights[cand]
+def independent_columns(U: np.ndarray, r: int) -> np.ndarray:
+    """Indices of r columns of U (p, k) spanning its r-dimensional range:
+    the columns most aligned with the r principal directions when they have
+    rank r, else the first r pivots of a pivoted QR."""
+    if U.shape[1] > r:
+        E = np.linalg.svd(U, full_matrices=False)[0][:, :r]
+        idx = np.unique(np.argmax(np.abs(E.T @ U), axis=1))
+        if idx.size == r:
+            sv = np.linalg.svd(U[:, idx], compute_uv=False)
+            if sv[-1] > 1e-6 * sv[0]:
+                return idx
+    return _qr_pivots(U)[2][:r]
 
 
 def _qr_pivots(U):
