@@ -13,9 +13,12 @@ with everything but the POC decision batched over the chunk:
    ``C = [C_q, 0]`` with ``K = -M^-1 (dG/dq + sum_i f_i Hess l_i)`` from
    Pinocchio's gravity derivatives and the robot's
    :meth:`~cdpm.robot.CableRobot.cable_stiffness`, ``K_v = -M^-1 D``;
-4. output controllability from the batched output Krylov matrix (poses
-   near rank deficiency are left to the analyser);
-5. per pose, the analyser's POC decision and margin and Brammer's test.
+4. output controllability from the batched output Krylov matrix, positive
+   controllability where the free (taut) inputs alone make the system
+   controllable (poses near rank deficiency, and the others, are left to
+   the analyser);
+5. per pose, the analyser's POC decision and margin (and Brammer's test
+   where step 4 did not settle it).
 """
 
 from __future__ import annotations
@@ -136,6 +139,34 @@ def _linear_systems(robot, qs, kin, idx, f, Minv):
     return A, B, C, at_lower | at_upper
 
 
+def _full_rank(S: np.ndarray) -> np.ndarray:
+    """Rows of each (r, c) matrix of S (k, r, c) independent beyond doubt:
+    columns scaled to unit length (negligible ones dropped), singular-value
+    ratio above _RANK_RATIO."""
+    norms = np.linalg.norm(S, axis=1)
+    keep = norms > 1e-12 * norms.max(axis=1, keepdims=True)
+    S = np.where(keep[:, None, :], S / np.where(keep, norms, 1.0)[:, None, :], 0.0)
+    sv = np.linalg.svd(S, compute_uv=False)
+    return sv[:, -1] > _RANK_RATIO * sv[:, 0]
+
+
+def _free_controllable(A, B, mask):
+    """YES where the free (taut) inputs alone make (A, B) controllable beyond
+    doubt, else NOT_ANALYSED. Then no real left eigenvector v of A has
+    v^T B_free = 0, so Brammer's obstruction cannot exist: (A, B) is
+    positively controllable whatever the sign-constrained inputs do."""
+    k, n, _ = A.shape
+    codes = np.full(k, ev.NOT_ANALYSED, dtype=np.int8)
+    if k == 0:
+        return codes
+    blocks, W = [], B * ~mask[:, None, :]
+    for _ in range(n):
+        blocks.append(W)
+        W = A @ W
+    codes[_full_rank(np.concatenate(blocks, axis=2))] = ev.YES
+    return codes
+
+
 def _output_controllable(A, B, C):
     """YES where rank [CB, CAB, ..., CA^{n-1}B] = p beyond doubt (unit
     columns, singular-value ratio above _RANK_RATIO), else NOT_ANALYSED.
@@ -150,12 +181,7 @@ def _output_controllable(A, B, C):
     for _ in range(n):
         blocks.append(C @ W)
         W = A @ W
-    S = np.concatenate(blocks, axis=2)  # (k, p, n m)
-    norms = np.linalg.norm(S, axis=1)
-    keep = norms > 1e-12 * norms.max(axis=1, keepdims=True)
-    S = np.where(keep[:, None, :], S / np.where(keep, norms, 1.0)[:, None, :], 0.0)
-    sv = np.linalg.svd(S, compute_uv=False)
-    codes[sv[:, -1] > _RANK_RATIO * sv[:, 0]] = ev.YES
+    codes[_full_rank(np.concatenate(blocks, axis=2))] = ev.YES  # (k, p, n m)
     return codes
 
 
@@ -187,6 +213,7 @@ def evaluate_general(robot, qs: np.ndarray, kin: dict, setting, margin: bool = T
     out["tension_max"][idx] = f.max(axis=1) if f.shape[1] else 0.0
     A, B, C, mask = _linear_systems(robot, qs, kin, idx, f, Minv[..., use])
     oc = _output_controllable(A, B, C)
+    pc = _free_controllable(A, B, mask)
     mixed_yes = np.zeros(idx.size, dtype=bool)
     if not margin:
         mixed_yes = _output_controllable(A, B * ~mask[:, None, :], C) == ev.YES
@@ -201,8 +228,9 @@ def evaluate_general(robot, qs: np.ndarray, kin: dict, setting, margin: bool = T
                     out["poc_margin"][i] = float(res.margin)
                 if oc[j] == ev.NOT_ANALYSED:
                     oc[j] = ev.YES if res.output_controllable else ev.NO
-            brammer = _positive_controllability(A[j], B[j], mask[j])
-            out["positive_controllable"][i] = ev._code(brammer.verdict)
+            if pc[j] == ev.NOT_ANALYSED:
+                pc[j] = ev._code(_positive_controllability(A[j], B[j], mask[j]).verdict)
+            out["positive_controllable"][i] = pc[j]
         except (CdpmError, np.linalg.LinAlgError):
             status[i] = ev.STATUS_CODES["analysis_failed"]
             out["poc"][i] = out["positive_controllable"][i] = ev.NOT_ANALYSED
