@@ -1024,20 +1024,21 @@ def poc_margin(res: POCResult) -> tuple[float, float]:
             Ge = np.array([Cw @ (expm(A * t) @ Bw) for t in extra])
         if Ge.size and np.isfinite(Ge).all():
             G = np.concatenate([G, Ge])
-    cols = [G[:, :, mask].transpose(1, 0, 2).reshape(p, -1)]
-    if (~mask).any():
-        Gf = G[:, :, ~mask].transpose(1, 0, 2).reshape(p, -1)
-        cols += [Gf, -Gf]
-    S = np.hstack(cols)
-    yes = span_core(S, SPAN_TOL)[0]
-    mu, hi = span_margin_bracket(S, yes)
+    Sp = G[:, :, mask].transpose(1, 0, 2).reshape(p, -1)
+    # free inputs count with both signs (passed once: two-sided constraints)
+    Gf = G[:, :, ~mask].transpose(1, 0, 2).reshape(p, -1)
+    yes = span_core(np.hstack([Sp, Gf, -Gf]), SPAN_TOL)[0]
+    mu, hi = span_margin_bracket(Sp, yes, Gf)
     if res.verdict is Verdict.YES and cert.vectors is not None:
         # conv(certificate) lies in conv(samples): its index is a lower
         # bound too, and robust when a growing system dwarfs early samples
         s_in = np.ones(B.shape[1]) if res.input_scale is None else res.input_scale
         w_out = np.ones(p) if res.output_weight is None else res.output_weight
-        Sc = cert.vectors * cert.signs * s_in[cert.inputs] * w_out[:, None]
-        mu = max(mu, span_margin_bracket(Sc, True)[0])
+        Sc = cert.vectors * s_in[cert.inputs] * w_out[:, None]
+        on_free = ~mask[cert.inputs]
+        one_sided = Sc[:, ~on_free] * cert.signs[~on_free]
+        both = Sc[:, on_free & (cert.signs > 0)]
+        mu = max(mu, span_margin_bracket(one_sided, True, both)[0])
     # the curve between grid points is within lip * h / 2 of the samples
     hi = max(hi, mu) + (lip * (ts[1] - ts[0]) / 2 if ts.size > 1 else 0.0)
     if res.verdict is not Verdict.YES:

@@ -402,8 +402,14 @@ def span_margin(S: np.ndarray, yes: bool) -> float:
     return span_margin_bracket(S, yes)[0]
 
 
-def span_margin_bracket(S: np.ndarray, yes: bool) -> tuple[float, float]:
+def span_margin_bracket(
+    S: np.ndarray, yes: bool, S_sym: np.ndarray | None = None
+) -> tuple[float, float]:
     """(lower, upper) bounds of ``mu = min_{|v|=1} max_i v^T s_i``.
+
+    ``S_sym`` (p, k2), optional: vectors that count with both signs (free
+    inputs), given once; the LPs then use two-sided constraints instead of
+    duplicated opposite ones (which make the active-set solver cycle).
 
     NO: ``-dist(0, conv S)`` exactly (one NNLS). YES with p <= 3: exactly
     mu, the smallest facet offset of conv(S) (a convex hull in the plane or
@@ -412,31 +418,35 @@ def span_margin_bracket(S: np.ndarray, yes: bool) -> tuple[float, float]:
     ``hi <= r1`` the best support value ``max_i v^T s_i / |v|`` among the LP
     solutions (a hull in R^p has up to k^(p/2) facets: never built).
     """
-    p, k = S.shape
+    p = S.shape[0]
+    if S_sym is None:
+        S_sym = np.zeros((p, 0))
+    full = np.hstack([S, S_sym, -S_sym]) if S_sym.shape[1] else S
+    k = full.shape[1]
     if p == 0:
         return math.inf, math.inf
     if k == 0:
         return 0.0, 0.0
     if p == 1:
-        mu = float(min(S.max(), -S.min()))
+        mu = float(min(full.max(), -full.min()))
         return mu, mu
     if not yes:
-        sep = min_norm_separator(S)
+        sep = min_norm_separator(full)
         mu = 0.0 if sep is None else -float(sep[1])
         return mu, mu
     if p <= 3:
-        norms = np.linalg.norm(S, axis=0)
+        norms = np.linalg.norm(full, axis=0)
         try:
-            hull = ConvexHull(S[:, norms > 1e-14 * norms.max()].T)
+            hull = ConvexHull(full[:, norms > 1e-14 * norms.max()].T)
             mu = float(max(np.min(-hull.equations[:, -1]), 0.0))
             return mu, mu
         except QhullError:  # degenerate input: the LP bracket below
             pass
-    r1, hi = cross_polytope_radius(S)
+    r1, hi = cross_polytope_radius(S, S_sym)
     return r1 / math.sqrt(p), hi
 
 
-def cross_polytope_radius(S: np.ndarray) -> tuple[float, float]:
+def cross_polytope_radius(S: np.ndarray, S_sym: np.ndarray | None = None) -> tuple[float, float]:
     """Largest r with ``{y : |y|_1 <= r}`` inside conv(S), and an upper bound
     of the inradius ``mu``.
 
@@ -448,27 +458,35 @@ def cross_polytope_radius(S: np.ndarray) -> tuple[float, float]:
     conv(S), ``mu <= r``, and the Euclidean ball of radius ``r / sqrt(p)``
     lies in the cross-polytope, so ``r / sqrt(p) <= mu``.
 
+    ``S_sym`` columns count with both signs (``|s^T v| <= 1``).
+
     Returns:
         (r, hi); (0, 0) when 0 is not interior to conv(S).
     """
-    p, k = S.shape
-    scale = float(np.linalg.norm(S, axis=0).max())
+    p = S.shape[0]
+    if S_sym is None:
+        S_sym = np.zeros((p, 0))
+    both = np.hstack([S, S_sym])
+    norms = np.linalg.norm(both, axis=0)
+    scale = float(norms.max()) if norms.size else 0.0
     if scale == 0:
         return 0.0, 0.0
-    norms = np.linalg.norm(S, axis=0)
     # zero vectors add only 0 <= 1 constraints
-    G = np.ascontiguousarray(S[:, norms > 1e-14 * scale].T / scale)  # (k, p)
+    keep = norms > 1e-14 * scale
+    G = np.ascontiguousarray(both[:, keep].T / scale)  # (k, p)
+    lower = np.where(np.arange(both.shape[1]) >= S.shape[1], -1.0, -1e30)[keep]
     vmax, hi = 0.0, math.inf
     for i in range(p):
         for sign in (1.0, -1.0):
-            x = _polar_lp(G, i, sign)
+            x = _polar_lp(G, lower, i, sign)
             if x is None:
                 return 0.0, 0.0
             val = sign * x[i]
             if not val > 0:
                 return 0.0, 0.0
             # the solver meets S^T x <= 1 to ~1e-9: rescale to feasible first
-            support = float(np.max(G @ x))
+            gx = G @ x
+            support = float(max(np.max(gx), np.max(np.where(lower > -1.0 - 1e-9, -gx, -np.inf))))
             x = x / max(support, 1.0)
             vmax = max(vmax, sign * x[i])
             hi = min(hi, support / float(np.linalg.norm(x)) / max(support, 1.0))
@@ -476,8 +494,9 @@ def cross_polytope_radius(S: np.ndarray) -> tuple[float, float]:
     return r * scale, min(hi, r) * scale
 
 
-def _polar_lp(G: np.ndarray, i: int, sign: float):
-    """argmax sign * v_i subject to G v <= 1 (G (k, p)), or None if unbounded."""
+def _polar_lp(G: np.ndarray, lower: np.ndarray, i: int, sign: float):
+    """argmax sign * v_i subject to lower <= G v <= 1 (G (k, p)), or None if
+    unbounded (``lower`` is -1 on two-sided rows, -1e30 elsewhere)."""
     k, p = G.shape
     f = np.zeros(p)
     f[i] = -sign
@@ -486,7 +505,7 @@ def _polar_lp(G: np.ndarray, i: int, sign: float):
     except ImportError:  # pragma: no cover - daqp is a core dependency
         daqp = None
     if daqp is not None:
-        H, lo, up = np.zeros((p, p)), np.full(k, -1e30), np.ones(k)
+        H, lo, up = np.zeros((p, p)), lower, np.ones(k)
         # default proximal step first; a larger one when degenerate
         # (duplicate or near-parallel constraints) makes it cycle
         for eps in (-1e-6, 1e-3):
@@ -495,7 +514,18 @@ def _polar_lp(G: np.ndarray, i: int, sign: float):
             )
             if flag >= 1 and np.all(np.isfinite(x)):
                 return np.asarray(x, dtype=float)
-    res = linprog(f, A_ub=G, b_ub=np.ones(k), bounds=[(None, None)] * p, method="highs")
+            if flag in (-1, -3):
+                # v = 0 is feasible, so this reports a (nearly) unbounded
+                # polar; near-degenerate hulls are told apart by HiGHS
+                break
+    two = lower > -1e29
+    res = linprog(
+        f,
+        A_ub=np.vstack([G, -G[two]]),
+        b_ub=np.ones(k + int(two.sum())),
+        bounds=[(None, None)] * p,
+        method="highs",
+    )
     return res.x if res.status == 0 else None
 
 
