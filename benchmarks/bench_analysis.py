@@ -2,20 +2,33 @@
 
 Baseline: Theorem 1 sampled at 50 times with scipy.linalg.expm, then one
 HiGHS LP deciding whether the sampled output vectors positively span.
+Also prints the cost of a decision plus its margin (``result.margin``, read
+per pose by the workspace maps), and for the 12-state mechanical systems the
+smallest speed-up over several random seeds.
 
-Run: python benchmarks/bench_analysis.py
+BLAS is pinned to one thread (as map workers should be): on a loaded
+machine a threaded OpenBLAS makes small-matrix calls 5-10x slower and
+noisier. Numbers on a shared machine are noisy: re-run to compare.
+
+Run: python benchmarks/bench_analysis.py [--quick]
 """
 
 from __future__ import annotations
 
-import statistics
-import time
+import os
 
-import numpy as np
-from scipy.linalg import expm
-from scipy.optimize import linprog
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+os.environ.setdefault("OMP_NUM_THREADS", "1")
 
-from cdpm.analysis import positive_output_controllability
+import argparse  # noqa: E402
+import statistics  # noqa: E402
+import time  # noqa: E402
+
+import numpy as np  # noqa: E402
+from scipy.linalg import expm  # noqa: E402
+from scipy.optimize import linprog  # noqa: E402
+
+from cdpm.analysis import positive_output_controllability  # noqa: E402
 
 
 def baseline(A, B, C, mask, T=10.0, samples=50):
@@ -91,6 +104,10 @@ def complex_system(seed: int = 2):
 
 
 def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="fewer repeats and seeds")
+    args = parser.parse_args()
+    repeat, seeds = (30, 2) if args.quick else (200, 5)
     cases = [
         ("paper (n=4, m=4, p=1, nilpotent)", paper_system()),
         ("12-state mechanical, full pose, slack", mechanical_system(taut=0, p=6)),
@@ -99,18 +116,42 @@ def main() -> None:
         ("random 8-state, complex modes", complex_system()),
     ]
     print(
-        f"{'system':42s} {'verdict':>8s} {'method':>22s} {'cdpm':>10s} {'baseline':>10s} "
-        f"{'ratio':>7s}"
+        f"{'system':40s} {'verdict':>7s} {'method':>20s} {'decision':>10s} {'+margin':>10s} "
+        f"{'baseline':>10s} {'ratio':>6s}"
     )
     for name, (A, B, C, mask) in cases:
         res = positive_output_controllability(A, B, C, mask)
         ours = median_seconds(
-            lambda A=A, B=B, C=C, mask=mask: positive_output_controllability(A, B, C, mask)
+            lambda A=A, B=B, C=C, mask=mask: positive_output_controllability(A, B, C, mask),
+            repeat=repeat,
         )
-        base = median_seconds(lambda A=A, B=B, C=C, mask=mask: baseline(A, B, C, mask), repeat=20)
+        both = median_seconds(
+            lambda A=A, B=B, C=C, mask=mask: positive_output_controllability(A, B, C, mask).margin,
+            repeat=max(repeat // 10, 5),
+        )
+        base = median_seconds(
+            lambda A=A, B=B, C=C, mask=mask: baseline(A, B, C, mask), repeat=max(repeat // 10, 5)
+        )
         print(
-            f"{name:42s} {res.verdict.value:>8s} {res.method:>22s} {ours * 1e6:8.1f}us "
-            f"{base * 1e6:8.0f}us {base / ours:6.1f}x"
+            f"{name:40s} {res.verdict.value:>7s} {res.method:>20s} {ours * 1e6:8.0f}us "
+            f"{both * 1e6:8.0f}us {base * 1e6:8.0f}us {base / ours:5.1f}x"
+        )
+    print(f"\n12-state mechanical systems over seeds 1..{seeds}: speed-up over the baseline")
+    for taut, p in ((0, 6), (2, 6), (0, 3)):
+        ratios = []
+        for seed in range(1, seeds + 1):
+            A, B, C, mask = mechanical_system(taut=taut, p=p, seed=seed)
+            ours = median_seconds(
+                lambda A=A, B=B, C=C, mask=mask: positive_output_controllability(A, B, C, mask),
+                repeat=repeat // 2,
+            )
+            base = median_seconds(
+                lambda A=A, B=B, C=C, mask=mask: baseline(A, B, C, mask), repeat=5
+            )
+            ratios.append(base / ours)
+        print(
+            f"  taut={taut} p={p}: min {min(ratios):5.1f}x  median "
+            f"{statistics.median(ratios):5.1f}x  max {max(ratios):5.1f}x"
         )
 
 
