@@ -92,11 +92,31 @@ def compute_chunk(source: RobotSource, job, index: int, natural) -> tuple[int, d
     returns (index, arrays)."""
     from cdpm.maps._evaluate import evaluate_poses
 
-    return index, evaluate_poses(_state(source), natural, job[0], margin=job[1])
+    with single_threaded_blas():
+        return index, evaluate_poses(_state(source), natural, job[0], margin=job[1])
 
 
 #: what a local worker process computes: set once by :func:`_init_process`
 _WORKER: dict = {}
+
+
+def single_threaded_blas():
+    """A context limiting BLAS to one thread (threadpoolctl, when installed).
+
+    Maps run a great many tiny linear-algebra calls, which a multithreaded
+    BLAS only slows down (its threads spin between calls, and worker
+    processes already use the cores). SciPy's own BLAS is loaded first so
+    that the limit covers it too.
+    """
+    import contextlib
+
+    import scipy.linalg  # noqa: F401 - load SciPy's BLAS before limiting it
+
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:  # pragma: no cover - optional (the maps extra has it)
+        return contextlib.nullcontext()
+    return threadpool_limits(limits=1, user_api="blas")
 
 
 def _init_process(source: RobotSource | None = None, plan=None, job=None, writer=None) -> None:
@@ -105,6 +125,7 @@ def _init_process(source: RobotSource | None = None, plan=None, job=None, writer
     import signal
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    _WORKER["blas"] = single_threaded_blas()  # for the life of the worker
     if source is not None:
         _WORKER.update(robot=_state(source), plan=plan, job=job, writer=writer)
 
@@ -208,6 +229,11 @@ def run_chunks(
         progress(0, total, -1)
     if not todo:
         return
+    with single_threaded_blas():
+        _run(robot, plan, job, todo, sink, workers, scheduler, finished)
+
+
+def _run(robot, plan, job, todo, sink, workers, scheduler, finished) -> None:
     if scheduler is not None:
         _run_dask(robot, plan, job, todo, finished, scheduler)
     elif workers <= 1 or len(todo) == 1:
