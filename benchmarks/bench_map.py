@@ -229,8 +229,11 @@ def main(argv=None) -> int:
         n_grav = 32 if args.quick else 96
         rows.append(("two_link_vertical (gravity)", VERTICAL, n_grav, 20, 2, True))
         rows.append(("two_link_vertical, margin=False", VERTICAL, n_grav, 20, 2, False))
+    from cdpm.maps._runner import single_threaded_blas
+
     for label, path, n1, n2, reps, margin in rows:
-        r = per_pose_costs(path, n1, n2, reps, margin=margin)
+        with single_threaded_blas():  # as maps run (baseline and floor alike)
+            r = per_pose_costs(path, n1, n2, reps, margin=margin)
         print(
             f"{label:<34} {r['ours'] * 1e6:9.2f} {r['floor'] * 1e6:9.2f} "
             f"{r['baseline'] * 1e6:10.1f} {r['baseline'] / r['ours']:8.0f}x "
