@@ -551,7 +551,7 @@ def test_whole_library(tmp_path):
         print("  {:<28} {:<9} {}".format(*row))
     print(f"worst |L - FD| = {worst_fd:.2e}; worst |l - l_CASPR| = {worst_caspr:.2e} (relative)")
 
-    analysed: dict[str, list[str]] = {"gravity": [], "zero-gravity": [], "no-equilibrium": []}
+    analysed: dict[str, list[str]] = {"gravity": [], "no-equilibrium": []}
     for label, (result, _bodies, _cables) in imported.items():
         how, detail = _analyze(result.spec_path)
         analysed[how].append(label)
@@ -573,11 +573,6 @@ def test_whole_library(tmp_path):
     assert worst_caspr < 1e-12
 
 
-#: The CLI report's wrench-closure margin builds a convex hull in R^nv, which
-#: does not finish for these sizes; above it the test analyses through the API.
-CLI_MAX_NV = 12
-
-
 def _zero_gravity_copy(spec_path: Path) -> Path:
     """Test-only variant of an imported spec with gravity switched off and
     tension bounds [0, inf] (the seed paper's zero-tension case)."""
@@ -591,37 +586,21 @@ def _zero_gravity_copy(spec_path: Path) -> Path:
 
 
 def _analyze(spec_path: Path) -> tuple[str, str]:
-    """Run the analysis of an imported model at its named pose.
+    """Run ``cdpm analyze`` on an imported model at its named pose.
 
     Returns (how, detail): how is 'gravity' when the imported spec (CASPR's
-    gravity and force bounds) was analysed, 'zero-gravity' when the
-    linearisation refuses gravity and the zero-gravity copy was analysed,
-    'no-equilibrium' when no tension within the bounds holds the pose.
+    gravity and force bounds) was analysed, 'no-equilibrium' when no tension
+    within the bounds holds the pose (a fact about the pose, reported by the
+    CLI with exit code 1).
     """
-    robot = cdpm.load_robot(spec_path)
-    attempts = [spec_path]
-    for path in attempts:
-        if robot.nv <= CLI_MAX_NV:
-            code, out, err = _analyze_cli(path)
-            if code == 0:
-                assert "Positive output controllability (Theorem 1)" in out
-                verdict = next(line for line in out.splitlines() if "Theorem 1" in line)
-                return ("gravity" if path == spec_path else "zero-gravity"), verdict.strip()
-            message = err
-        else:
-            try:
-                report = cdpm.analyze_pose(cdpm.load_robot(path), "initial")
-            except CdpmError as exc:
-                message = str(exc)
-            else:
-                return ("gravity" if path == spec_path else "zero-gravity"), str(report.poc.verdict)
-        if "no equilibrium at this pose" in message:
-            return "no-equilibrium", message.strip().splitlines()[0][:120]
-        if "gravity" in message and path == spec_path:
-            attempts.append(_zero_gravity_copy(spec_path))
-            continue
-        raise AssertionError(f"analysis of {path} failed: {message}")
-    raise AssertionError("unreachable")  # pragma: no cover
+    code, out, err = _analyze_cli(spec_path)
+    if code == 0:
+        assert "Positive output controllability (Theorem 1)" in out
+        verdict = next(line for line in out.splitlines() if "Theorem 1" in line)
+        return "gravity", verdict.strip()
+    if "no equilibrium at this pose" in err:
+        return "no-equilibrium", err.strip().splitlines()[0][:120]
+    raise AssertionError(f"analysis of {spec_path} failed: {err}")
 
 
 def _import_library_model(folder: str, tmp_path: Path, cable_set: str | None = None):
@@ -651,7 +630,7 @@ def test_named_models_import_and_analyse(tmp_path, name):
     assert robot.spec.path == result.spec_path
     assert result.pose_name == "initial"
     how, detail = _analyze(result.spec_path)
-    assert how in ("gravity", "zero-gravity"), detail
+    assert how == "gravity", detail
     rng = np.random.default_rng(11)
     for _ in range(5):
         assert _fd_error(robot, _random_natural(robot, rng)) < 1e-6
