@@ -259,6 +259,17 @@ def _context():
     return multiprocessing.get_context("spawn")
 
 
+def _start_fork_server(ctx) -> threading.Thread | None:
+    """Start the fork server (with its preloaded modules) in a thread."""
+    if ctx.get_start_method() != "forkserver":
+        return None
+    from multiprocessing import forkserver
+
+    thread = threading.Thread(target=forkserver.ensure_running, daemon=True)
+    thread.start()
+    return thread
+
+
 def _run_processes(robot, plan, job, todo, finished, workers: int, writer=None) -> None:
     """Chunks on ``workers - 1`` local worker processes plus this process.
 
@@ -275,21 +286,28 @@ def _run_processes(robot, plan, job, todo, finished, workers: int, writer=None) 
     source = RobotSource.from_robot(robot)
     pending = list(reversed(todo))
     n_proc = min(workers - 1, len(todo) - 1)
+    ctx = _context()
     executor = ProcessPoolExecutor(
         max_workers=n_proc,
-        mp_context=_context(),
+        mp_context=ctx,
         initializer=_init_process,
         initargs=(source, plan, job, writer),
     )
+    # the fork server imports its modules before it forks a worker: start it
+    # in the background (the first submit would wait for it) and compute
+    # chunks here meanwhile
+    starting = _start_fork_server(ctx)
     running = set()
     try:
         while pending or running:
-            while pending and len(running) < 2 * n_proc:
-                running.add(executor.submit(_process_chunk, pending.pop()))
+            if starting is None or not starting.is_alive():
+                while pending and len(running) < 2 * n_proc:
+                    running.add(executor.submit(_process_chunk, pending.pop()))
             done, running = wait(running, timeout=0, return_when=FIRST_COMPLETED)
             if not done and pending:  # nothing ready: compute one here
                 index = pending.pop()
-                finished(index, evaluate_poses(robot, plan.natural(index), job[0], margin=job[1]))
+                data = evaluate_poses(robot, plan.natural(index), job[0], margin=job[1])
+                finished(index, data)
                 continue
             if not done:
                 done, running = wait(running, return_when=FIRST_COMPLETED)
