@@ -19,6 +19,10 @@ __all__ = ["Verdict"]
 
 #: relative tolerance used for numerical ranks (singular values / largest)
 RANK_RTOL = 1e-10
+#: an output row (of C) this much shorter than the longest is round-off: a
+#: zero row (e.g. the tip x row of a folded arm, computed as 1e-16 sines),
+#: never normalised into a direction
+ROW_ZERO_RTOL = 1e-12
 
 
 class Verdict(enum.Enum):
@@ -200,7 +204,8 @@ def scaled_system(A: np.ndarray, B: np.ndarray, C: np.ndarray | None):
 
     Returns (As, Bs, Cs, d, col, row, rho) with
     ``As = D^-1 A D / rho``, ``Bs[:, j] = D^-1 B[:, j] * col[j]`` and
-    ``Cs[i] = row[i] * C[i] D``, and time measured in units of 1/rho
+    ``Cs[i] = row[i] * C[i] D`` (0 for a row shorter than ``ROW_ZERO_RTOL``
+    times the longest, with ``row[i] = 1``), and time measured in units of 1/rho
     (``t = ts / rho``) with rho the Frobenius norm of ``D^-1 A D`` (so
     ``|As|_2 <= 1``; no SVD). None of these changes a positive-controllability
     verdict (positive scalings and similarities).
@@ -218,9 +223,11 @@ def scaled_system(A: np.ndarray, B: np.ndarray, C: np.ndarray | None):
     if C is None:
         return As, Bs, None, d, col, None, rho
     Cs = C * d[None, :]
-    row = np.linalg.norm(Cs, axis=1)
-    row = np.where(row > 0, 1.0 / np.where(row > 0, row, 1.0), 1.0)
-    Cs = Cs * row[:, None]
+    rn = np.linalg.norm(Cs, axis=1)
+    live = rn > ROW_ZERO_RTOL * rn.max() if rn.size else rn > 0
+    row = np.where(live, 1.0 / np.where(live, rn, 1.0), 1.0)
+    # round-off rows (ROW_ZERO_RTOL) become exact zero rows
+    Cs = Cs * np.where(live, row, 0.0)[:, None]
     return As, Bs, Cs, d, col, row, rho
 
 

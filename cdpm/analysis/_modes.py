@@ -61,6 +61,30 @@ class Evaluator:
             return np.einsum("pi,ti,ij->tpj", self.CV, E, self.WB).real
         return np.einsum("pi,tij->tpj", self.C, expm(t[:, None, None] * self.A) @ self.B)
 
+    def with_scale(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(g(t) (N, p, m), scale (N, m)): ``scale[k, j]`` is the size of the
+        terms summed into g_j(t_k) (root of the sum of squares of the modal
+        terms, or |C| |e^{At}| |b_j|); |g_j(t_k)| far below it is round-off."""
+        t = np.asarray(t, dtype=float)
+        n, m = self.A.shape[0], self.B.shape[1]
+        if n == 0:
+            return np.zeros((t.size, self.C.shape[0], m)), np.zeros((t.size, m))
+        if self.modal:
+            E = np.exp(np.outer(t, self.lam))
+            G = np.einsum("pi,ti,ij->tpj", self.CV, E, self.WB).real
+            cv2 = np.einsum("pi,pi->i", self.CV, self.CV.conj()).real
+            E2 = (E * E.conj()).real
+            scale = np.sqrt((E2 * cv2) @ (self.WB * self.WB.conj()).real)
+            return G, scale
+        X = expm(t[:, None, None] * self.A)
+        G = np.einsum("pi,tij->tpj", self.C, X @ self.B)
+        scale = (
+            np.linalg.norm(self.C)
+            * np.linalg.norm(X, axis=(1, 2))[:, None]
+            * np.linalg.norm(self.B, axis=0)
+        )
+        return G, scale
+
     def coefficients(self, v: np.ndarray, j: int) -> np.ndarray:
         """kappa_i with v^T g_j(t) = Re sum_i kappa_i exp(lam_i t) (modal only)."""
         return (v @ self.CV) * self.WB[:, j]
@@ -82,10 +106,21 @@ class ModalEvaluator:
 
     def __call__(self, t: np.ndarray) -> np.ndarray:
         t = np.asarray(t, dtype=float)
+        return np.einsum("pi,ti,ij->tpj", self.CqU, self._s(t), self.beta)
+
+    def _s(self, t: np.ndarray) -> np.ndarray:
+        """Modal responses s_k(t), shape (N, h)."""
         wt = np.outer(t, self.w)
         w = np.where(self.w > 0, self.w, 1.0)
-        S = np.where(self.osc, np.sin(wt) / w, np.where(self.grow, np.sinh(wt) / w, t[:, None]))
-        return np.einsum("pi,ti,ij->tpj", self.CqU, S, self.beta)
+        return np.where(self.osc, np.sin(wt) / w, np.where(self.grow, np.sinh(wt) / w, t[:, None]))
+
+    def with_scale(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(g(t) (N, p, m), scale (N, m)) as :meth:`Evaluator.with_scale`."""
+        t = np.asarray(t, dtype=float)
+        S = self._s(t)
+        G = np.einsum("pi,ti,ij->tpj", self.CqU, S, self.beta)
+        cq2 = np.einsum("pi,pi->i", self.CqU, self.CqU)
+        return G, np.sqrt((S * S * cq2) @ (self.beta * self.beta))
 
 
 def default_horizon(eigvals: np.ndarray) -> float:

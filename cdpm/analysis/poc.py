@@ -29,6 +29,7 @@ from scipy.linalg import expm
 
 from cdpm.analysis import _modes
 from cdpm.analysis._common import (
+    ROW_ZERO_RTOL,
     Verdict,
     as_positive_vector,
     as_system,
@@ -441,7 +442,8 @@ def _output_rank_defect(A, B, C, rn):
     parallel), then a sufficient test on [CB, CAB], then the Krylov basis.
     """
     p, n = C.shape
-    if np.any(rn == 0):
+    if np.any(rn <= ROW_ZERO_RTOL * rn.max()):
+        # a zero or round-off row: that output is never reached
         v = np.zeros(p)
         v[int(np.argmin(rn))] = 1.0
         return v
@@ -829,26 +831,48 @@ class _Scaled:
 
     def columns(self, ts):
         """Sample columns (r, N*m), column k*m + j = g_j(ts[k]); times whose
-        responses overflow are dropped (returned ``ts`` is filtered)."""
+        responses overflow are dropped (returned ``ts`` is filtered).
+
+        A column is round-off, and set to exactly 0, when it is below
+        ``ZERO_RTOL`` times its own round-off scale (the modal sum of
+        magnitudes that produced it), never relative to the largest column:
+        a growing mode makes late columns dwarf early ones by many orders of
+        magnitude, yet the early ones are exact directions.
+        """
         # past a modal dynamic range of e^27 (~1e12) double precision no
         # longer resolves the slower directions: sample up to there only
         ts = ts[ts <= self.t_max]
         with np.errstate(over="ignore", invalid="ignore"):
-            G = self.ev(ts)  # (N, r, m)
+            G, scale = self.ev.with_scale(ts)  # (N, r, m), (N, m)
         ok = np.isfinite(G).all(axis=(1, 2)) & (np.abs(G).max(axis=(1, 2)) < 1e150)
         if not ok.all():
-            G, ts = G[ok], ts[ok]
+            G, ts, scale = G[ok], ts[ok], scale[ok]
         N, r, m = G.shape
-        return G.transpose(1, 0, 2).reshape(r, N * m), m, ts
+        S = G.transpose(1, 0, 2).reshape(r, N * m)
+        small = np.linalg.norm(S, axis=0) <= ZERO_RTOL * scale.reshape(-1)
+        if small.any():
+            S[:, small] = 0.0
+        return S, m, ts
 
 
 class _ModalScaled(_Scaled):
     """The modal evaluator in original units (no scaling needed: span
-    decisions normalise each output vector)."""
+    decisions normalise each output vector).
+
+    Sampling stops where the fastest growing mode has grown by ``1e8``
+    (``sinh(w t) / w``, ``w t = ln 1e8``): beyond that a slower mode's part
+    of g_j(t) is below the round-off of ``expm(A t)`` in the certificate's
+    re-check, and the late columns all point along the growing mode anyway.
+    """
+
+    #: log of the largest growth of a sampled response
+    LOG_GROWTH = math.log(1e8)
 
     def __init__(self, ev):
         self.ev = ev
-        self.rho, self.t_max = 1.0, np.inf
+        self.rho = 1.0
+        grow = ev.w[ev.grow]
+        self.t_max = self.LOG_GROWTH / grow.max() if grow.size else np.inf
         m = ev.beta.shape[1]
         self.col, self.row = np.ones(m), np.ones(ev.CqU.shape[0])
 
@@ -858,9 +882,14 @@ _FIRST = np.arange(1, 8) / 7.0
 
 
 def _sample_search(sub, T, sc=None, extra=None):
-    """Positive span over samples; returns ("yes", cert) or ("no", v_s, S, ts, m)."""
+    """Positive span over samples; returns ("yes", cert) or ("no", v_s, S, ts, m).
+
+    The grids cover [0, min(T, t_max)]: the part of the horizon where every
+    mode is still resolved next to the fastest growing one (a certificate
+    needs the slow modes' sign changes, which late samples no longer show).
+    """
     sc = sc or _Scaled(sub)
-    Ts = T * sc.rho
+    Ts = min(T * sc.rho, sc.t_max)
     # three stages, cheapest first: most YES answers need only a few times
     grids = [Ts * _FIRST, _modes.coarse_times(Ts), None]
     if extra is not None:
@@ -871,7 +900,8 @@ def _sample_search(sub, T, sc=None, extra=None):
             grid = _modes.fine_times(Ts, sc.ev.eigvals)
         ts = np.unique(np.concatenate([ts, grid] if extra is None else [ts, grid, extra]))
         S, m, ts = sc.columns(ts)
-        yes, _, _, idx, w, v = span_core(S, SPAN_TOL)
+        # columns were cleaned per vector: only exact zeros are zero here
+        yes, _, _, idx, w, v = span_core(S, SPAN_TOL, zero_rtol=0.0)
         if yes:
             return "yes", _cert_from_columns(sub, sc, S, ts, m, idx, w)
     return "no", v, S, ts, m
@@ -975,7 +1005,7 @@ def _separator(S, v):
     from cdpm.analysis.span import min_norm_separator
 
     norms = np.linalg.norm(S, axis=0)
-    keep = norms > 1e-11 * norms.max()
+    keep = norms > 0  # round-off columns were set to 0 by _Scaled.columns
     found = min_norm_separator(S[:, keep] / norms[keep])
     return v if found is None else found[0]
 

@@ -210,8 +210,12 @@ class SpanResult:
 # decision core (no validation; used by the POC code on many sample sets)
 
 
-def span_core(S: np.ndarray, tol: float = SPAN_TOL):
+def span_core(S: np.ndarray, tol: float = SPAN_TOL, zero_rtol: float = ZERO_RTOL):
     """Decide positive spanning of the columns of S (p, k).
+
+    Columns not longer than ``zero_rtol`` times the longest are zero; pass
+    ``zero_rtol=0`` for columns already cleaned against their own
+    round-off scale (only exact zeros are then dropped).
 
     Returns:
         (yes, method, rank, indices, weights, separator): for YES ``indices``
@@ -223,7 +227,7 @@ def span_core(S: np.ndarray, tol: float = SPAN_TOL):
         return True, "trivial", 0, np.zeros(0, int), np.zeros(0), None
     norms = np.linalg.norm(S, axis=0) if p > 1 else np.abs(S[0])
     big = norms.max() if k else 0.0
-    nz = np.flatnonzero(norms > ZERO_RTOL * big) if big > 0 else np.zeros(0, int)
+    nz = np.flatnonzero(norms > zero_rtol * big) if big > 0 else np.zeros(0, int)
     if nz.size == 0:
         v = np.zeros(p)
         v[0] = 1.0
