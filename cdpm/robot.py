@@ -366,7 +366,7 @@ class CableRobot:
                     crba(model, data, qs[k], world)
                     jac[k] = J
                     pl[k] = placements
-        else:  # pragma: no cover - Pinocchio builds with another SE3 layout
+        else:  # Pinocchio builds with another SE3 layout
             for k in range(n):
                 crba(model, data, qs[k], world)
                 jac[k] = J

@@ -186,6 +186,22 @@ def test_batch_kinematics_equal_pinocchio_per_pose(model, mixed_robot, paper_rob
     np.testing.assert_array_equal(plain["jacobian"], res["jacobian"])
 
 
+def test_batch_without_the_flat_placement_view(mixed_robot):
+    """The per-joint (rotation, translation) views, used when Pinocchio's
+    placements are not laid out as one flat array, give the same batch."""
+    robot = mixed_robot()
+    natural = np.random.default_rng(8).uniform(-1, 1, (6, robot.nv))
+    qs = np.array([robot.from_natural(x) for x in natural])
+    flat = robot.kinematics_batch(qs, dynamics=True)
+    data, jac, mass, placements, moving = robot._batch_views()
+    assert isinstance(placements, np.ndarray)  # this build has the flat layout
+    pairs = [(data.oMi[j].rotation, data.oMi[j].translation) for j in range(robot.model.njoints)]
+    robot._batch_views_cache = (data, jac, mass, pairs, moving)
+    per_joint = robot.kinematics_batch(qs, dynamics=True)
+    for name, value in flat.items():
+        np.testing.assert_array_equal(per_joint[name], value, err_msg=name)
+
+
 def test_one_crba_fills_jacobians_placements_and_mass(mixed_robot):
     """The batch relies on crba(WORLD) filling data.J, data.oMi and the
     upper triangle of data.M exactly as the dedicated calls do."""
