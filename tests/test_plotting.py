@@ -193,3 +193,20 @@ def test_cli_map_samples_and_errors(tmp_path, capsys):
     assert "3 poses" in capsys.readouterr().out
     assert main(["plot", str(tmp_path / "missing.zarr"), "-o", str(tmp_path / "x.png")]) == 1
     assert "not a zarr store" in capsys.readouterr().err
+
+
+def test_map_command_without_margin_keeps_verdicts(tmp_path):
+    import xarray as xr
+
+    from tests.conftest import MODELS
+
+    spec = str(MODELS / "two_link_vertical" / "two_link_vertical.yaml")
+    common = ["--axis", "q1=-pi:pi:7", "--axis", "q2=-pi:pi:9", "--workers", "1", "--quiet"]
+    assert main(["map", spec, *common, "--out", str(tmp_path / "full.zarr")]) == 0
+    assert main(["map", spec, *common, "--out", str(tmp_path / "fast.zarr"), "--no-margin"]) == 0
+    full = xr.open_zarr(tmp_path / "full.zarr")
+    fast = xr.open_zarr(tmp_path / "fast.zarr")
+    np.testing.assert_array_equal(full["poc"].values, fast["poc"].values)
+    assert (full["poc"].values == 1).any() and (full["poc"].values == 0).any()
+    assert np.isnan(fast["poc_margin"].values).all()
+    assert np.isfinite(full["poc_margin"].values[full["status"].values == 0]).all()

@@ -67,6 +67,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--chunk-size", type=int, metavar="N", help="poses per chunk")
     parser.add_argument(
+        "--no-margin",
+        action="store_true",
+        help="skip the POC margin (same verdicts; much faster under gravity or pretension)",
+    )
+    parser.add_argument(
         "--overwrite", action="store_true", help="replace an existing store instead of resuming it"
     )
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -160,6 +165,7 @@ def run(args: argparse.Namespace) -> int:
         overwrite=args.overwrite,
         chunk_size=args.chunk_size,
         progress=not args.quiet,
+        margin=not args.no_margin,
     )
     poc = np.asarray(ds["poc"].values)
     status = np.asarray(ds["status"].values)
