@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -235,3 +236,68 @@ def test_random_poses_of_two_link_vertical_are_rarely_marginal(vertical):
     print(f"\ntwo_link_vertical, 150 random poses: {counts}; MARGINAL rate {rate:.2%}")
     assert counts["yes"] > 100
     assert rate <= 0.01, marginal
+
+
+def _slow_oscillation_fast_growth(seed=None):
+    """kappa = -0.01 (period ~63) and 1 (growth e^t); the oscillatory modal
+    row is one-signed, so the sign change of sin(0.1 t) (t > 31, where the
+    growing mode is e^31 times larger) is needed: POC, but no sampled pair
+    can show it in double precision. Optionally in random coordinates
+    q = P x and with a random invertible full-pose output."""
+    K = np.diag([-0.01, 1.0])
+    Bv = np.array([[1.0, 1.0], [1.0, -1.0]])
+    Cq = np.eye(2)
+    if seed is not None:
+        rng = np.random.default_rng(seed)
+        P = rng.normal(size=(2, 2)) + 2 * np.eye(2)
+        K, Bv, Cq = np.linalg.solve(P, K @ P), np.linalg.solve(P, Bv), rng.normal(size=(2, 2))
+    A = np.block([[np.zeros((2, 2)), np.eye(2)], [K, np.zeros((2, 2))]])
+    return A, np.vstack([np.zeros((2, 2)), Bv]), np.hstack([Cq, np.zeros((2, 2))])
+
+
+@pytest.mark.parametrize("seed", [None, 3, 11])
+def test_modal_certificate_when_no_sampled_pair_resolves_the_slow_mode(seed):
+    A, B, C = _slow_oscillation_fast_growth(seed)
+    # g_0 + g_1 = (2 sin(0.1 t) / 0.1, 0) in modal coordinates: negative for
+    # t in (31.4, 62.8), so the cone is R^2 (hand-worked)
+    res = positive_output_controllability(A, B, C)
+    assert res.verdict is Verdict.YES and res.method == "modal", res
+    assert res.certificate.kind == "modal"
+    assert res.certificate.verify(A, B, C)
+    modes = sorted(res.certificate.proof["modes"], key=lambda md: md["kappa"])
+    assert [md["definite"] for md in modes] == [False, True]
+    np.testing.assert_allclose([md["kappa"] for md in modes], [-0.01, 1.0], rtol=1e-9)
+    assert "modal certificate" in str(res)
+    # the same certificate proves nothing for systems where the test fails
+    Bno = B.copy()
+    Bno[2:, 1] = B[2:, 0]  # both inputs push the growing mode the same way
+    assert positive_output_controllability(A, Bno, C).verdict is Verdict.NO
+    assert not res.certificate.verify(A, Bno, C)
+    Kbad = A.copy()
+    Kbad[2:, :2] += 0.1 * np.eye(2)  # other eigenvalues
+    assert not res.certificate.verify(Kbad, B, C)
+    assert not res.certificate.verify(A, B, C[[0, 0]])  # not a full pose (rank 1)
+    assert not res.certificate.verify(A, B, C[:1])
+
+
+def test_modal_certificate_rejects_tampered_data():
+    A, B, C = _slow_oscillation_fast_growth()
+    cert = positive_output_controllability(A, B, C).certificate
+    assert cert.verify(A, B, C)
+
+    def tampered(**change):
+        modes = [dict(md) for md in cert.proof["modes"]]
+        i = next(i for i, md in enumerate(modes) if md["definite"])
+        modes[i].update(change)
+        return dataclasses.replace(cert, proof={**cert.proof, "modes": modes})
+
+    assert not tampered(kappa=1.001).verify(A, B, C)  # not an eigenvalue
+    assert not tampered(multiplicity=2).verify(A, B, C)
+    assert not tampered(weights=[1.0, 2.0]).verify(A, B, C)  # no longer combine to 0
+    assert not tampered(inputs=[0]).verify(A, B, C)
+    assert not tampered(definite=False).verify(A, B, C)
+    # a constrained input is needed: the same system with input 1 free is
+    # not what the certificate speaks of
+    assert not dataclasses.replace(cert, sign_constrained=np.array([True, False])).verify(A, B, C)
+    short = dataclasses.replace(cert, proof={**cert.proof, "modes": cert.proof["modes"][:1]})
+    assert not short.verify(A, B, C)  # eigenspaces do not fill R^h

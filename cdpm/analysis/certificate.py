@@ -6,7 +6,9 @@ certificate: it recomputes ``g_j(t) = C e^{At} b_j`` with
 algebra (:func:`cdpm.analysis.span.check_positive_combination`), and for a
 separator re-evaluates ``v^T g_j(t)`` on its own dense grid plus the
 path-specific algebraic facts (nilpotency, eigenvector residuals, Taylor
-signs, the tail bound from a fresh eigen-decomposition).
+signs, the tail bound from a fresh eigen-decomposition). A modal YES
+certificate is re-checked on left eigenspaces recomputed as null spaces of
+``K^T - kappa I`` (SVD, no eigen-solver).
 """
 
 from __future__ import annotations
@@ -27,7 +29,9 @@ class POCCertificate:
     """Proof of a positive output controllability verdict.
 
     Attributes:
-        kind: ``"positive-span"`` (YES), ``"separator"`` (NO) or ``"none"``
+        kind: ``"positive-span"`` (YES), ``"modal"`` (YES by the exact
+            mechanical modal test, when no sampled pairs resolve it: see
+            ``proof["modes"]``), ``"separator"`` (NO) or ``"none"``
             (MARGINAL: nothing proven).
         times: (K,) times t_k [s or the system's time unit] of the YES pairs.
         inputs: (K,) input indices j_k.
@@ -83,6 +87,8 @@ class POCCertificate:
             return _verify_span(self, A, B, C, mask, tol)
         if self.kind == "separator":
             return _verify_separator(self, A, B, C, mask, tol)
+        if self.kind == "modal":
+            return _verify_modal_span(self, A, B, C, mask, tol)
         return False
 
 
@@ -250,3 +256,74 @@ def _verify_general(A, B, C, mask, v, proof, tol) -> bool:
         if tail >= 0:
             return False
     return True
+
+
+def _mechanical_blocks(A, B, C, mask):
+    """(h, K, Cq, Bv) when A = [[0, I], [K, 0]], C = [Cq, 0] and the
+    constrained inputs act on velocities only (B[:h] = 0); else None."""
+    n = A.shape[0]
+    h = n // 2
+    if n == 0 or n % 2:
+        return None
+    ref = np.abs(A).max() + 1e-300
+    if np.abs(A[:h, :h]).max() > 1e-9 * ref or np.abs(A[h:, h:]).max() > 1e-9 * ref:
+        return None
+    if np.abs(A[:h, h:] - np.eye(h)).max() > 1e-9 or np.abs(C[:, h:]).max() > 0:
+        return None
+    if np.abs(B[:h][:, mask]).max(initial=0.0) > 0:
+        return None
+    return h, A[h:, :h], C[:, :h], B[h:]
+
+
+def _verify_modal_span(cert, A, B, C, mask, tol) -> bool:
+    """The exact modal test, re-checked without an eigen-solver.
+
+    With a full-pose output (Cq square, invertible) POC holds iff for each
+    eigenvalue kappa of K (real, K diagonalisable) the products w^T Bv with
+    the left eigenvectors w positively span (kappa >= 0) or have full rank
+    (kappa < 0). Each claimed kappa's left eigenspace is recomputed as the
+    null space of K^T - kappa I (SVD); their dimensions must add up to h,
+    which proves K diagonalisable with exactly these eigenvalues.
+    """
+    blocks = _mechanical_blocks(A, B, C, mask)
+    modes = cert.proof.get("modes") if isinstance(cert.proof, dict) else None
+    if blocks is None or not modes:
+        return False
+    h, K, Cq, Bv = blocks
+    if Cq.shape[0] != h or np.linalg.cond(Cq) > 1e10:
+        return False
+    sK = float(np.linalg.norm(K, 2)) + 1e-300
+    total = 0
+    kappas = []
+    for md in modes:
+        kappa = float(md["kappa"])
+        d = int(md["multiplicity"])
+        inputs = np.asarray(md["inputs"], dtype=int)
+        if d < 1 or inputs.size == 0 or np.any(inputs < 0) or np.any(inputs >= B.shape[1]):
+            return False
+        if not mask[inputs].all():
+            return False
+        _, s, Vt = np.linalg.svd(K.T - kappa * np.eye(h))
+        W = Vt[h - d :].T  # (h, d): the d smallest singular directions
+        if s[h - d] > 1e-7 * sK or (d < h and s[h - d - 1] <= 1e-7 * sK):
+            return False  # kappa is not an eigenvalue of geometric multiplicity d
+        total += d
+        kappas.append(kappa)
+        Z = W.T @ Bv[:, inputs]
+        definite = kappa >= -1e-9 * sK
+        if definite != bool(md["definite"]):
+            return False
+        if definite:
+            if not check_positive_combination(Z, np.asarray(md["weights"], dtype=float), tol):
+                return False
+        else:
+            norms = np.linalg.norm(Z, axis=0)
+            if np.any(norms == 0):
+                return False
+            sz = np.linalg.svd(Z / norms, compute_uv=False)
+            if sz.size < d or sz[d - 1] <= 1e-8 * sz[0]:
+                return False
+    # distinct eigenvalues whose eigenspaces fill R^h: K is diagonalisable
+    # and has no other eigenvalue
+    ks = np.sort(kappas)
+    return bool(total == h and np.all(np.diff(ks) > 1e-7 * sK))

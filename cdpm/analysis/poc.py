@@ -141,6 +141,17 @@ class POCResult:
                 sign = "-" if s < 0 else "+"
                 lines.append(f"    {sign}g_{j}(t={t:.4g}) weight {w:.4g}")
             return lines
+        if c.kind == "modal":
+            lines = ["  modal certificate (stiffness eigenvalues kappa of K):"]
+            for md in c.proof["modes"]:
+                used = ", ".join(map(str, md["inputs"]))
+                what = "have full rank in it"
+                if md["definite"]:
+                    what = "positively span its eigenspace"
+                lines.append(
+                    f"    kappa {md['kappa']:.4g} (x{md['multiplicity']}): inputs {used} {what}"
+                )
+            return lines
         if c.kind == "separator":
             return [
                 f"  separating v = {fmt_array(c.separator)} "
@@ -724,14 +735,69 @@ def _modal(sub: _Reduced, horizon, tol):
             sub.no(vr, proof),
             T,
         )
-    sc = _ModalScaled(sub.modal_ev)
-    return _sampled_yes(
-        sub,
-        T,
-        "modal",
-        "every sign-definite mode is positively spanned and every oscillatory mode has full rank",
-        sc,
+    reason = (
+        "every sign-definite mode is positively spanned and every oscillatory mode has full rank"
     )
+    found = _sample_search(sub, T, _ModalScaled(sub.modal_ev))
+    if found[0] == "yes":
+        return Verdict.YES, "modal", reason, found[1], T
+    cert = _modal_certificate(sub, kap, beta, bscale, sK, tol) if full else None
+    if cert is None:
+        return _marginal(
+            "modal",
+            "the exact test says yes but no sampled certificate clears the tolerance",
+            sub,
+            T,
+        )
+    return (
+        Verdict.YES,
+        "modal",
+        reason + " (modal certificate: no sampled pairs resolve the slow modes next to the "
+        "fastest growing one in double precision)",
+        cert,
+        T,
+    )
+
+
+def _modal_certificate(sub, kap, beta, bscale, sK, tol):
+    """The exact modal test as a certificate (full pose, no free input
+    projected out): per cluster of stiffness eigenvalues kappa, input
+    indices and, for a sign-definite one, strictly positive weights with
+    ``w^T Bv[:, inputs] @ weights = 0`` for every left eigenvector w of
+    kappa (and rank = multiplicity); for an oscillatory one, inputs whose
+    modal rows have full rank. ``certificate.verify`` recomputes the left
+    eigenspaces as null spaces of ``K^T - kappa I`` (no eigen-solver).
+    Returns None when it cannot be built (then the answer is MARGINAL)."""
+    if sub.N is not None:
+        return None
+    modes = []
+    for group in cluster(kap, 1e-8 * sK):
+        k = float(np.mean(kap[group]))
+        Z = beta[group].copy()
+        Z[:, np.linalg.norm(Z, axis=0) <= 1e-10 * bscale] = 0.0
+        norms = np.linalg.norm(Z, axis=0)
+        if k >= -1e-9 * sK:
+            yes, _, _, idx, w, _ = span_core(Z, tol)
+            if not yes:
+                return None
+            idx = np.asarray(idx)
+            weights = np.asarray(w, dtype=float) / norms[idx]
+        else:
+            nz = np.flatnonzero(norms > 0)
+            if nz.size < group.size:
+                return None
+            idx = nz[independent_columns(Z[:, nz] / norms[nz], group.size)]
+            weights = np.zeros(0)
+        modes.append(
+            {
+                "kappa": k,
+                "multiplicity": int(group.size),
+                "definite": bool(k >= -1e-9 * sK),
+                "inputs": sub.cons[idx].tolist(),
+                "weights": weights.tolist(),
+            }
+        )
+    return POCCertificate("modal", sub.mask, proof={"path": "modal-span", "modes": modes})
 
 
 def _modal_rows_ok(kap, beta, bscale, sK) -> bool:
