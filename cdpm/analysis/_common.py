@@ -12,6 +12,7 @@ import math
 
 import numpy as np
 from scipy import linalg as sla
+from scipy.linalg import lapack as _lapack
 
 from cdpm.errors import InputError
 
@@ -144,6 +145,49 @@ def as_system(A, B, C=None, sign_constrained=None):
 # linear algebra
 
 
+# Small dense factorisations called directly through LAPACK: a decision runs
+# a few dozen of them on tiny matrices (sizes ~2-24), where numpy.linalg's
+# per-call checks cost as much as the factorisation. Each falls back to
+# numpy.linalg when LAPACK reports a failure.
+
+
+def svdvals(X: np.ndarray) -> np.ndarray:
+    """Singular values of X (descending), LAPACK gesdd."""
+    if X.size == 0:
+        return np.zeros(0)
+    _, s, _, info = _lapack.dgesdd(X, compute_uv=0)
+    return s if info == 0 else np.linalg.svd(X, compute_uv=False)
+
+
+def svd(X: np.ndarray, full_matrices: bool = False):
+    """(U, s, Vt) of X, LAPACK gesdd."""
+    if X.size == 0:
+        return np.linalg.svd(X, full_matrices=full_matrices)
+    U, s, Vt, info = _lapack.dgesdd(X, compute_uv=1, full_matrices=int(full_matrices))
+    if info != 0:  # pragma: no cover - LAPACK failure
+        return np.linalg.svd(X, full_matrices=full_matrices)
+    return U, s, Vt
+
+
+def eigh(G: np.ndarray):
+    """(ascending eigenvalues, eigenvectors) of a symmetric G, LAPACK syevd."""
+    w, V, info = _lapack.dsyevd(G)
+    if info != 0:  # pragma: no cover - LAPACK failure
+        return np.linalg.eigh(G)
+    return w, V
+
+
+def qr_pivots(U: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Column pivoting order of a rank-revealing QR of U (LAPACK geqp3) and
+    |R_kk| in that order (non-increasing)."""
+    qr, jpvt, _, _, info = _lapack.dgeqp3(U)
+    if info != 0:  # pragma: no cover - LAPACK failure
+        _, R, piv = sla.qr(U, mode="economic", pivoting=True)
+        return piv, np.abs(np.diag(R))
+    k = min(U.shape)
+    return jpvt - 1, np.abs(np.diag(qr)[:k])
+
+
 def numerical_rank(s: np.ndarray, rtol: float = RANK_RTOL) -> int:
     """Rank from singular values ``s`` (descending) with a relative tolerance."""
     if s.size == 0 or s[0] <= 0:
@@ -159,7 +203,7 @@ def orth(X: np.ndarray, rtol: float = RANK_RTOL) -> np.ndarray:
     keep = norms > 0
     if not keep.any():
         return np.zeros((X.shape[0], 0))
-    U, s, _ = np.linalg.svd(X[:, keep] / norms[keep], full_matrices=False)
+    U, s, _ = svd(X[:, keep] / norms[keep])
     return U[:, : numerical_rank(s, rtol)]
 
 
@@ -169,7 +213,7 @@ def complement(Q: np.ndarray, dim: int) -> np.ndarray:
         return np.eye(dim)
     if Q.shape[1] >= dim:
         return np.zeros((dim, 0))
-    U, _, _ = np.linalg.svd(Q, full_matrices=True)
+    U, _, _ = svd(Q, full_matrices=True)
     return U[:, Q.shape[1] :]
 
 
@@ -248,7 +292,7 @@ def krylov_basis(A: np.ndarray, B: np.ndarray, rtol: float = RANK_RTOL) -> np.nd
         X = A @ new
         for _ in range(2):
             X = X - Q @ (Q.T @ X)
-        U, s, _ = np.linalg.svd(X, full_matrices=False)
+        U, s, _ = svd(X)
         # X was orthogonalised against Q twice: its left singular vectors are
         # orthonormal and orthogonal to Q to round-off
         new = U[:, : int(np.count_nonzero(s > 1e-9 * ref))]

@@ -103,6 +103,7 @@ class ModalEvaluator:
         self.osc = kappa < -zero
         self.grow = kappa > zero
         self.eigvals = np.concatenate([1j * self.w, -1j * self.w])
+        self._cq2 = np.einsum("pi,pi->i", CqU, CqU)
 
     def __call__(self, t: np.ndarray) -> np.ndarray:
         t = np.asarray(t, dtype=float)
@@ -114,13 +115,20 @@ class ModalEvaluator:
         w = np.where(self.w > 0, self.w, 1.0)
         return np.where(self.osc, np.sin(wt) / w, np.where(self.grow, np.sinh(wt) / w, t[:, None]))
 
+    def columns(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(G (p, N*m), scale (N*m,)): column k*m + j is g_j(t_k), with its
+        round-off scale as in :meth:`Evaluator.with_scale`."""
+        S = self._s(np.asarray(t, dtype=float))  # (N, h)
+        Z = (S.T[:, :, None] * self.beta[:, None, :]).reshape(S.shape[1], -1)  # (h, N*m)
+        scale = np.sqrt(self._cq2 @ (Z * Z))
+        return self.CqU @ Z, scale
+
     def with_scale(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(g(t) (N, p, m), scale (N, m)) as :meth:`Evaluator.with_scale`."""
         t = np.asarray(t, dtype=float)
         S = self._s(t)
         G = np.einsum("pi,ti,ij->tpj", self.CqU, S, self.beta)
-        cq2 = np.einsum("pi,pi->i", self.CqU, self.CqU)
-        return G, np.sqrt((S * S * cq2) @ (self.beta * self.beta))
+        return G, np.sqrt((S * S * self._cq2) @ (self.beta * self.beta))
 
 
 def default_horizon(eigvals: np.ndarray) -> float:

@@ -25,7 +25,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.linalg import expm
+from scipy.linalg import expm, lapack
 
 from cdpm.analysis import _modes
 from cdpm.analysis._common import (
@@ -39,7 +39,10 @@ from cdpm.analysis._common import (
     html_table,
     numerical_rank,
     orth,
+    qr_pivots,
     scaled_system,
+    svd,
+    svdvals,
     to_plain,
 )
 from cdpm.analysis.brammer import left_eigen_separator
@@ -252,6 +255,18 @@ def _decide(A, B, C, mask, horizon, tol):
     # or not); after this check the reduced outputs N^T C below are never
     # round-off that a row scaling would blow up into a direction
     rn = np.linalg.norm(C, axis=1)
+    free = ~mask
+    if free.any() and rn.min() > ROW_ZERO_RTOL * rn.max():
+        # most taut poses: a few early samples of the free inputs already
+        # reach every output direction (this implies the output rank)
+        cert = _free_inputs_span(A, B, C, mask)
+        if cert is not None:
+            T = horizon or float(cert.times.max())
+            return Verdict.YES, "mixed-cone", _REASON_FREE_SPAN, cert, T
+    elif not free.any():
+        out = _modal_yes_first(A, B, C, mask, rn, horizon, tol)
+        if out is not None:
+            return out
     v = _output_rank_defect(A, B, C, rn)
     if v is not None:
         T = horizon or 1.0
@@ -259,7 +274,6 @@ def _decide(A, B, C, mask, horizon, tol):
             "separator", mask, separator=v, proof={"path": "output-rank", "horizon": T}
         )
         return Verdict.NO, "output-rank", _REASON_RANK, cert, T
-    free = ~mask
     prefix = ""
     N = None
     Fpairs = None
@@ -273,13 +287,7 @@ def _decide(A, B, C, mask, horizon, tol):
             if N.shape[1] == 0:
                 cert = _lift_yes(A, B, C, mask, None, Fpairs)
                 T = horizon or float(max(Fpairs[0].max(), 1e-300))
-                return (
-                    Verdict.YES,
-                    "mixed-cone",
-                    "the free inputs alone reach every output direction",
-                    cert,
-                    T,
-                )
+                return Verdict.YES, "mixed-cone", _REASON_FREE_SPAN, cert, T
     Cr = C if N is None else N.T @ (C / rn[:, None])
     cons = np.flatnonzero(mask)
     if cons.size == 0:
@@ -302,6 +310,28 @@ def _decide(A, B, C, mask, horizon, tol):
             verdict, method, reason, cert, T = out
             return verdict, prefix + method, reason, cert, T
     raise AssertionError("the general path always decides")  # pragma: no cover
+
+
+def _modal_yes_first(A, B, C, mask, rn, horizon, tol):
+    """The modal path's YES before the output-rank check, for a mechanical
+    system with every input constrained and a full, invertible pose output.
+
+    A modal YES implies the output rank: with Cq invertible the rank is
+    that of [Bv, K Bv, ...], which is h when every eigenspace of K gets
+    modal input rows of full rank (PBH) - part of the modal test. Anything
+    but YES returns None and the usual order (output rank first) decides.
+    """
+    h = _modal_structure(A, B, C)
+    if h is None or C.shape[0] != h or rn.min() <= ROW_ZERO_RTOL * rn.max():
+        return None
+    s = svdvals(C[:, :h] / rn[:, None])
+    if not s[-1] > RANK_TOL * s[0]:
+        return None
+    sub = _Reduced(A, B, C, np.arange(B.shape[1]), None, None, mask, C, B, rn)
+    out = _modal(sub, horizon, tol, h)
+    if out is None or out[0] is not Verdict.YES:
+        return None
+    return out
 
 
 @dataclass
@@ -352,6 +382,51 @@ def _g(A, B, C, t, j, square_zero=False):
         b = B[:, j]
         return C @ (b + t * (A @ b))
     return C @ (expm(A * t) @ B[:, j])
+
+
+_REASON_FREE_SPAN = "the free inputs alone reach every output direction"
+
+
+def _free_inputs_span(A, B, C, mask):
+    """YES certificate from free inputs alone, or None: p samples
+    g_f(t_k) (7 times t_k in (0, 8/|A|_F]) that are robustly independent
+    (pivoted QR, |R_pp| > 1e-6 |R_11| on unit columns), each used with both
+    signs and unit weights. (|A|_F overestimates the spectral radius by up
+    to sqrt(n): shorter times see only the first Krylov directions.)"""
+    free = np.flatnonzero(~mask)
+    p = C.shape[0]
+    if free.size * 7 < p:
+        return None
+    As, Bs, Cs, _, col, row, rho = scaled_system(A, B[:, free], C)
+    h = 8.0 / 7
+    E = expm(As * h)
+    X, G = Bs, np.empty((7, p, free.size))
+    for i in range(7):
+        X = E @ X
+        G[i] = Cs @ X
+    S = G.transpose(1, 0, 2).reshape(p, -1)
+    norms = np.sqrt(np.einsum("ij,ij->j", S, S))
+    if not np.all(np.isfinite(norms)) or norms.max() == 0:
+        return None
+    # round-off columns must not be normalised into directions
+    U = S / np.where(norms > 1e-9 * norms.max(), norms, np.inf)
+    piv, r = qr_pivots(U)
+    if r.size < p or not r[p - 1] > 1e-6 * r[0]:
+        return None
+    k = piv[:p]
+    jl = k % free.size
+    t = np.repeat((k // free.size + 1) * h / rho, 2)
+    vecs = S[:, k] / row[:, None] / col[jl]  # scaled g_s = row * g * col_j
+    return POCCertificate(
+        "positive-span",
+        mask,
+        times=t,
+        inputs=np.repeat(free[jl], 2),
+        signs=np.tile([1.0, -1.0], p),
+        vectors=np.repeat(vecs, 2, axis=1),
+        weights=np.ones(2 * p),
+        proof={"path": "sampled-pairs"},
+    )
 
 
 def _free_pairs(A, B, C, free, r, horizon):
@@ -459,19 +534,21 @@ def _output_rank_defect(A, B, C, rn):
         v[int(np.argmin(rn))] = 1.0
         return v
     Cw = C / rn[:, None]
-    if p > n or (s := np.linalg.svd(Cw, compute_uv=False))[-1] <= RANK_TOL * s[0]:
-        U, _, _ = np.linalg.svd(Cw, full_matrices=True)
-        return _unit(U[:, -1] / rn)
     bn = np.linalg.norm(B, axis=0)
     Bn = B[:, bn > 0] / bn[bn > 0]
+    if Bn.shape[1] and p <= n:
+        # the sufficient test first (rank [CB, CAB] = p implies rank C = p)
+        a = float(np.abs(A).max())
+        X = Cw @ Bn
+        X = np.hstack([X, Cw @ (A @ Bn) / a]) if a > 0 else X
+        sx = svdvals(X)
+        if sx.size >= p and sx[p - 1] > 1e-8 * sx[0]:
+            return None
+    if p > n or (s := svdvals(Cw))[-1] <= RANK_TOL * s[0]:
+        U, _, _ = svd(Cw, full_matrices=True)
+        return _unit(U[:, -1] / rn)
     if Bn.shape[1] == 0:
-        return _unit(np.linalg.svd(Cw, full_matrices=True)[0][:, -1] / rn)
-    a = float(np.abs(A).max())
-    X = Cw @ Bn
-    X = np.hstack([X, Cw @ (A @ Bn) / a]) if a > 0 else X
-    sx = np.linalg.svd(X, compute_uv=False)
-    if sx.size >= p and sx[p - 1] > 1e-8 * sx[0]:
-        return None
+        return _unit(svd(Cw, full_matrices=True)[0][:, -1] / rn)
     Y = output_reachable_basis(A, B, C)
     if Y.shape[1] == p:
         return None
@@ -643,39 +720,60 @@ def _modal_structure(A, Bp, Cr):
     if n % 2 or n == 0:
         return None
     h = n // 2
-    ref = np.abs(A).max()
-    if ref == 0:
+    if Bp[:h].any() or Cr[:, h:].any():
         return None
-    zero = 1e-12 * ref
-    if (
-        np.abs(A[:h, :h]).max() > zero
-        or np.abs(A[h:, h:]).max() > zero
-        or np.abs(A[:h, h:] - np.eye(h)).max() > 1e-12
-    ):
-        return None
-    if np.abs(Bp[:h]).max() > 0 or np.abs(Cr[:, h:]).max() > 0:
-        return None
+    # exact zero / identity blocks (the usual case) need no tolerance
+    if A[:h, :h].any() or A[h:, h:].any() or not np.array_equal(A[:h, h:], np.eye(h)):
+        ref = np.abs(A).max()
+        if ref == 0:
+            return None
+        zero = 1e-12 * ref
+        if (
+            np.abs(A[:h, :h]).max() > zero
+            or np.abs(A[h:, h:]).max() > zero
+            or np.abs(A[:h, h:] - np.eye(h)).max() > 1e-12
+        ):
+            return None
     return h
 
 
-def _modal(sub: _Reduced, horizon, tol):
+def _real_eig(K):
+    """(kappa, U) of a K with real eigenvalues (LAPACK geev, right vectors
+    only), or None when some eigenvalue is complex beyond round-off."""
+    wr, wi, _, vr, info = lapack.dgeev(K, compute_vl=0)
+    if info != 0:  # pragma: no cover - LAPACK failure
+        return None
+    sK = float(np.abs(wr).max()) if wr.size else 0.0
+    if wi.any():
+        # conjugate pairs come packed as (Re v, Im v): take numpy's complex
+        # vectors and keep their real parts when the pair is round-off
+        kap, U = np.linalg.eig(K)
+        sK = float(np.abs(kap).max())
+        if sK == 0 or np.abs(kap.imag).max() > 1e-9 * sK:
+            return None
+        return kap.real, U.real, sK
+    if sK == 0:
+        return None
+    return wr, vr, sK
+
+
+def _modal(sub: _Reduced, horizon, tol, h=None):
     A, Bp, Cr = sub.A, sub.Bp, sub.Cr
-    h = _modal_structure(A, Bp, Cr)
+    h = h or _modal_structure(A, Bp, Cr)
     if h is None:
         return None
     K = A[h:, :h]
     Cq, Bv = Cr[:, :h], Bp[h:]
-    kap, U = np.linalg.eig(K)
-    sK = np.abs(kap).max()
-    if sK == 0 or np.abs(kap.imag).max() > 1e-9 * sK:
+    eig = _real_eig(K)
+    if eig is None:
         return None
-    kap, U = kap.real, U.real
+    kap, U, sK = eig
     try:
         Uinv = np.linalg.inv(U)
     except np.linalg.LinAlgError:
         return None
     # |U|_F |U^-1|_F bounds the condition number from above: no SVD needed
-    cond = float(np.linalg.norm(U) * np.linalg.norm(Uinv))
+    cond = math.sqrt(float(np.vdot(U, U)) * float(np.vdot(Uinv, Uinv)))
     if not np.isfinite(cond) or cond > 1e8:
         return None
     beta = Uinv @ Bv
@@ -693,10 +791,12 @@ def _modal(sub: _Reduced, horizon, tol):
             return None  # output rows not an invariant subspace: not exact
         full = Q.shape[1] == h
     bscale = np.linalg.norm(beta, axis=0) + 1e-300
-    T = horizon or _modal_horizon(kap)
-    groups = cluster(kap, 1e-8 * sK)
-    if full and len(groups) == h and _modal_rows_ok(kap, beta, bscale, sK):
+    T = horizon or sub.modal_T
+    simple = bool(np.all(np.diff(np.sort(kap)) > 1e-8 * sK))  # = no cluster of 2 or more
+    if full and simple and _modal_rows_ok(kap, beta, bscale, sK):
         groups = []  # full pose, simple eigenvalues: every mode passed at once
+    else:
+        groups = cluster(kap, 1e-8 * sK)
     for group in groups:
         k = float(np.mean(kap[group]))
         # modal coordinates seen by the outputs (all of them for a full pose):
@@ -806,9 +906,10 @@ def _modal_rows_ok(kap, beta, bscale, sK) -> bool:
     nonzero (the same thresholds as the loop: 1e-10 of the input's size,
     then the sign test's 1e-11 of the row's largest entry)."""
     Z = np.where(np.abs(beta) <= 1e-10 * bscale, 0.0, beta)
-    big = np.abs(Z).max(axis=1)
-    thr = (ZERO_RTOL * big)[:, None]
-    both = (Z > thr).any(axis=1) & (Z < -thr).any(axis=1)
+    hi, lo = Z.max(axis=1), Z.min(axis=1)
+    big = np.maximum(hi, -lo)
+    thr = ZERO_RTOL * big
+    both = (hi > thr) & (lo < -thr)
     return bool(np.all(np.where(kap >= -1e-9 * sK, both, big > 0)))
 
 
@@ -934,6 +1035,16 @@ class _ModalScaled(_Scaled):
     #: log of the largest growth of a sampled response
     LOG_GROWTH = math.log(1e8)
 
+    def columns(self, ts):
+        """As :meth:`_Scaled.columns`; no overflow check is needed (times
+        stop at ``t_max``, where the responses have grown by 1e8)."""
+        ts = ts[ts <= self.t_max]
+        S, scale = self.ev.columns(ts)
+        small = np.sqrt(np.einsum("ij,ij->j", S, S)) <= ZERO_RTOL * scale
+        if small.any():
+            S[:, small] = 0.0
+        return S, self.ev.beta.shape[1], ts
+
     def __init__(self, ev):
         self.ev = ev
         self.rho = 1.0
@@ -960,11 +1071,15 @@ def _sample_search(sub, T, sc=None, extra=None):
     grids = [Ts * _FIRST, _modes.coarse_times(Ts), None]
     if extra is not None:
         grids = grids[1:]
-    ts = np.zeros(0)
+    ts = None
     for grid in grids:
         if grid is None:
             grid = _modes.fine_times(Ts, sc.ev.eigvals)
-        ts = np.unique(np.concatenate([ts, grid] if extra is None else [ts, grid, extra]))
+        if ts is None and extra is None:
+            ts = grid  # sorted and unique
+        else:
+            parts = [grid] if ts is None else [ts, grid]
+            ts = np.unique(np.concatenate(parts if extra is None else [*parts, extra]))
         S, m, ts = sc.columns(ts)
         # columns were cleaned per vector: only exact zeros are zero here
         yes, _, _, idx, w, v = span_core(S, SPAN_TOL, zero_rtol=0.0)
@@ -976,8 +1091,8 @@ def _sample_search(sub, T, sc=None, extra=None):
 def _cert_from_columns(sub, sc, S, ts, m, idx, w):
     idx = np.asarray(idx)
     k, j = idx // m, idx % m
-    # span_core's weights refer to unit columns; re-evaluate the raw ones
-    raw = sc.ev(ts[k])[np.arange(k.size), :, j]  # (K, r)
+    # span_core's weights refer to unit columns; S holds the raw ones
+    raw = S[:, idx].T  # (K, r)
     wr = np.asarray(w) / np.linalg.norm(raw, axis=1)  # weights on raw scaled columns
     vectors = raw.T / sc.row[:, None] / sc.col[j]  # the outputs in original units
     # raw scaled g_s = row * g * col_j, so sum wr g_s = 0 <=> sum (wr col_j) g = 0

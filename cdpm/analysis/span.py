@@ -33,9 +33,12 @@ from scipy.spatial import ConvexHull, QhullError
 from cdpm.analysis._common import (
     Verdict,
     as_matrix,
+    eigh,
     fmt_array,
     html_table,
     numerical_rank,
+    qr_pivots,
+    svdvals,
     to_plain,
 )
 
@@ -291,38 +294,35 @@ def _span_angular(U: np.ndarray, nz: np.ndarray, tol: float):
 def _span_general(U: np.ndarray, nz: np.ndarray, tol: float):
     """NNLS decision on normalised columns U (p, k); LP only as a fallback."""
     p, k = U.shape
-    # left singular vectors from the p x p Gram matrix: k may be large
-    evals, evecs = np.linalg.eigh(U @ U.T)
-    s = np.sqrt(np.clip(evals[::-1], 0.0, None))
-    rank = numerical_rank(s, 1e-9)
-    if rank < p:
-        v = evecs[:, 0]
-        return False, "rank", rank, None, None, v
-    # one NNLS decides: with a basis b_1..b_p of columns (pivoted QR), the
-    # cone is R^p iff -sum b_i is in it; then the basis (weights >= 1) and
-    # the NNLS support (at most p columns) combine to 0 with positive weights
-    # (any b not in the cone proves NO, so the basis only matters for YES:
-    # the columns most aligned with the principal directions, re-checked
-    # for rank p, else a pivoted-QR basis)
-    for attempt in range(2):
-        if k <= 2 * p:
-            basis = np.arange(k)
-        elif attempt == 0:
-            basis = np.unique(np.argmax(np.abs(evecs.T @ U), axis=1))
-        else:
-            basis = _qr_pivots(U)[2][:p]
-        b = -U[:, basis].sum(axis=1)
-        mu, res = nnls(U, b, maxiter=50 * k + 100)
-        if res > 1e-10 * max(1.0, float(np.linalg.norm(b))):
-            break
+    # rank p and a well-conditioned basis from one pivoted QR (no SVD); the
+    # Gram eigen-decomposition (rank and separator) only if QR sees a defect
+    piv, rdiag = qr_pivots(U)
+    rank = p
+    if rdiag.size < p or not rdiag[p - 1] > 1e-9 * rdiag[0]:
+        # left singular vectors from the p x p Gram matrix: k may be large
+        evals, evecs = eigh(U @ U.T)
+        s = np.sqrt(np.clip(evals[::-1], 0.0, None))
+        rank = numerical_rank(s, 1e-9)
+        if rank < p:
+            v = evecs[:, 0]
+            return False, "rank", rank, None, None, v
+    # one NNLS decides: with a basis b_1..b_p of columns, the cone is R^p
+    # iff -sum b_i is in it; then the basis (weights >= 1) and the NNLS
+    # support (at most p columns) combine to 0 with positive weights. Any b
+    # not in the cone proves NO, so the basis only matters for YES: the
+    # first p pivots of the QR (independent by construction), all columns
+    # when there are few
+    basis = np.arange(k) if k <= 2 * p else piv[:p]
+    b = -U[:, basis].sum(axis=1)
+    mu, res = nnls(U, b, maxiter=50 * k + 100)
+    if res <= 1e-10 * max(1.0, float(np.linalg.norm(b))):
         w = mu.copy()
         w[basis] += 1.0
         idx = np.flatnonzero(w > 0)
-        sv = np.linalg.svd(U[:, idx], compute_uv=False)
+        sv = svdvals(U[:, idx])
         if sv.size >= p and sv[p - 1] > 1e-9 * sv[0]:
             return True, "nnls", p, nz[idx], w[idx], None
-        if k <= 2 * p:
-            break  # pragma: no cover - all columns have rank p here
+        return _span_lp(U, nz, tol, rank)  # pragma: no cover - the basis has rank p
     # KKT: U^T (U mu - b) >= 0, so v = -(U mu - b) separates
     r = U @ mu - b
     v = -r / np.linalg.norm(r)
@@ -333,22 +333,8 @@ def _span_general(U: np.ndarray, nz: np.ndarray, tol: float):
 
 def independent_columns(U: np.ndarray, r: int) -> np.ndarray:
     """Indices of r columns of U (p, k) spanning its r-dimensional range:
-    the columns most aligned with the r principal directions when they have
-    rank r, else the first r pivots of a pivoted QR."""
-    if U.shape[1] > r:
-        E = np.linalg.svd(U, full_matrices=False)[0][:, :r]
-        idx = np.unique(np.argmax(np.abs(E.T @ U), axis=1))
-        if idx.size == r:
-            sv = np.linalg.svd(U[:, idx], compute_uv=False)
-            if sv[-1] > 1e-6 * sv[0]:
-                return idx
-    return _qr_pivots(U)[2][:r]
-
-
-def _qr_pivots(U):
-    from scipy.linalg import qr
-
-    return qr(U, mode="economic", pivoting=True)
+    the first r pivots of a column-pivoted (rank-revealing) QR."""
+    return qr_pivots(U)[0][:r]
 
 
 def _span_lp(U: np.ndarray, nz: np.ndarray, tol: float, rank: int):
