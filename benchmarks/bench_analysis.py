@@ -107,7 +107,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="fewer repeats and seeds")
     args = parser.parse_args()
-    repeat, seeds = (30, 2) if args.quick else (200, 5)
+    repeat, seeds = (30, 3) if args.quick else (200, 8)
     cases = [
         ("paper (n=4, m=4, p=1, nilpotent)", paper_system()),
         ("12-state mechanical, full pose, slack", mechanical_system(taut=0, p=6)),
@@ -115,6 +115,7 @@ def main() -> None:
         ("12-state mechanical, p=3, slack", mechanical_system(taut=0, p=3)),
         ("random 8-state, complex modes", complex_system()),
     ]
+    print(f"BLAS threads: OPENBLAS_NUM_THREADS={os.environ['OPENBLAS_NUM_THREADS']} (pinned)")
     print(
         f"{'system':40s} {'verdict':>7s} {'method':>20s} {'decision':>10s} {'+margin':>10s} "
         f"{'baseline':>10s} {'ratio':>6s}"
@@ -136,9 +137,12 @@ def main() -> None:
             f"{name:40s} {res.verdict.value:>7s} {res.method:>20s} {ours * 1e6:8.0f}us "
             f"{both * 1e6:8.0f}us {base * 1e6:8.0f}us {base / ours:5.1f}x"
         )
-    print(f"\n12-state mechanical systems over seeds 1..{seeds}: speed-up over the baseline")
+    print(
+        f"\n12-state mechanical systems over seeds 1..{seeds} (per seed: median decision and "
+        "baseline cost; then min / median / max over the seeds)"
+    )
     for taut, p in ((0, 6), (2, 6), (0, 3)):
-        ratios = []
+        ours_s, base_s, ratios = [], [], []
         for seed in range(1, seeds + 1):
             A, B, C, mask = mechanical_system(taut=taut, p=p, seed=seed)
             ours = median_seconds(
@@ -146,13 +150,24 @@ def main() -> None:
                 repeat=repeat // 2,
             )
             base = median_seconds(
-                lambda A=A, B=B, C=C, mask=mask: baseline(A, B, C, mask), repeat=5
+                lambda A=A, B=B, C=C, mask=mask: baseline(A, B, C, mask),
+                repeat=max(repeat // 20, 5),
             )
+            ours_s.append(ours * 1e6)
+            base_s.append(base * 1e6)
             ratios.append(base / ours)
         print(
-            f"  taut={taut} p={p}: min {min(ratios):5.1f}x  median "
-            f"{statistics.median(ratios):5.1f}x  max {max(ratios):5.1f}x"
+            f"  taut={taut} p={p}: decision {_mmm(ours_s, 'us')}; baseline {_mmm(base_s, 'us')}; "
+            f"speed-up {_mmm(ratios, 'x')}"
         )
+
+
+def _mmm(values, unit):
+    """'min / median / max' of a few numbers."""
+    fmt = "{:.1f}" if unit == "x" else "{:.0f}"
+    return " / ".join(
+        fmt.format(v) + unit for v in (min(values), statistics.median(values), max(values))
+    )
 
 
 if __name__ == "__main__":
