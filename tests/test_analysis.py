@@ -330,3 +330,25 @@ def test_caller_arrays_are_not_mutated(paper):
     positive_controllability(A, B)
     for X, Y in zip((A, B, C), copies, strict=True):
         np.testing.assert_array_equal(X, Y)
+
+
+def test_lapack_helpers_agree_with_numpy():
+    from cdpm.analysis._common import eigh, qr_pivots, svd, svdvals
+
+    rng = np.random.default_rng(7)
+    for shape in ((6, 16), (16, 6), (3, 3), (1, 5)):
+        X = rng.normal(size=shape)
+        np.testing.assert_allclose(svdvals(X), np.linalg.svd(X, compute_uv=False), rtol=1e-12)
+        U, s, Vt = svd(X)
+        np.testing.assert_allclose((U * s) @ Vt, X, atol=1e-12)
+        U, s, Vt = svd(X, full_matrices=True)
+        assert U.shape == (shape[0], shape[0]) and Vt.shape == (shape[1], shape[1])
+        w, V = eigh(X @ X.T)
+        np.testing.assert_allclose((V * w) @ V.T, X @ X.T, atol=1e-10)
+        piv, r = qr_pivots(X)
+        assert sorted(piv.tolist()) == list(range(shape[1]))
+        assert np.all(np.diff(r) <= 1e-12)  # non-increasing |R_kk|
+        # the first pivots span the column space
+        k = min(shape)
+        assert np.linalg.matrix_rank(X[:, piv[:k]]) == np.linalg.matrix_rank(X)
+    assert svdvals(np.zeros((3, 0))).size == 0

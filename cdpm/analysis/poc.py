@@ -387,6 +387,28 @@ def _g(A, B, C, t, j, square_zero=False):
 _REASON_FREE_SPAN = "the free inputs alone reach every output direction"
 
 
+def _free_samples(A, B, C, free, N, step):
+    """Unit-column samples of the free inputs' outputs at t_k = k step / |A|
+    (k = 1..N, balanced and scaled system): returns (U (p, N f), S, times,
+    col, row) with S the raw scaled columns (column k f + j = g_{free[j]}(t_k)
+    scaled) and U = S with unit columns, round-off columns (below 1e-9 of
+    the longest) set to 0 so they are never normalised into directions
+    (all of U is 0 when S is 0 or not finite)."""
+    As, Bs, Cs, _, col, row, rho = scaled_system(A, B[:, free], C)
+    # step x(t + h) = e^{As h} x(t): one small expm, no eigen-solve
+    E = expm(As * step)
+    p = C.shape[0]
+    X, G = Bs, np.empty((N, p, free.size))
+    for i in range(N):
+        X = E @ X
+        G[i] = Cs @ X
+    S = G.transpose(1, 0, 2).reshape(p, -1)
+    norms = np.sqrt(np.einsum("ij,ij->j", S, S))
+    big = norms.max() if np.all(np.isfinite(norms)) else np.nan
+    U = S / np.where(norms > 1e-9 * big, norms, np.inf) if big > 0 else np.zeros_like(S)
+    return U, S, np.arange(1, N + 1) * step / rho, col, row
+
+
 def _free_inputs_span(A, B, C, mask):
     """YES certificate from free inputs alone, or None: p samples
     g_f(t_k) (7 times t_k in (0, 8/|A|_F]) that are robustly independent
@@ -397,30 +419,17 @@ def _free_inputs_span(A, B, C, mask):
     p = C.shape[0]
     if free.size * 7 < p:
         return None
-    As, Bs, Cs, _, col, row, rho = scaled_system(A, B[:, free], C)
-    h = 8.0 / 7
-    E = expm(As * h)
-    X, G = Bs, np.empty((7, p, free.size))
-    for i in range(7):
-        X = E @ X
-        G[i] = Cs @ X
-    S = G.transpose(1, 0, 2).reshape(p, -1)
-    norms = np.sqrt(np.einsum("ij,ij->j", S, S))
-    if not np.all(np.isfinite(norms)) or norms.max() == 0:
-        return None
-    # round-off columns must not be normalised into directions
-    U = S / np.where(norms > 1e-9 * norms.max(), norms, np.inf)
+    U, S, times, col, row = _free_samples(A, B, C, free, 7, 8.0 / 7)
     piv, r = qr_pivots(U)
     if r.size < p or not r[p - 1] > 1e-6 * r[0]:
         return None
     k = piv[:p]
     jl = k % free.size
-    t = np.repeat((k // free.size + 1) * h / rho, 2)
     vecs = S[:, k] / row[:, None] / col[jl]  # scaled g_s = row * g * col_j
     return POCCertificate(
         "positive-span",
         mask,
-        times=t,
+        times=np.repeat(times[k // free.size], 2),
         inputs=np.repeat(free[jl], 2),
         signs=np.tile([1.0, -1.0], p),
         vectors=np.repeat(vecs, 2, axis=1),
@@ -431,27 +440,14 @@ def _free_inputs_span(A, B, C, mask):
 
 def _free_pairs(A, B, C, free, r, horizon):
     """(t, j) pairs of free inputs whose outputs span their reachable subspace."""
-    As, Bs, Cs, _, col, row, rho = scaled_system(A, B[:, free], C)
     # early nonzero times suffice to span the free reachable subspace
     # (|As| = 1); g(0) = C b is often exactly 0 (velocity inputs)
     N = max(2 * A.shape[0], 7)
-    times = np.arange(1, N + 1) * (2.0 / N)
-    # step x(t + h) = e^{As h} x(t): one small expm, no eigen-solve
-    E = expm(As * (2.0 / N))
-    X, G = Bs, np.empty((N, C.shape[0], free.size))
-    for i in range(N):
-        X = E @ X
-        G[i] = Cs @ X
-    S = G.transpose(1, 0, 2).reshape(C.shape[0], -1)
-    norms = np.linalg.norm(S, axis=0)
-    # round-off columns must not be normalised into directions
-    norms = np.where(norms > 1e-9 * norms.max(), norms, np.inf)
-    k = independent_columns(S / norms, r)
-    t = times[k // free.size] / rho
+    U, S, times, col, row = _free_samples(A, B, C, free, N, 2.0 / N)
+    k = independent_columns(U, r)
     jl = k % free.size
     # scaled g_s = row * g * col_j (see scaled_system)
-    vecs = G[k // free.size, :, jl].T / row[:, None] / col[jl]
-    return t, free[jl], vecs
+    return times[k // free.size], free[jl], S[:, k] / row[:, None] / col[jl]
 
 
 def _lift_yes(A, B, C, mask, pairs, Fpairs, square_zero=False, vectors=None):
