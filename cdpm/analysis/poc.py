@@ -47,13 +47,13 @@ from cdpm.analysis._common import (
 )
 from cdpm.analysis.brammer import left_eigen_separator
 from cdpm.analysis.certificate import POCCertificate
+from cdpm.analysis.margin import grid_points, margin_horizon, sample_curve, signed_inradius
 from cdpm.analysis.rank import output_reachable_basis, reachable_basis
 from cdpm.analysis.span import (
     SPAN_TOL,
     ZERO_RTOL,
     independent_columns,
     span_core,
-    span_margin_bracket,
 )
 from cdpm.errors import InputError
 
@@ -76,14 +76,20 @@ class POCResult:
         reason: one readable sentence.
         certificate: :class:`~cdpm.analysis.certificate.POCCertificate`;
             ``result.certificate.verify(A, B, C)`` re-checks it.
-        horizon: the horizon T used for the search and the margin [time].
+        horizon: the horizon of the sampled search [time] (the certificate's
+            times when a path needed longer).
         margin: ``mu_T = min_{|v|=1} max_{t in [0,T], j} v^T W C e^{At} b_j s_j``
             (W = output_weight, s = input_scale; free inputs count with both
-            signs), evaluated on a time grid: a lower bound of mu_T, exact
-            for A^2 = 0. Positive iff POC is seen within the horizon; for a NO
-            or MARGINAL verdict it is clipped to <= 0. See docs/analysis.md.
+            signs) with ``T = margin_horizon``: the signed inradius about 0
+            of the outputs g_j(t_k) sampled on a fixed grid of [0, T]
+            (a lower bound of mu_T, exact for A^2 = 0), continuous in
+            (A, B, C). Positive iff POC is seen within T; clipped to <= 0
+            unless the verdict is YES. See docs/analysis.md.
         margin_bracket: (lower, upper) bounds of mu_T (the upper bound adds
-            the grid spacing times a Lipschitz bound of g).
+            the grid spacing times a Lipschitz bound of g; for p >= 4 the
+            lower one is the cross-polytope bound r1 / sqrt(p)).
+        margin_horizon: T of the margin: ``horizon=`` if given, else a
+            continuous function of A (:func:`cdpm.analysis.margin.margin_horizon`).
         output_rank: rank of [CB, CAB, ...]; output_controllable: == p.
         A, B, C, sign_constrained: the (validated copies of the) system.
     """
@@ -99,6 +105,7 @@ class POCResult:
     sign_constrained: np.ndarray = field(repr=False)
     input_scale: np.ndarray | None = field(repr=False)
     output_weight: np.ndarray | None = field(repr=False)
+    fixed_horizon: float | None = field(default=None, repr=False)
 
     def __bool__(self) -> bool:
         return self.verdict is Verdict.YES
@@ -110,6 +117,13 @@ class POCResult:
     @property
     def output_controllable(self) -> bool:
         return self.output_rank == self.C.shape[0]
+
+    @functools.cached_property
+    def margin_horizon(self) -> float:
+        """Horizon of the margin [time]: the ``horizon=`` passed by the
+        caller, else :func:`~cdpm.analysis.margin.margin_horizon` (a
+        continuous function of the spectrum, |A|_2, CB and CAB)."""
+        return self.fixed_horizon or margin_horizon(self.A, self.B, self.C)
 
     @functools.cached_property
     def margin_bracket(self) -> tuple[float, float]:
@@ -165,7 +179,7 @@ class POCResult:
     def __str__(self) -> str:
         head = (
             f"positive output controllability: {self.verdict} ({self.method}; "
-            f"margin {self.margin:.4g} on [0, {self.horizon:.4g}])"
+            f"margin {self.margin:.4g} on [0, {self.margin_horizon:.4g}])"
         )
         return "\n".join([head, f"  {self.reason}", *self._certificate_lines()])
 
@@ -175,7 +189,7 @@ class POCResult:
             [
                 ("method", self.method),
                 ("reason", self.reason),
-                ("margin", f"{self.margin:.4g} (horizon {self.horizon:.4g})"),
+                ("margin", f"{self.margin:.4g} (horizon {self.margin_horizon:.4g})"),
                 ("certificate", "\n".join(self._certificate_lines())),
             ],
         )
@@ -201,8 +215,9 @@ def positive_output_controllability(
         sign_constrained: bool mask (m,); True (default for all) = u_j >= 0
             (slack cable), False = free in sign (taut cable).
         horizon: time horizon T [time unit of A] for the sampled search and
-            the margin; default from the spectrum (see docs/analysis.md).
-            Pass a fixed value when comparing margins across poses.
+            the margin; default: the search's from the spectrum and the
+            margin's from :func:`cdpm.analysis.margin.margin_horizon` (see
+            docs/analysis.md). Pass a fixed value to compare margins on one T.
         input_scale: positive (m,) input scales for the margin (e.g. tension
             bounds [N]); default ones.
         output_weight: positive (p,) output weights for the margin; default ones.
@@ -239,7 +254,9 @@ def _poc(A, B, C, mask, horizon=None, input_scale=None, output_weight=None, tol=
     if out is None:
         out = _decide(A, B, C, mask, horizon, tol)
     verdict, method, reason, cert, T = out
-    return POCResult(verdict, method, reason, cert, T, A, B, C, mask, input_scale, output_weight)
+    return POCResult(
+        verdict, method, reason, cert, T, A, B, C, mask, input_scale, output_weight, horizon
+    )
 
 
 # --------------------------------------------------------------------------
@@ -1192,62 +1209,25 @@ def _separator(S, v):
 
 
 def poc_margin(res: POCResult) -> tuple[float, float]:
-    """(lower, upper) bounds of mu_T on [0, horizon] (see :class:`POCResult`)."""
+    """(lower, upper) bounds of mu_T on [0, ``res.margin_horizon``] (see
+    :mod:`cdpm.analysis.margin`); clipped to <= 0 unless the verdict is YES."""
     A, B, C, mask = res.A, res.B, res.C, res.sign_constrained
     p = C.shape[0]
     if p == 0:
         return math.inf, math.inf
     Bw = B if res.input_scale is None else B * res.input_scale
     Cw = C if res.output_weight is None else C * res.output_weight[:, None]
-    T = res.horizon
-    if res.certificate.kind == "positive-span" and res.certificate.times.size:
-        T = max(T, float(res.certificate.times.max()))
-    if _is_square_zero(A):
-        ts = np.array([0.0, T])
-        lip = 0.0
-        G = np.stack([Cw @ Bw, Cw @ Bw + T * (Cw @ (A @ Bw))])
+    T = res.margin_horizon
+    square_zero = _is_square_zero(A)
+    K = 2 if square_zero else grid_points(p)
+    G, lip = sample_curve(A, Bw, Cw, T, K, square_zero)
+    if mask.all():
+        mu, hi = signed_inradius(G)
     else:
-        N = 64 if p >= 4 else 200
-        ts = np.linspace(0.0, T, N + 1)
-        E = expm(A * (T / N))
-        X = Bw.copy()
-        G, D = [], []
-        with np.errstate(over="ignore", invalid="ignore"):
-            for _ in ts:
-                G.append(Cw @ X)
-                D.append(Cw @ (A @ X))
-                X = E @ X
-        G, D = np.array(G), np.array(D)
-        # an unstable system may overflow late in a long horizon: keep [0, t_last]
-        ok = np.isfinite(G).all(axis=(1, 2)) & np.isfinite(D).all(axis=(1, 2))
-        last = int(np.argmin(ok)) if not ok.all() else ok.size
-        ts, G, D = ts[:last], G[:last], D[:last]
-        lip = float(np.max(np.linalg.norm(D, axis=1))) * 1.1
-    cert = res.certificate
-    if cert.kind == "positive-span" and cert.times.size and not _is_square_zero(A):
-        # the certificate's own times: mu_T > 0 is then visible on the grid
-        extra = np.unique(cert.times[cert.times <= T])
-        with np.errstate(over="ignore", invalid="ignore"):
-            Ge = np.array([Cw @ (expm(A * t) @ Bw) for t in extra])
-        if Ge.size and np.isfinite(Ge).all():
-            G = np.concatenate([G, Ge])
-    Sp = G[:, :, mask].transpose(1, 0, 2).reshape(p, -1)
-    # free inputs count with both signs (passed once: two-sided constraints)
-    Gf = G[:, :, ~mask].transpose(1, 0, 2).reshape(p, -1)
-    yes = span_core(np.hstack([Sp, Gf, -Gf]), SPAN_TOL)[0]
-    mu, hi = span_margin_bracket(Sp, yes, Gf)
-    if res.verdict is Verdict.YES and cert.vectors is not None:
-        # conv(certificate) lies in conv(samples): its index is a lower
-        # bound too, and robust when a growing system dwarfs early samples
-        s_in = np.ones(B.shape[1]) if res.input_scale is None else res.input_scale
-        w_out = np.ones(p) if res.output_weight is None else res.output_weight
-        Sc = cert.vectors * s_in[cert.inputs] * w_out[:, None]
-        on_free = ~mask[cert.inputs]
-        one_sided = Sc[:, ~on_free] * cert.signs[~on_free]
-        both = Sc[:, on_free & (cert.signs > 0)]
-        mu = max(mu, span_margin_bracket(one_sided, True, both)[0])
+        cols = np.tile(mask, K)
+        mu, hi = signed_inradius(G[:, cols], G[:, ~cols])
     # the curve between grid points is within lip * h / 2 of the samples
-    hi = max(hi, mu) + (lip * (ts[1] - ts[0]) / 2 if ts.size > 1 else 0.0)
+    hi = max(hi, mu) + lip * T / (K - 1) / 2
     if res.verdict is not Verdict.YES:
         mu, hi = min(mu, 0.0), min(hi, 0.0)
     return float(mu), float(hi)

@@ -1,0 +1,296 @@
+"""The POC margin: a continuous index of how robustly POC holds.
+
+THEORY section 4:
+
+    mu_T = min_{|v|=1} max_{t in [0, T], j} v^T W C e^{At} b_j s_j
+
+(``s`` input scales, ``W`` output weights, free inputs with both signs):
+the inradius about 0 of ``H_T = conv{g_j(t) : t in [0, T], j}`` when 0 is
+interior to it, minus the distance from 0 to ``H_T`` otherwise (0 on its
+boundary). ``H_T`` is the set of outputs reachable at T with unit total
+input impulse.
+
+Everything here is a continuous function of (A, B, C, s, W):
+
+- the horizon (:func:`margin_horizon`) is a continuous function of the
+  spectrum and of ``|A|_2`` (no sampled search, no pivoting);
+- the curve is sampled on a fixed grid ``t_k = k T / N`` (N fixed per p) by
+  stepping with ``e^{A T / N}`` (doubling: ``[X, E X]``, ``E <- E^2``);
+- the signed inradius of the sampled hull is computed exactly for p <= 3
+  (planar hull by a monotone chain, spatial hull by Qhull) and bracketed by
+  2p small LPs for p >= 4 (:func:`cdpm.analysis.span.cross_polytope_radius`).
+
+The sampled hull lies inside ``H_T`` (its points are curve points), so the
+sampled value is a lower bound of mu_T; ``H_T`` lies within ``lip h / 2``
+of it (``lip`` a Lipschitz bound of g on the grid, ``h`` the step), which
+gives the upper end of the bracket.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.linalg import expm, lapack
+from scipy.spatial import ConvexHull, QhullError
+
+from cdpm.analysis.span import cross_polytope_radius, min_norm_separator
+
+#: one undamped period (2 pi / |lambda|), or 2 pi time constants of a real mode
+SEE_PERIODS = 2 * math.pi
+#: longest margin horizon, in units of 1/|A|_2
+HORIZON_MAX_UNITS = 1e3
+#: largest growth e^{Re(lambda) T} of a sampled response (as the modal path)
+LOG_GROWTH = math.log(1e8)
+#: time samples (grid points t_0 = 0 .. t_N = T, a power of 2) per output dimension
+GRID_POINTS = {1: 256, 2: 64, 3: 32}
+GRID_POINTS_HIGH = 64
+
+
+def margin_horizon(
+    A: np.ndarray, B: np.ndarray | None = None, C: np.ndarray | None = None
+) -> float:
+    """Default horizon T of the margin, a continuous function of (A, B, C) [time].
+
+    With ``tau = 1 / |A|_2`` and the normalised eigenvalues
+    ``mu_i = lambda_i tau`` (``|mu_i| <= 1``):
+
+    - each mode asks for ``h_i = 2 pi / |mu_i|`` units of tau (one period of
+      an undamped oscillation, 2 pi time constants of a real mode). Modes
+      too slow to be seen within ``R = 1000`` units are polynomial over the
+      horizon, like an integrator, whose directions appear at any t > 0:
+      h tapers linearly to 0 between ``|mu| = 2 pi / R`` and half of that,
+      so the rule is continuous through ``lambda -> 0``;
+    - each input asks for ``2 |C b_j| / |C A b_j|`` (the time at which the
+      drift of ``g_j(t) = C b_j + t C A b_j + ...`` has turned it past 0;
+      the denominator is at least ``|C b_j| |A|_2 / R``);
+
+    then ``T = tau * min(max(1, h_i, ...), R, ln(1e8) / max_i Re mu_i)``, the
+    last term (growing systems only) keeping the growth of the sampled
+    responses below 1e8. For A = [[0, I], [0, 0]] with C B = 0 (a
+    mechanical system at zero tension) T = 1.
+
+    Args:
+        A: state matrix, shape (n, n), finite.
+        B: input matrix (n, m), optional (with C).
+        C: output matrix (p, n), optional (with B).
+
+    Returns:
+        T > 0 in the time unit of A (1 when A = 0).
+    """
+    if A.size == 0:
+        return 1.0
+    s = lapack.dgesdd(A, compute_uv=0)[1] if A.shape[0] > 1 else np.abs(A).ravel()
+    norm = float(s[0])
+    if not norm > 0:
+        return 1.0
+    tau = 1.0 / norm
+    wr, wi = lapack.dgeev(A * tau, compute_vl=0, compute_vr=0)[:2]
+    mu1 = SEE_PERIODS / HORIZON_MAX_UNITS
+    units, grow = 1.0, 0.0
+    for re, im in zip(wr.tolist(), wi.tolist(), strict=True):
+        r = math.hypot(re, im)
+        # one period / 2 pi time constants; tapered to 0 for modes too slow to see
+        h = SEE_PERIODS / r if r >= mu1 else HORIZON_MAX_UNITS * (2 * r / mu1 - 1.0)
+        units, grow = max(units, h), max(grow, re)
+    if B is not None and C is not None and B.size and C.size:
+        CB = C @ B
+        c0 = np.sqrt((CB * CB).sum(axis=0))
+        CAB = (C @ (A * tau)) @ B
+        c1 = np.maximum(np.sqrt((CAB * CAB).sum(axis=0)), c0 / HORIZON_MAX_UNITS)
+        turn = np.divide(2 * c0, c1, out=np.zeros_like(c0), where=c1 > 0)
+        units = max(units, float(turn.max()))
+    units = min(units, HORIZON_MAX_UNITS)
+    if grow > 0:
+        units = min(units, LOG_GROWTH / grow)
+    return tau * units
+
+
+def grid_points(p: int) -> int:
+    """Number of grid times (t_0 = 0 .. t_N = T) for p outputs."""
+    return GRID_POINTS.get(p, GRID_POINTS_HIGH)
+
+
+def sample_curve(A, Bw, Cw, T: float, points: int, square_zero: bool = False):
+    """g(t_k) = Cw e^{A t_k} Bw at ``t_k = k T / (points - 1)``.
+
+    Returns:
+        (G, lip): G (p, points * m) with column ``k * m + j`` = g_j(t_k), and a
+        Lipschitz bound of g on [0, T] (the largest ``|Cw A e^{At} b_j|``
+        on the grid, times 1.1; 0 when A^2 = 0, where only the end points are
+        returned: the curve is then a segment per input, points = 2).
+    """
+    n, m = Bw.shape
+    if square_zero:
+        X = np.hstack([Bw, Bw + T * (A @ Bw)])
+        return Cw @ X, 0.0
+    E = expm(A * (T / (points - 1)))
+    X = np.empty((n, points * m))
+    X[:, :m] = Bw
+    done = m
+    while done < X.shape[1]:
+        step = min(done, X.shape[1] - done)
+        np.matmul(E, X[:, :step], out=X[:, done : done + step])
+        done += step
+        if done < X.shape[1]:
+            E = E @ E
+    G = Cw @ X
+    D = (Cw @ A) @ X
+    lip = 1.1 * math.sqrt(float((D * D).sum(axis=0).max())) if D.size else 0.0
+    return G, lip
+
+
+def signed_inradius(S: np.ndarray, S_sym: np.ndarray | None = None) -> tuple[float, float]:
+    """(lower, upper) bounds of ``mu = min_{|v|=1} max_i v^T s_i`` over the
+    columns of S (p, k) and of +-S_sym (p, k2).
+
+    mu is the inradius about 0 of the convex hull when 0 is interior, minus
+    the distance from 0 to the hull otherwise. Exact (lower == upper) for
+    p <= 3; for p >= 4 ``r1 / sqrt(p) <= mu <= upper`` with the
+    cross-polytope radius r1 (2p LPs) when 0 is interior, exact otherwise.
+    """
+    p = S.shape[0]
+    if S_sym is not None and S_sym.shape[1]:
+        P = np.hstack([S, S_sym, -S_sym])
+    else:
+        P = S
+        S_sym = None
+    if p == 0:
+        return math.inf, math.inf
+    if P.shape[1] == 0:
+        return 0.0, 0.0
+    if p == 1:
+        mu = float(min(P.max(), -P.min()))
+        return mu, mu
+    if p == 2:
+        mu = _planar(P)
+        return mu, mu
+    if p == 3:
+        mu = _spatial(P)
+        return mu, mu
+    sep = min_norm_separator(P)
+    if sep is not None:
+        return -float(sep[1]), -float(sep[1])
+    r1, hi = cross_polytope_radius(S, S_sym)
+    return r1 / math.sqrt(p), hi
+
+
+# --------------------------------------------------------------------------
+# planar: monotone chain on the points outside an inner polygon
+
+_DIRS = np.exp(1j * np.linspace(0.0, 2 * np.pi, 16, endpoint=False))
+_DIRS = np.stack([_DIRS.real, _DIRS.imag])  # (2, 16), counter-clockwise
+
+
+def _planar(P: np.ndarray) -> float:
+    """Signed inradius about 0 of conv of the columns of P (2, k)."""
+    P = _prefilter(P)
+    return _polygon_signed_inradius(_monotone_chain(P[0], P[1]))
+
+
+def _prefilter(P: np.ndarray) -> np.ndarray:
+    """Drop points strictly inside the polygon of the extreme points in 16
+    directions of the whitened cloud (Akl-Toussaint); the hull is unchanged.
+
+    Whitening (``z = L^-1 x`` with ``P P^T = L L^T``) keeps the directions
+    useful for the long thin hulls of growing systems; the extreme points
+    of counter-clockwise directions come in counter-clockwise order. The
+    polygon is used only when it is convex and winds once (round-off in
+    near-collinear extreme points can break that), and points within a
+    round-off band of its edges are kept.
+    """
+    if P.shape[1] <= 24:
+        return P
+    (a, b), (_, c) = (P @ P.T).tolist()
+    if not a > 0:
+        return P
+    l11 = math.sqrt(a)
+    l21 = b / l11
+    d2 = c - l21 * l21
+    if not d2 > 1e-24 * c:
+        return P
+    l22 = math.sqrt(d2)
+    # support in direction d of z is support in direction L^-T d of x
+    Linv_T = np.array([[1 / l11, -l21 / (l11 * l22)], [0.0, 1 / l22]])
+    idx = np.argmax((Linv_T @ _DIRS).T @ P, axis=1).tolist()
+    ext = [i for k, i in enumerate(idx) if i != idx[k - 1]]
+    if len(ext) < 3:
+        return P
+    ex, ey = P[0, ext].tolist(), P[1, ext].tolist()
+    h = len(ext)
+    dx = [ex[(k + 1) % h] - ex[k] for k in range(h)]
+    dy = [ey[(k + 1) % h] - ey[k] for k in range(h)]
+    ang = [math.atan2(y, x) for x, y in zip(dx, dy, strict=True)]
+    turns = [(ang[(k + 1) % h] - ang[k]) % (2 * math.pi) for k in range(h)]
+    convex = all(0 < t < math.pi for t in turns) and abs(sum(turns) - 2 * math.pi) < 1e-9
+    if not (convex and all(x or y for x, y in zip(dx, dy, strict=True))):
+        return P
+    # cross(e_{k+1} - e_k, x - e_k) > band for every edge: strictly inside
+    scale = 1e-12 * float(np.abs(P).max())
+    normals = np.array([[-y for y in dy], dx]).T
+    rhs = [
+        x * yk - y * xk + scale * math.hypot(x, y)
+        for x, y, xk, yk in zip(dx, dy, ex, ey, strict=True)
+    ]
+    inside = (normals @ P > np.array(rhs)[:, None]).all(axis=0)
+    return P[:, ~inside]
+
+
+def _monotone_chain(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Counter-clockwise hull vertices (h, 2) of the points (x, y) (Andrew)."""
+    order = np.lexsort((y, x))
+    pts = list(zip(x[order].tolist(), y[order].tolist(), strict=True))
+
+    def half(seq):
+        out = []
+        for px, py in seq:
+            while len(out) >= 2:
+                (ax, ay), (bx, by) = out[-2], out[-1]
+                if (bx - ax) * (py - ay) - (by - ay) * (px - ax) > 0:
+                    break
+                out.pop()
+            out.append((px, py))
+        return out
+
+    lower, upper = half(pts), half(reversed(pts))
+    hull = lower[:-1] + upper[:-1]
+    if not hull:
+        hull = pts[:1]
+    return np.array(hull, dtype=float)
+
+
+def _polygon_signed_inradius(V: np.ndarray) -> float:
+    """Signed inradius about 0 of the convex polygon with CCW vertices V (h, 2)."""
+    a = V
+    b = np.roll(V, -1, axis=0)
+    d = b - a
+    length = np.hypot(d[:, 0], d[:, 1])
+    if V.shape[0] >= 3:
+        cross = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+        off = cross / length  # distance of 0 to each edge line, > 0 inside
+        if np.all(off > 0):
+            return float(off.min())
+    # 0 outside or on the boundary: minus its distance to the edges
+    with np.errstate(invalid="ignore", divide="ignore"):
+        s = np.clip(-(a[:, 0] * d[:, 0] + a[:, 1] * d[:, 1]) / length**2, 0.0, 1.0)
+    s = np.where(length > 0, s, 0.0)
+    c = a + s[:, None] * d
+    return -float(np.hypot(c[:, 0], c[:, 1]).min())
+
+
+# --------------------------------------------------------------------------
+# spatial: Qhull
+
+
+def _spatial(P: np.ndarray) -> float:
+    """Signed inradius about 0 of conv of the columns of P (3, k)."""
+    try:
+        hull = ConvexHull(P.T)
+    except QhullError:  # flat or degenerate: 0 is never interior
+        sep = min_norm_separator(P)
+        return 0.0 if sep is None else -float(sep[1])
+    off = hull.equations[:, -1]  # unit outward normals: n.x + off <= 0 inside
+    if np.all(off < 0):
+        return float(-off.max())
+    sep = min_norm_separator(P[:, hull.vertices])
+    return 0.0 if sep is None else -float(sep[1])
