@@ -42,6 +42,8 @@ SEE_PERIODS = 2 * math.pi
 HORIZON_MAX_UNITS = 1e3
 #: largest growth e^{Re(lambda) T} of a sampled response (as the modal path)
 LOG_GROWTH = math.log(1e8)
+#: the same for p >= 4, where the LP bracket needs a moderate dynamic range
+LOG_GROWTH_HIGH = math.log(1e4)
 #: time samples (grid points t_0 = 0 .. t_N = T, a power of 2) per output dimension
 GRID_POINTS = {1: 256, 2: 64, 3: 32}
 GRID_POINTS_HIGH = 64
@@ -55,19 +57,20 @@ def margin_horizon(
     With ``tau = 1 / |A|_2`` and the normalised eigenvalues
     ``mu_i = lambda_i tau`` (``|mu_i| <= 1``):
 
-    - each mode asks for ``h_i = 2 pi / |mu_i|`` units of tau (one period of
-      an undamped oscillation, 2 pi time constants of a real mode). Modes
-      too slow to be seen within ``R = 1000`` units are polynomial over the
-      horizon, like an integrator, whose directions appear at any t > 0:
-      h tapers linearly to 0 between ``|mu| = 2 pi / R`` and half of that,
-      so the rule is continuous through ``lambda -> 0``;
-    - each input asks for ``2 |C b_j| / |C A b_j|`` (the time at which the
-      drift of ``g_j(t) = C b_j + t C A b_j + ...`` has turned it past 0;
-      the denominator is at least ``|C b_j| |A|_2 / R``);
+    - each mode asks for ``x = 2 pi / |mu_i|`` units of tau (one period of
+      an undamped oscillation, 2 pi time constants of a real mode);
+    - each input asks for ``x = 2 |C b_j| / |C A b_j|`` units (the time at
+      which the drift of ``g_j(t) = C b_j + t C A b_j + ...`` has turned it
+      past 0);
+    - a request x beyond ``R = 1000`` units cannot be seen: it tapers as
+      ``R (2R / x - 1)`` to 0 at 2R (a mode that slow is polynomial over the
+      horizon, like an integrator, whose directions appear at any t > 0), so
+      the rule is continuous through ``lambda -> 0`` and ``C A b_j -> 0``;
 
     then ``T = tau * min(max(1, h_i, ...), R, ln(1e8) / max_i Re mu_i)``, the
     last term (growing systems only) keeping the growth of the sampled
-    responses below 1e8. For A = [[0, I], [0, 0]] with C B = 0 (a
+    responses below 1e8 (1e4 for p >= 4, whose LP bracket loses accuracy
+    on hulls of a larger dynamic range). For A = [[0, I], [0, 0]] with C B = 0 (a
     mechanical system at zero tension) T = 1.
 
     Args:
@@ -86,24 +89,32 @@ def margin_horizon(
         return 1.0
     tau = 1.0 / norm
     wr, wi = lapack.dgeev(A * tau, compute_vl=0, compute_vr=0)[:2]
-    mu1 = SEE_PERIODS / HORIZON_MAX_UNITS
     units, grow = 1.0, 0.0
     for re, im in zip(wr.tolist(), wi.tolist(), strict=True):
         r = math.hypot(re, im)
-        # one period / 2 pi time constants; tapered to 0 for modes too slow to see
-        h = SEE_PERIODS / r if r >= mu1 else HORIZON_MAX_UNITS * (2 * r / mu1 - 1.0)
-        units, grow = max(units, h), max(grow, re)
+        units = max(units, _taper(SEE_PERIODS / r if r > 0 else math.inf))
+        grow = max(grow, re)
     if B is not None and C is not None and B.size and C.size:
         CB = C @ B
-        c0 = np.sqrt((CB * CB).sum(axis=0))
         CAB = (C @ (A * tau)) @ B
-        c1 = np.maximum(np.sqrt((CAB * CAB).sum(axis=0)), c0 / HORIZON_MAX_UNITS)
-        turn = np.divide(2 * c0, c1, out=np.zeros_like(c0), where=c1 > 0)
-        units = max(units, float(turn.max()))
+        c0 = np.sqrt((CB * CB).sum(axis=0)).tolist()
+        c1 = np.sqrt((CAB * CAB).sum(axis=0)).tolist()
+        for a, b in zip(c0, c1, strict=True):
+            units = max(units, _taper(2 * a / b if b > 0 else (math.inf if a > 0 else 0.0)))
     units = min(units, HORIZON_MAX_UNITS)
     if grow > 0:
-        units = min(units, LOG_GROWTH / grow)
+        high = C is not None and C.shape[0] >= 4
+        units = min(units, (LOG_GROWTH_HIGH if high else LOG_GROWTH) / grow)
     return tau * units
+
+
+def _taper(x: float) -> float:
+    """A seeing time x (units of tau) if at most R, else tapered to 0 at 2R:
+    ``R (2R / x - 1)`` (continuous; what cannot be seen within R is ignored)."""
+    R = HORIZON_MAX_UNITS
+    if x <= R:
+        return x
+    return R * (2 * R / x - 1.0) if x < 2 * R else 0.0
 
 
 def grid_points(p: int) -> int:
@@ -168,9 +179,9 @@ def signed_inradius(S: np.ndarray, S_sym: np.ndarray | None = None) -> tuple[flo
     if p == 3:
         mu = _spatial(P)
         return mu, mu
-    sep = min_norm_separator(P)
-    if sep is not None:
-        return -float(sep[1]), -float(sep[1])
+    d = _distance(P)
+    if d > 0:
+        return -d, -d
     r1, hi = cross_polytope_radius(S, S_sym)
     return r1 / math.sqrt(p), hi
 
@@ -287,10 +298,18 @@ def _spatial(P: np.ndarray) -> float:
     try:
         hull = ConvexHull(P.T)
     except QhullError:  # flat or degenerate: 0 is never interior
-        sep = min_norm_separator(P)
-        return 0.0 if sep is None else -float(sep[1])
+        return -_distance(P)
     off = hull.equations[:, -1]  # unit outward normals: n.x + off <= 0 inside
     if np.all(off < 0):
         return float(-off.max())
-    sep = min_norm_separator(P[:, hull.vertices])
-    return 0.0 if sep is None else -float(sep[1])
+    return -_distance(P[:, hull.vertices])
+
+
+def _distance(P: np.ndarray) -> float:
+    """Distance from 0 to conv of the columns of P (least-distance
+    programming by NNLS on the points scaled to unit size)."""
+    scale = float(np.abs(P).max())
+    if not scale > 0:
+        return 0.0
+    sep = min_norm_separator(P / scale)
+    return 0.0 if sep is None else float(sep[1]) * scale
