@@ -3,8 +3,10 @@
 Baseline: Theorem 1 sampled at 50 times with scipy.linalg.expm, then one
 HiGHS LP deciding whether the sampled output vectors positively span.
 Also prints the cost of a decision plus its margin (``result.margin``, read
-per pose by the workspace maps), and for the 12-state mechanical systems the
-smallest speed-up over several random seeds.
+per pose by the workspace maps), for the 12-state mechanical systems the
+smallest speed-up over several random seeds, and decision vs decision +
+margin over random gravity poses of models/two_link_vertical (n = 4, m = 4,
+p = 2, the equilibrium's cone and all cables slack), as maps evaluate them.
 
 BLAS is pinned to one thread (as map workers should be): on a loaded
 machine a threaded OpenBLAS makes small-matrix calls 5-10x slower and
@@ -159,6 +161,57 @@ def main() -> None:
         print(
             f"  taut={taut} p={p}: decision {_mmm(ours_s, 'us')}; baseline {_mmm(base_s, 'us')}; "
             f"speed-up {_mmm(ratios, 'x')}"
+        )
+    vertical_rows(12 if args.quick else 40, repeat=10 if args.quick else 30)
+
+
+def vertical_systems(count: int):
+    """(A, B, C, mask) of two_link_vertical under gravity at random feasible
+    poses (min-norm equilibrium tension): taut cables free, slack ones not."""
+    from pathlib import Path
+
+    import cdpm
+
+    robot = cdpm.load_robot(Path(__file__).resolve().parents[1] / "models" / "two_link_vertical")
+    rng = np.random.default_rng(5)
+    out = []
+    while len(out) < count:
+        try:
+            lin = cdpm.linearise(robot, rng.uniform(-np.pi, np.pi, size=2))
+        except cdpm.InfeasibleEquilibriumError:
+            continue
+        out.append((lin.A, lin.B_cone, lin.C, lin.sign_constrained.copy()))
+    return out
+
+
+def vertical_rows(count: int, repeat: int) -> None:
+    """Median over poses of the per-pose median decision and decision + margin cost."""
+    systems = vertical_systems(count)
+    print(
+        f"\ntwo_link_vertical (gravity, n=4, m=4, p=2) over {count} random feasible poses: "
+        "median over poses of decision, decision + margin, margin alone"
+    )
+    poc = positive_output_controllability
+    for label, cone in (("equilibrium cone", True), ("all cables slack", False)):
+        dec, both = [], []
+        for A, B, C, mask in systems:
+            mk = mask if cone else np.ones_like(mask)
+            dec.append(
+                median_seconds(
+                    lambda A=A, B=B, C=C, mk=mk: poc(A, B, C, mk), repeat=repeat, min_time=0.02
+                )
+            )
+            both.append(
+                median_seconds(
+                    lambda A=A, B=B, C=C, mk=mk: poc(A, B, C, mk).margin,
+                    repeat=repeat,
+                    min_time=0.02,
+                )
+            )
+        d, b = statistics.median(dec), statistics.median(both)
+        print(
+            f"  {label:18s}: decision {d * 1e6:6.0f}us; decision + margin {b * 1e6:6.0f}us; "
+            f"margin {max(b - d, 0.0) * 1e6:6.0f}us ({b / d:.2f}x the decision)"
         )
 
 

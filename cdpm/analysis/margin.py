@@ -247,8 +247,8 @@ def _prefilter(P: np.ndarray) -> np.ndarray:
     return P[:, ~inside]
 
 
-def _monotone_chain(x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """Counter-clockwise hull vertices (h, 2) of the points (x, y) (Andrew)."""
+def _monotone_chain(x: np.ndarray, y: np.ndarray) -> list[tuple[float, float]]:
+    """Counter-clockwise hull vertices of the points (x, y) (Andrew)."""
     order = np.lexsort((y, x))
     pts = list(zip(x[order].tolist(), y[order].tolist(), strict=True))
 
@@ -264,29 +264,27 @@ def _monotone_chain(x: np.ndarray, y: np.ndarray) -> np.ndarray:
         return out
 
     lower, upper = half(pts), half(reversed(pts))
-    hull = lower[:-1] + upper[:-1]
-    if not hull:
-        hull = pts[:1]
-    return np.array(hull, dtype=float)
+    return (lower[:-1] + upper[:-1]) or pts[:1]
 
 
-def _polygon_signed_inradius(V: np.ndarray) -> float:
-    """Signed inradius about 0 of the convex polygon with CCW vertices V (h, 2)."""
-    a = V
-    b = np.roll(V, -1, axis=0)
-    d = b - a
-    length = np.hypot(d[:, 0], d[:, 1])
-    if V.shape[0] >= 3:
-        cross = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
-        off = cross / length  # distance of 0 to each edge line, > 0 inside
-        if np.all(off > 0):
-            return float(off.min())
+def _polygon_signed_inradius(V: list[tuple[float, float]]) -> float:
+    """Signed inradius about 0 of the convex polygon with counter-clockwise
+    vertices V (plain floats: a hull has few vertices)."""
+    h = len(V)
+    edges = [(V[k], V[(k + 1) % h]) for k in range(h)]
+    if h >= 3:
+        # distance of 0 to each edge line, positive on the inner side
+        off = [(ax * by - ay * bx) / math.hypot(bx - ax, by - ay) for (ax, ay), (bx, by) in edges]
+        if min(off) > 0:
+            return min(off)
     # 0 outside or on the boundary: minus its distance to the edges
-    with np.errstate(invalid="ignore", divide="ignore"):
-        s = np.clip(-(a[:, 0] * d[:, 0] + a[:, 1] * d[:, 1]) / length**2, 0.0, 1.0)
-    s = np.where(length > 0, s, 0.0)
-    c = a + s[:, None] * d
-    return -float(np.hypot(c[:, 0], c[:, 1]).min())
+    best = math.inf
+    for (ax, ay), (bx, by) in edges:
+        dx, dy = bx - ax, by - ay
+        ll = dx * dx + dy * dy
+        s = min(max(-(ax * dx + ay * dy) / ll, 0.0), 1.0) if ll > 0 else 0.0
+        best = min(best, math.hypot(ax + s * dx, ay + s * dy))
+    return -best
 
 
 # --------------------------------------------------------------------------
