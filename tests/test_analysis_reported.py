@@ -196,7 +196,8 @@ def test_folded_arm_tip_x_row_is_round_off(vertical, q1):
 
 def _scan(robot, poses):
     """Decide POC at every pose with all cables slack and with the
-    equilibrium's own cone; every YES / NO certificate must verify."""
+    equilibrium's own cone; every YES / NO certificate must verify and the
+    margin's sign must match the verdict."""
     counts = {"yes": 0, "no": 0, "marginal": 0, "infeasible": 0}
     marginal = []
     for q in poses:
@@ -213,6 +214,8 @@ def _scan(robot, poses):
                 marginal.append((tuple(q), res.method, res.reason))
             else:
                 assert res.certificate.verify(A, B, C), (q, mask, res)
+            # the margin's sign is the verdict's (its horizon sees every YES here)
+            assert (res.margin > 0) == (res.verdict is Verdict.YES), (q, mask, res)
     decided = counts["yes"] + counts["no"] + counts["marginal"]
     return counts, marginal, counts["marginal"] / max(decided, 1)
 

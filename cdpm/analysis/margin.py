@@ -36,13 +36,15 @@ from scipy.spatial import ConvexHull, QhullError
 
 from cdpm.analysis.span import cross_polytope_radius, min_norm_separator
 
-#: one undamped period (2 pi / |lambda|), or 2 pi time constants of a real mode
-SEE_PERIODS = 2 * math.pi
+#: three undamped periods (6 pi / |lambda|, as the search horizon), or
+#: 6 pi time constants of a real mode
+SEE_PERIODS = 6 * math.pi
 #: longest margin horizon, in units of 1/|A|_2
 HORIZON_MAX_UNITS = 1e3
-#: largest growth e^{Re(lambda) T} of a sampled response (as the modal path)
-LOG_GROWTH = math.log(1e8)
-#: the same for p >= 4, where the LP bracket needs a moderate dynamic range
+#: largest growth e^{Re(lambda) T} of a sampled response per p (1e8 as the
+#: modal path for p <= 2; Qhull (p = 3) and the LP bracket (p >= 4) lose
+#: the hull's small features next to a larger dynamic range)
+LOG_GROWTH = {1: math.log(1e8), 2: math.log(1e8), 3: math.log(1e6)}
 LOG_GROWTH_HIGH = math.log(1e4)
 #: time samples (grid points t_0 = 0 .. t_N = T, a power of 2) per output dimension
 GRID_POINTS = {1: 256, 2: 64, 3: 32}
@@ -57,8 +59,9 @@ def margin_horizon(
     With ``tau = 1 / |A|_2`` and the normalised eigenvalues
     ``mu_i = lambda_i tau`` (``|mu_i| <= 1``):
 
-    - each mode asks for ``x = 2 pi / |mu_i|`` units of tau (one period of
-      an undamped oscillation, 2 pi time constants of a real mode);
+    - each mode asks for ``x = 6 pi / |mu_i|`` units of tau (three periods
+      of an undamped oscillation, as the search horizon; 6 pi time constants
+      of a real mode);
     - each input asks for ``x = 2 |C b_j| / |C A b_j|`` units (the time at
       which the drift of ``g_j(t) = C b_j + t C A b_j + ...`` has turned it
       past 0);
@@ -69,8 +72,9 @@ def margin_horizon(
 
     then ``T = tau * min(max(1, h_i, ...), R, ln(1e8) / max_i Re mu_i)``, the
     last term (growing systems only) keeping the growth of the sampled
-    responses below 1e8 (1e4 for p >= 4, whose LP bracket loses accuracy
-    on hulls of a larger dynamic range). For A = [[0, I], [0, 0]] with C B = 0 (a
+    responses below 1e8 (1e6 for p = 3 and 1e4 for p >= 4: Qhull and the
+    LP bracket lose the hull's small features next to a larger dynamic
+    range). For A = [[0, I], [0, 0]] with C B = 0 (a
     mechanical system at zero tension) T = 1.
 
     Args:
@@ -103,8 +107,8 @@ def margin_horizon(
             units = max(units, _taper(2 * a / b if b > 0 else (math.inf if a > 0 else 0.0)))
     units = min(units, HORIZON_MAX_UNITS)
     if grow > 0:
-        high = C is not None and C.shape[0] >= 4
-        units = min(units, (LOG_GROWTH_HIGH if high else LOG_GROWTH) / grow)
+        p = 2 if C is None else C.shape[0]
+        units = min(units, LOG_GROWTH.get(p, LOG_GROWTH_HIGH) / grow)
     return tau * units
 
 
