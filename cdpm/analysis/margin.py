@@ -56,26 +56,30 @@ def margin_horizon(
 ) -> float:
     """Default horizon T of the margin, a continuous function of (A, B, C) [time].
 
-    With ``tau = 1 / |A|_2`` and the normalised eigenvalues
-    ``mu_i = lambda_i tau`` (``|mu_i| <= 1``):
+    Two time units: ``T0 = 1 / |A|_2`` (the least horizon; 1 for the
+    zero-tension mechanical ``A = [[0, I], [0, 0]]``) and
+    ``tau = 1 / s`` with ``s = max(|A^2|_2^(1/2), |A|_2^(1/2))``, the scale
+    of the dynamics (``s >= rho(A)``; for ``A = [[0, I], [K, 0]]``,
+    ``s = max(1, |K|^(1/2))``: a stiff mode's rate, where ``|A|_2 = |K|``
+    would make tau far too short). With ``mu_i = lambda_i tau``
+    (``|mu_i| <= 1``):
 
     - each mode asks for ``x = 6 pi / |mu_i|`` units of tau (three periods
       of an undamped oscillation, as the search horizon; 6 pi time constants
       of a real mode);
-    - each input asks for ``x = 2 |C b_j| / |C A b_j|`` units (the time at
-      which the drift of ``g_j(t) = C b_j + t C A b_j + ...`` has turned it
-      past 0);
+    - each input asks for ``x = 2 |C b_j| / |C A b_j|`` (the time at which
+      the drift of ``g_j(t) = C b_j + t C A b_j + ...`` has turned it past 0);
     - a request x beyond ``R = 1000`` units cannot be seen: it tapers as
       ``R (2R / x - 1)`` to 0 at 2R (a mode that slow is polynomial over the
       horizon, like an integrator, whose directions appear at any t > 0), so
       the rule is continuous through ``lambda -> 0`` and ``C A b_j -> 0``;
 
-    then ``T = tau * min(max(1, h_i, ...), R, ln(1e8) / max_i Re mu_i)``, the
-    last term (growing systems only) keeping the growth of the sampled
+    then ``T = min(max(T0, tau x_i), tau R, ln(1e8) / max_i Re lambda_i)``,
+    the last term (growing systems only) keeping the growth of the sampled
     responses below 1e8 (1e6 for p = 3 and 1e4 for p >= 4: Qhull and the
     LP bracket lose the hull's small features next to a larger dynamic
-    range). For A = [[0, I], [0, 0]] with C B = 0 (a
-    mechanical system at zero tension) T = 1.
+    range). For A = [[0, I], [0, 0]] with C B = 0 (a mechanical system at
+    zero tension) T = 1.
 
     Args:
         A: state matrix, shape (n, n), finite.
@@ -87,13 +91,12 @@ def margin_horizon(
     """
     if A.size == 0:
         return 1.0
-    s = lapack.dgesdd(A, compute_uv=0)[1] if A.shape[0] > 1 else np.abs(A).ravel()
-    norm = float(s[0])
+    norm, norm2 = _norm2(A), _norm2(A @ A)
     if not norm > 0:
         return 1.0
-    tau = 1.0 / norm
+    tau = 1.0 / max(math.sqrt(norm2), math.sqrt(norm))
     wr, wi = lapack.dgeev(A * tau, compute_vl=0, compute_vr=0)[:2]
-    units, grow = 1.0, 0.0
+    units, grow = 0.0, 0.0
     for re, im in zip(wr.tolist(), wi.tolist(), strict=True):
         r = math.hypot(re, im)
         units = max(units, _taper(SEE_PERIODS / r if r > 0 else math.inf))
@@ -105,11 +108,19 @@ def margin_horizon(
         c1 = np.sqrt((CAB * CAB).sum(axis=0)).tolist()
         for a, b in zip(c0, c1, strict=True):
             units = max(units, _taper(2 * a / b if b > 0 else (math.inf if a > 0 else 0.0)))
-    units = min(units, HORIZON_MAX_UNITS)
+    T = max(1.0 / norm, tau * units)
+    T = min(T, tau * HORIZON_MAX_UNITS)
     if grow > 0:
         p = 2 if C is None else C.shape[0]
-        units = min(units, LOG_GROWTH.get(p, LOG_GROWTH_HIGH) / grow)
-    return tau * units
+        T = min(T, tau * LOG_GROWTH.get(p, LOG_GROWTH_HIGH) / grow)
+    return T
+
+
+def _norm2(X: np.ndarray) -> float:
+    """Spectral norm (largest singular value, LAPACK gesdd)."""
+    if X.shape[0] == 1 or X.shape[1] == 1:
+        return float(np.linalg.norm(X))
+    return float(lapack.dgesdd(X, compute_uv=0)[1][0])
 
 
 def _taper(x: float) -> float:
