@@ -93,6 +93,12 @@ def main(argv: list[str] | None = None) -> int:
     except CdpmError as exc:
         print(f"cdpm {args.command}: error: {exc}", file=sys.stderr)
         return 1
+    except BrokenPipeError:
+        # output piped into e.g. `head`, which closed early: not an error
+        import os
+
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
     except KeyboardInterrupt:
         print(f"cdpm {args.command}: interrupted", file=sys.stderr)
         return 130

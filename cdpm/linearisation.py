@@ -179,8 +179,8 @@ def _equilibrium(robot, q, tension, pretension) -> EquilibriumResult:
     if not eq.feasible:
         raise InputError(
             f"the given tension is not an equilibrium at this pose: statics residual "
-            f"|L^T f + G + w_ext| = {eq.residual:.6g} (N or N m); pass tension=None or a "
-            "method name (zero, min_norm, pretension) to have one computed"
+            f"|L^T f + G + w_ext| = {eq.residual:.6g} (N or N m); let cdpm compute one: "
+            "omit the tension (tension=None) or name a method (zero, min_norm, pretension)"
         )
     return eq
 

@@ -86,7 +86,7 @@ class PoseReport:
 
     def __str__(self) -> str:
         lin = self.linearisation
-        where = f"pose {self.pose_name!r}" if self.pose_name else "pose"
+        where = f"pose {self.pose_name!r}" if self.pose_name else "the given q"
         coords = ", ".join(
             f"{n} = {v:.6g}" for n, v in zip(self.coordinate_names, self.natural, strict=True)
         )

@@ -128,7 +128,7 @@ class CableRobot:
         self._n_route_points = len(joints)
         self._output_rows: list[int] = []
         for out in spec.outputs:
-            joint, p_joint = self._anchor(out.frame, np.zeros(3))
+            joint, p_joint = self._anchor(out.frame, np.array(out.point_in_frame))
             self._output_rows.append(len(joints) * 3 + OUTPUT_COMPONENTS[out.component])
             joints.append(joint)
             local.append(p_joint)

@@ -17,8 +17,9 @@ Format (all lengths in metres, forces in newtons, angles in radians)::
         route:                        # ordered attachment points, >= 2
           - {frame: base, point: [0, 0.5, 0]}
           - {frame: link1, point: [0.3, 0.1, 0], relative_to: com}
-    outputs:                          # components of frame positions (world)
+    outputs:                          # components of point positions (world)
       - {name: tip_x, frame: tip, component: x}
+      - {name: end_z, frame: link2, component: z, point: [0, 0, 0.2]}
     poses:
       nominal: [pi/6, pi/3]           # configuration vector (nq values) or
       other: {joint2: 0.5}            # joint name -> value(s), others neutral
@@ -83,7 +84,7 @@ _TOP_KEYS = (
 )
 _CABLE_KEYS = ("name", "tension", "route", "description")
 _POINT_KEYS = ("frame", "point", "relative_to")
-_OUTPUT_KEYS = ("name", "frame", "component")
+_OUTPUT_KEYS = ("name", "frame", "component", "point")
 _EQUILIBRIUM_KEYS = ("method", "pretension")
 _DEFAULT_GRAVITY = (0.0, 0.0, -9.81)
 
@@ -115,11 +116,13 @@ class CableDef:
 
 @dataclass(frozen=True)
 class OutputDef:
-    """One scalar output: a component of a frame's position in the world."""
+    """One scalar output: a component of the world position of a point fixed
+    in a frame (the frame origin unless ``point_in_frame`` is given) [m]."""
 
     name: str
     frame: str
     component: str
+    point_in_frame: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
 
 @dataclass(frozen=True)
@@ -210,7 +213,9 @@ def _eval_node(node: ast.AST) -> float:
     if isinstance(node, ast.Name) and node.id in _CONSTANTS:
         return _CONSTANTS[node.id]
     if isinstance(node, ast.BinOp) and type(node.op) in _BINARY_OPS:
-        return _BINARY_OPS[type(node.op)](_eval_node(node.left), _eval_node(node.right))
+        # floats throughout: 9**9**9 overflows at once instead of growing an integer
+        left, right = float(_eval_node(node.left)), float(_eval_node(node.right))
+        return _BINARY_OPS[type(node.op)](left, right)
     if isinstance(node, ast.UnaryOp) and type(node.op) in _UNARY_OPS:
         return _UNARY_OPS[type(node.op)](_eval_node(node.operand))
     raise ValueError(
@@ -596,7 +601,11 @@ def _parse_route(
 
 
 def _parse_outputs(problems: _Problems, raw: Any, frames: _FrameTable | None) -> list[OutputDef]:
-    if raw is None:
+    if raw is None or raw == []:
+        problems.add(
+            "outputs",
+            "missing; give at least one output, e.g. - {name: tip_x, frame: tip, component: x}",
+        )
         return []
     if not isinstance(raw, list):
         problems.add("outputs", "expected a list of {name, frame, component}")
@@ -625,6 +634,12 @@ def _parse_outputs(problems: _Problems, raw: Any, frames: _FrameTable | None) ->
                 f"{component!r} is not valid; use one of {', '.join(OUTPUT_COMPONENTS)}",
             )
             continue
+        point = (0.0, 0.0, 0.0)
+        if item.get("point") is not None:
+            xyz = _vector(problems, f"{where}.point", item["point"], 3)
+            if xyz is None or not all(math.isfinite(x) for x in xyz):
+                continue
+            point = tuple(xyz)
         name = item.get("name", f"{frame}_{component}")
         if not isinstance(name, str) or not name:
             problems.add(f"{where}.name", f"expected a non-empty string, got {name!r}")
@@ -632,7 +647,7 @@ def _parse_outputs(problems: _Problems, raw: Any, frames: _FrameTable | None) ->
         if name in seen:
             problems.add(f"{where}.name", f"duplicate output name {name!r}")
         seen.add(name)
-        outputs.append(OutputDef(name=name, frame=frame, component=component))
+        outputs.append(OutputDef(name=name, frame=frame, component=component, point_in_frame=point))
     return outputs
 
 

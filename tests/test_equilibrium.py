@@ -119,6 +119,7 @@ def test_pretension_above_maximum_is_reported(write_spec):
             route: [{frame: world, point: [0, 1, 0]}, {frame: link2, point: [0.5, 0, 0]}]
           - name: d
             route: [{frame: world, point: [0, -1, 0]}, {frame: link2, point: [0.5, 0, 0]}]
+        outputs: [{frame: tip, component: x}]
         """
     )
     robot = cdpm.load_robot(spec)

@@ -100,6 +100,7 @@ def test_packaged_urdf_string_form_and_missing_package(tmp_path):
 cables:
   - name: c
     route: [{frame: world, point: [0, 0.1, 0.1]}, {frame: link1, point: [0, 0, 0.05]}]
+outputs: [{frame: link2, component: y}]
 poses: {up: [0, 0]}
 """
     spec.write_text(

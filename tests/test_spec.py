@@ -160,3 +160,22 @@ def test_parse_number():
         parse_number("__import__('os').getcwd()")
     with pytest.raises(ValueError, match="is a boolean"):
         parse_number(True)
+
+
+def test_outputs_are_required_and_may_be_offset_points(write_spec):
+    text = GOOD.replace("outputs:\n  - {name: tip_x, frame: tip, component: x}\n", "")
+    with pytest.raises(cdpm.SpecError, match=r"outputs: missing; give at least one output"):
+        load_spec(write_spec(text))
+    text = GOOD.replace(
+        "{name: tip_x, frame: tip, component: x}",
+        "{name: mid_y, frame: link2, component: y, point: [0.5, 0, 0]}",
+    )
+    robot = cdpm.load_robot(write_spec(text))
+    q = np.array([0.3, 0.4])
+    expected = math.sin(0.3) + 0.5 * math.sin(0.7)  # middle of link 2
+    np.testing.assert_allclose(robot.output(q), [expected], atol=1e-12)
+
+
+def test_number_parser_refuses_huge_powers_quickly():
+    with pytest.raises(ValueError, match="is not a number"):
+        parse_number("9**9**9")

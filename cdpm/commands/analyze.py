@@ -22,7 +22,7 @@ examples:
   cdpm analyze models/two_link_planar/two_link_planar.yaml --q pi/6 pi/3
   cdpm analyze models/two_link_planar/two_link_planar.yaml --q 0.5 1.0 --json > report.json
   cdpm analyze models/two_link_vertical --pose horizontal --tension pretension --pretension 10
-  cdpm analyze models/two_link_vertical --pose horizontal --tension 21.0921 8.60394 0 0
+  cdpm analyze models/two_link_planar --pose nominal --tension 0 0 0 0   (given tensions)
 
 Q values are a configuration vector (nq numbers) or natural coordinates (one
 per degree of freedom, nv numbers; angles in rad); arithmetic such as pi/6 is
