@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 import json
 
+from cdpm.commands._pose import Q_HELP, add_pose_arguments, pose_from_args
+
 NAME = "analyze"
 HELP = "linearise at one pose and print POC, positive controllability and more"
 DESCRIPTION = """\
@@ -16,7 +18,8 @@ each verdict with its certificate: positive output controllability (seed
 paper Theorem 1), positive controllability (Brammer; with its witness
 eigenvector when it fails), output and Kalman controllability, and wrench
 closure."""
-EPILOG = """\
+EPILOG = (
+    """\
 examples:
   cdpm analyze models/two_link_planar/two_link_planar.yaml --pose nominal
   cdpm analyze models/two_link_planar/two_link_planar.yaml --q pi/6 pi/3
@@ -24,24 +27,13 @@ examples:
   cdpm analyze models/two_link_vertical --pose horizontal --tension pretension --pretension 10
   cdpm analyze models/two_link_planar --pose nominal --tension 0 0 0 0   (given tensions)
 
-Q values are a configuration vector (nq numbers) or natural coordinates (one
-per degree of freedom, nv numbers; angles in rad); arithmetic such as pi/6 is
-accepted.
-
---tension picks the equilibrium: a method (zero: no tension, only where that
-holds the pose; min_norm: least 2-norm tension within the bounds, the
-default; pretension: least 2-norm with every cable >= --pretension N) or
-one tension per cable [N], which must hold the pose. Cables at their lower
-bound are sign-constrained inputs (pull only); taut cables are free."""
+"""
+    + Q_HELP
+)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("spec", metavar="SPEC", help="cable spec YAML file (or its model folder)")
-    where = parser.add_mutually_exclusive_group()
-    where.add_argument(
-        "--q", nargs="+", metavar="Q", help="configuration values, e.g. --q pi/6 pi/3"
-    )
-    where.add_argument("--pose", metavar="NAME", help="a named pose from the spec")
+    add_pose_arguments(parser)
     parser.add_argument(
         "--tension",
         nargs="+",
@@ -62,20 +54,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from cdpm.errors import InputError
     from cdpm.report import analyze_pose
     from cdpm.robot import load_robot
 
     robot = load_robot(args.spec)
-    if args.q is not None:
-        q = robot.configuration(list(args.q))
-    elif args.pose is not None:
-        q = args.pose
-    elif len(robot.poses) == 1:
-        q = next(iter(robot.poses))
-    else:
-        names = ", ".join(robot.poses) or "none defined"
-        raise InputError(f"give --q Q1 Q2 ... or --pose NAME (poses in the spec: {names})")
+    q = pose_from_args(robot, args)
     report = analyze_pose(
         robot, q, tension=_tension_argument(args.tension), pretension=args.pretension
     )

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from cdpm.commands.view import add_pose_arguments, pose_from_args
+from cdpm.commands._pose import add_pose_arguments, pose_from_args
 
 NAME = "picture"
 HELP = "draw a pose (robot, cables by state, POC verdict) to a PNG/PDF/SVG file"
@@ -44,8 +44,6 @@ def run(args: argparse.Namespace) -> int:
     robot = load_robot(args.spec)
     q = pose_from_args(robot, args)
     state = pose_state(robot, q)
-    if args.pose is not None:
-        q = args.pose  # keeps the pose's name in the title
     render_pose(
         robot, q, args.output, plane=args.plane, title=args.title, dpi=args.dpi, state=state
     )

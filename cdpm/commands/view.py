@@ -7,6 +7,8 @@ import signal
 import sys
 import time
 
+from cdpm.commands._pose import Q_HELP, add_pose_arguments, pose_from_args
+
 NAME = "view"
 HELP = "serve a 3-D view of a pose in the browser (robot, cables, POC verdict)"
 DESCRIPTION = """\
@@ -18,35 +20,16 @@ amber MARGINAL), print the URL and serve until Ctrl-C. With --map, overlay a
 workspace map (output positions coloured by verdict or margin). Needs the
 viz extra: pip install "cdpm[viz]". From another machine, forward the port:
 ssh -L 7000:127.0.0.1:7000 HOST."""
-EPILOG = """\
+EPILOG = (
+    """\
 examples:
   cdpm view models/two_link_planar/two_link_planar.yaml --pose nominal
   cdpm view models/two_link_planar/two_link_planar.yaml --q pi/4 pi/2 --port 7010
   cdpm view models/two_link_planar/two_link_planar.yaml --map map.zarr --color-by margin
 
-Q values are a configuration vector (nq numbers) or natural coordinates (one
-per degree of freedom); arithmetic such as pi/6 is accepted."""
-
-
-def add_pose_arguments(parser: argparse.ArgumentParser) -> None:
-    """SPEC and --q/--pose, shared with ``cdpm picture``."""
-    parser.add_argument("spec", metavar="SPEC", help="cable spec YAML file (or its model folder)")
-    where = parser.add_mutually_exclusive_group()
-    where.add_argument(
-        "--q", nargs="+", metavar="Q", help="configuration values, e.g. --q pi/6 pi/3"
-    )
-    where.add_argument("--pose", metavar="NAME", help="a named pose from the spec")
-
-
-def pose_from_args(robot, args: argparse.Namespace):
-    """The pose asked for: --q, --pose, else the spec's first pose, else neutral."""
-    if args.q is not None:
-        return robot.configuration(list(args.q))
-    if args.pose is not None:
-        return robot.configuration(args.pose)
-    if robot.poses:
-        return robot.configuration(next(iter(robot.poses)))
-    return robot.neutral()
+"""
+    + Q_HELP
+)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
