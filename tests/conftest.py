@@ -32,3 +32,20 @@ def write_spec(tmp_path):
         return path
 
     return _write
+
+
+def execute_notebook(path: Path, timeout: int = 300):
+    """Run a notebook top to bottom in its own folder; returns it with outputs.
+
+    Skips when the test extra's notebook runner is missing.
+    """
+    nbformat = pytest.importorskip("nbformat")
+    nbclient = pytest.importorskip("nbclient")
+    nb = nbformat.read(path, as_version=4)
+    nbclient.NotebookClient(
+        nb,
+        timeout=timeout,
+        kernel_name="python3",
+        resources={"metadata": {"path": str(Path(path).parent)}},
+    ).execute()
+    return nb

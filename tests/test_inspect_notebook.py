@@ -6,7 +6,7 @@ import json
 
 import pytest
 
-from tests.conftest import ROOT
+from tests.conftest import ROOT, execute_notebook
 
 NOTEBOOK = ROOT / "notebooks" / "inspect_pose.ipynb"
 
@@ -21,16 +21,7 @@ def test_notebook_is_committed_without_outputs():
 def test_inspect_notebook_executes_and_a_slider_change_updates_the_verdict():
     pytest.importorskip("meshcat")
     pytest.importorskip("ipywidgets")
-    nbformat = pytest.importorskip("nbformat")
-    nbclient = pytest.importorskip("nbclient")
-    nb = nbformat.read(NOTEBOOK, as_version=4)
-    client = nbclient.NotebookClient(
-        nb,
-        timeout=120,
-        kernel_name="python3",
-        resources={"metadata": {"path": str(NOTEBOOK.parent)}},
-    )
-    client.execute()
+    nb = execute_notebook(NOTEBOOK, timeout=120)
     outputs = {
         i: "\n".join(
             out.get("text", "") + json.dumps(out.get("data", {})) for out in cell.get("outputs", [])

@@ -6,7 +6,7 @@ import json
 
 import pytest
 
-from tests.conftest import ROOT
+from tests.conftest import ROOT, execute_notebook
 
 NOTEBOOK = ROOT / "notebooks" / "workspace_map.ipynb"
 
@@ -20,17 +20,8 @@ def test_notebook_is_committed_without_outputs():
 
 @pytest.mark.slow
 def test_workspace_map_notebook_executes():
-    nbformat = pytest.importorskip("nbformat")
-    nbclient = pytest.importorskip("nbclient")
     pytest.importorskip("matplotlib")
-    nb = nbformat.read(NOTEBOOK, as_version=4)
-    client = nbclient.NotebookClient(
-        nb,
-        timeout=600,
-        kernel_name="python3",
-        resources={"metadata": {"path": str(NOTEBOOK.parent)}},
-    )
-    client.execute()
+    nb = execute_notebook(NOTEBOOK, timeout=600)
     text = "\n".join(
         out.get("text", "") + json.dumps(out.get("data", {}).get("text/plain", ""))
         for cell in nb.cells

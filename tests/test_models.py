@@ -14,7 +14,7 @@ import yaml
 import cdpm
 from cdpm.cli import main
 from cdpm.equilibrium import equilibrium_tension
-from tests.conftest import MODELS
+from tests.conftest import MODELS, execute_notebook
 
 linearise = cdpm.linearise
 
@@ -202,15 +202,7 @@ def test_gravity_notebook_is_committed_without_outputs():
 
 @pytest.mark.slow
 def test_gravity_notebook_executes():
-    nbformat = pytest.importorskip("nbformat")
-    nbclient = pytest.importorskip("nbclient")
-    nb = nbformat.read(NOTEBOOK, as_version=4)
-    nbclient.NotebookClient(
-        nb,
-        timeout=300,
-        kernel_name="python3",
-        resources={"metadata": {"path": str(NOTEBOOK.parent)}},
-    ).execute()
+    nb = execute_notebook(NOTEBOOK, timeout=300)
     text = "\n".join(
         out.get("text", "")
         for cell in nb.cells

@@ -6,7 +6,7 @@ import json
 
 import pytest
 
-from tests.conftest import ROOT
+from tests.conftest import ROOT, execute_notebook
 
 NOTEBOOK = ROOT / "notebooks" / "paper_example.ipynb"
 
@@ -20,16 +20,7 @@ def test_notebook_is_committed_without_outputs():
 
 @pytest.mark.slow
 def test_paper_example_notebook_executes():
-    nbformat = pytest.importorskip("nbformat")
-    nbclient = pytest.importorskip("nbclient")
-    nb = nbformat.read(NOTEBOOK, as_version=4)
-    client = nbclient.NotebookClient(
-        nb,
-        timeout=300,
-        kernel_name="python3",
-        resources={"metadata": {"path": str(NOTEBOOK.parent)}},
-    )
-    client.execute()
+    nb = execute_notebook(NOTEBOOK, timeout=300)
     text = "\n".join(
         out.get("text", "") + json.dumps(out.get("data", {}))
         for cell in nb.cells
