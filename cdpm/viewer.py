@@ -329,21 +329,18 @@ def _analyse(robot, q: np.ndarray):
         lin = linearise(robot, q)
     except CdpmError as exc:
         return None, None, None, None, str(exc)
-    input_sign = getattr(lin, "input_sign", None)
     # slack: at the lower bound, the tension can only grow (a cable at its
     # upper bound is sign-constrained too, but taut)
-    slack = np.asarray(lin.sign_constrained if input_sign is None else input_sign > 0, dtype=bool)
+    slack = np.asarray(lin.input_sign > 0, dtype=bool)
     from cdpm.analysis import positive_output_controllability
 
     try:
         poc = positive_output_controllability(
-            lin.A, getattr(lin, "B_cone", lin.B), lin.C, sign_constrained=lin.sign_constrained
+            lin.A, lin.B_cone, lin.C, sign_constrained=lin.sign_constrained
         )
     except CdpmError as exc:
         return lin.tension, slack, None, None, str(exc)
-    margin = getattr(poc, "margin", None)
-    margin = float(margin) if isinstance(margin, (int, float, np.floating)) else None
-    return lin.tension, slack, poc.verdict, margin, None
+    return lin.tension, slack, poc.verdict, float(poc.margin), None
 
 
 def pose_state(robot, q: Any, geometry: _Geometry | None = None) -> PoseState:
