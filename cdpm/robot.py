@@ -274,7 +274,9 @@ class CableRobot:
         Returns:
             Arrays with a leading batch axis N: ``lengths`` (N, m),
             ``jacobian`` (N, m, nv), ``output`` (N, p), ``output_jacobian``
-            (N, p, nv), ``segment_lengths`` (N, n_segments), ``segment_units``
+            (N, p, nv), ``spatial_jacobian`` (N, 6, nv) (column k: the world
+            spatial velocity [v; w] of tangent direction k),
+            ``segment_lengths`` (N, n_segments), ``segment_units``
             (N, n_segments, 3), ``point_positions`` (N, n_points, 3) and
             ``point_jacobians`` (N, n_points, 3, nv) (route points first,
             then output frame origins; world frame); with ``dynamics``:
@@ -425,6 +427,7 @@ class CableRobot:
             "point_jacobians": pjac.transpose(3, 1, 0, 2),
             "output": pos[out_comp, out_pts].T,
             "output_jacobian": pjac[out_comp, out_pts].transpose(2, 0, 1),
+            "spatial_jacobian": jac,
         }
         if dynamics:
             if nv > 1:  # crba fills the upper triangle
@@ -509,7 +512,6 @@ class CableRobot:
                 ancestors = set(model.supports[int(joint_of_dof[j])])
                 support[j] = [int(joint_of_dof[k]) in ancestors for k in range(self.nv)]
             self._dof_support_cache = support
-            self._hess_data = model.createData()
         return self._dof_support_cache
 
     def cable_stiffness(self, q: Any, tension: Any) -> np.ndarray:
@@ -540,31 +542,40 @@ class CableRobot:
         f = np.asarray(tension, dtype=float).reshape(-1)
         if f.shape[0] != self.n_cables:
             raise ModelError(f"tension has {f.shape[0]} entries, expected m={self.n_cables}")
+        self.kinematics(q)  # raises on a zero-length segment
+        return self.cable_stiffness_batch(self._kinematics_batch(q[None, :]), f[None, :])[0]
+
+    def cable_stiffness_batch(self, kin: dict[str, np.ndarray], tension: np.ndarray) -> np.ndarray:
+        """:meth:`cable_stiffness` at many poses from their batch kinematics.
+
+        Args:
+            kin: the output of :meth:`kinematics_batch` at N poses, none with
+                a zero-length segment.
+            tension: cable tensions f [N], shape (N, m).
+
+        Returns:
+            The stiffness matrices, shape (N, nv, nv).
+        """
         support = self._dof_support()
-        kin = self.kinematics(q)
-        self._pin.computeJointJacobians(self.model, self._hess_data, q)
-        omega = np.array(self._hess_data.J[3:])  # (3, nv) world angular Jacobian
-        seg_f = f[self._segment_cable]
-        keep = np.flatnonzero(seg_f != 0)
-        if keep.size == 0:
-            return np.zeros((self.nv, self.nv))
-        seg_f = seg_f[keep]
-        a, b = self._segment_points[keep, 0], self._segment_points[keep, 1]
-        jac = kin.point_jacobians  # (n_route_points, 3, nv), masked
-        units = kin.segment_units[keep]
-        lengths = kin.segment_lengths[keep]
-        jac_d = jac[b] - jac[a]
-        proj = (np.eye(3)[None] - units[:, :, None] * units[:, None, :]) / lengths[:, None, None]
-        hess = np.einsum("s,sin,sij,sjk->nk", seg_f, jac_d, proj, jac_d)
-        # u x w_k for every segment and tangent direction: (S, 3, nv)
-        u_cross_w = np.cross(units[:, None, :], omega.T[None, :, :]).transpose(0, 2, 1)
+        a, b = self._segment_points[:, 0], self._segment_points[:, 1]
+        jac = kin["point_jacobians"]  # (N, P, 3, nv), masked
+        units = kin["segment_units"]  # (N, S, 3)
+        omega = kin["spatial_jacobian"][:, 3:]  # (N, 3, nv) world angular Jacobian
+        weight = tension[:, self._segment_cable]  # (N, S): each segment's tension
+        jac_d = jac[:, b] - jac[:, a]  # (N, S, 3, nv)
+        # J_d^T (I - u u^T) J_d / l = (J_d^T J_d - (J_d^T u)(u^T J_d)) / l
+        u_jac = (units[:, :, None, :] @ jac_d)[:, :, 0]  # (N, S, nv)
+        gram = np.swapaxes(jac_d, -1, -2) @ jac_d - u_jac[..., :, None] * u_jac[..., None, :]
+        hess = np.einsum("ns,nsjk->njk", weight / kin["segment_lengths"], gram)
+        # u x w_k for every segment and tangent direction: (N, S, 3, nv)
+        u_cross_w = np.cross(units[:, :, :, None], omega[:, None], axis=2)
         for ends, sign in ((b, 1.0), (a, -1.0)):
-            jp = jac[ends]
-            first = np.einsum("sij,sik->sjk", jp, u_cross_w)  # J_p[:, j] . (u x w_k)
-            second = np.einsum("sij,sik->sjk", u_cross_w, jp)  # J_p[:, k] . (u x w_j)
-            mask = self._point_mask[ends][:, :, None]
-            term = np.where(support[None], first, second * mask)
-            hess += sign * np.einsum("s,sjk->jk", seg_f, term)
+            # first[j, k] = J_p[:, j] . (u x w_k); its transpose is
+            # J_p[:, k] . (u x w_j)
+            first = np.swapaxes(jac[:, ends], -1, -2) @ u_cross_w  # (N, S, nv, nv)
+            mask = self._point_mask[ends][None, :, :, None]
+            term = np.where(support, first, np.swapaxes(first, -1, -2) * mask)
+            hess += sign * np.einsum("ns,nsjk->njk", weight, term)
         return hess
 
 

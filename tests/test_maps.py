@@ -404,9 +404,9 @@ def test_gravity_map_equals_public_per_pose(tension):
             lin.A, lin.B_cone, sign_constrained=lin.sign_constrained
         )
         assert out["poc"][i] == CODE[poc.verdict.value]
-        # the analyser's margin moves with round-off in A (its horizon is
-        # picked from sampled outputs), so only its sign is compared
-        assert (out["poc_margin"][i] > 0) == (poc.margin > 0)
+        # the map assembles A from batched terms: equal up to round-off, and
+        # the margin is continuous in A
+        assert out["poc_margin"][i] == pytest.approx(poc.margin, rel=1e-7, abs=1e-9)
         assert out["positive_controllable"][i] == CODE[brammer.verdict.value]
         assert out["output_controllable"][i] == int(cdpm.output_controllability(*args).controllable)
         assert out["tension_min"][i] == pytest.approx(lin.tension.min(), rel=1e-9, abs=1e-9)

@@ -31,7 +31,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.linalg import expm, lapack
+from scipy.linalg import expm
 from scipy.spatial import ConvexHull, QhullError
 
 from cdpm.analysis.span import cross_polytope_radius, min_norm_separator
@@ -89,47 +89,75 @@ def margin_horizon(
     Returns:
         T > 0 in the time unit of A (1 when A = 0).
     """
-    if A.size == 0:
-        return 1.0
-    norm, norm2 = _norm2(A), _norm2(A @ A)
-    if not norm > 0:
-        return 1.0
-    tau = 1.0 / max(math.sqrt(norm2), math.sqrt(norm))
-    wr, wi = lapack.dgeev(A * tau, compute_vl=0, compute_vr=0)[:2]
-    units, grow = 0.0, 0.0
-    for re, im in zip(wr.tolist(), wi.tolist(), strict=True):
-        r = math.hypot(re, im)
-        units = max(units, _taper(SEE_PERIODS / r if r > 0 else math.inf))
-        grow = max(grow, re)
-    if B is not None and C is not None and B.size and C.size:
+    B = None if B is None or C is None else B[None]
+    C = None if B is None else C[None]
+    return float(margin_horizons(A[None], B, C)[0])
+
+
+def margin_horizons(
+    A: np.ndarray, B: np.ndarray | None = None, C: np.ndarray | None = None
+) -> np.ndarray:
+    """:func:`margin_horizon` of k systems at once.
+
+    Args:
+        A: state matrices, shape (k, n, n), finite.
+        B: input matrices (k, n, m), optional (with C).
+        C: output matrices (k, p, n), optional (with B).
+
+    Returns:
+        T, shape (k,).
+    """
+    k, n = A.shape[0], A.shape[-1]
+    T = np.ones(k)
+    if n == 0 or k == 0:
+        return T
+    norm = _norms2(A)
+    AA = A @ A
+    norm2 = _norms2(AA)
+    live = norm > 0
+    if not live.all():
+        A, norm, norm2 = A[live], norm[live], norm2[live]
+        B = None if B is None else B[live]
+        C = None if C is None else C[live]
+    tau = 1.0 / np.maximum(np.sqrt(norm2), np.sqrt(norm))
+    lam = np.linalg.eigvals(A * tau[:, None, None])  # (k, n)
+    r = np.abs(lam)
+    with np.errstate(divide="ignore"):
+        units = _tapers(np.where(r > 0, SEE_PERIODS / r, np.inf)).max(axis=1)
+    grow = np.maximum(lam.real.max(axis=1), 0.0)
+    if B is not None and C is not None and B.shape[-1] and C.shape[-2]:
         CB = C @ B
-        CAB = (C @ (A * tau)) @ B
-        c0 = np.sqrt((CB * CB).sum(axis=0)).tolist()
-        c1 = np.sqrt((CAB * CAB).sum(axis=0)).tolist()
-        for a, b in zip(c0, c1, strict=True):
-            units = max(units, _taper(2 * a / b if b > 0 else (math.inf if a > 0 else 0.0)))
-    T = max(1.0 / norm, tau * units)
-    T = min(T, tau * HORIZON_MAX_UNITS)
-    if grow > 0:
-        p = 2 if C is None else C.shape[0]
-        T = min(T, tau * LOG_GROWTH.get(p, LOG_GROWTH_HIGH) / grow)
+        CAB = (C @ (A * tau[:, None, None])) @ B
+        c0 = np.sqrt((CB * CB).sum(axis=1))  # (k, m)
+        c1 = np.sqrt((CAB * CAB).sum(axis=1))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            x = np.where(c1 > 0, 2 * c0 / c1, np.where(c0 > 0, np.inf, 0.0))
+        units = np.maximum(units, _tapers(x).max(axis=1))
+    Tl = np.maximum(1.0 / norm, tau * units)
+    Tl = np.minimum(Tl, tau * HORIZON_MAX_UNITS)
+    p = 2 if C is None else C.shape[-2]
+    with np.errstate(divide="ignore"):
+        cap = tau * LOG_GROWTH.get(p, LOG_GROWTH_HIGH) / grow
+    Tl = np.where(grow > 0, np.minimum(Tl, cap), Tl)
+    T[live] = Tl
     return T
 
 
-def _norm2(X: np.ndarray) -> float:
-    """Spectral norm (largest singular value, LAPACK gesdd)."""
-    if X.shape[0] == 1 or X.shape[1] == 1:
-        return float(np.linalg.norm(X))
-    return float(lapack.dgesdd(X, compute_uv=0)[1][0])
+def _norms2(X: np.ndarray) -> np.ndarray:
+    """Spectral norms of the matrices X (k, r, c), shape (k,)."""
+    if X.shape[-1] == 1 or X.shape[-2] == 1:
+        return np.sqrt((X * X).sum(axis=(-2, -1)))
+    return np.linalg.svd(X, compute_uv=False)[:, 0]
 
 
-def _taper(x: float) -> float:
-    """A seeing time x (units of tau) if at most R, else tapered to 0 at 2R:
-    ``R (2R / x - 1)`` (continuous; what cannot be seen within R is ignored)."""
+def _tapers(x: np.ndarray) -> np.ndarray:
+    """Seeing times x (units of tau), elementwise: x if at most R, else
+    tapered to 0 at 2R as ``R (2R / x - 1)`` (continuous; what cannot be
+    seen within R is ignored)."""
     R = HORIZON_MAX_UNITS
-    if x <= R:
-        return x
-    return R * (2 * R / x - 1.0) if x < 2 * R else 0.0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        tapered = np.where(x < 2 * R, R * (2 * R / x - 1.0), 0.0)
+    return np.where(x <= R, x, tapered)
 
 
 def grid_points(p: int) -> int:
@@ -146,23 +174,38 @@ def sample_curve(A, Bw, Cw, T: float, points: int, square_zero: bool = False):
         on the grid, times 1.1; 0 when A^2 = 0, where only the end points are
         returned: the curve is then a segment per input, points = 2).
     """
-    n, m = Bw.shape
     if square_zero:
         X = np.hstack([Bw, Bw + T * (A @ Bw)])
         return Cw @ X, 0.0
-    E = expm(A * (T / (points - 1)))
-    X = np.empty((n, points * m))
-    X[:, :m] = Bw
+    G, lip = sample_curves(A[None], Bw[None], Cw[None], np.array([T]), points)
+    return G[0], float(lip[0])
+
+
+def sample_curves(A, Bw, Cw, T: np.ndarray, points: int):
+    """:func:`sample_curve` of k systems at once (none with A^2 = 0).
+
+    Args:
+        A: (k, n, n); Bw: (k, n, m); Cw: (k, p, n); T: horizons, shape (k,).
+        points: grid times per system, t_0 = 0 .. t_{points-1} = T.
+
+    Returns:
+        (G (k, p, points * m), lip (k,)).
+    """
+    k, n, m = Bw.shape
+    # step with e^{A h}, doubling: X <- [X, E X], E <- E^2
+    E = expm(A * (T / (points - 1))[:, None, None])
+    X = np.empty((k, n, points * m))
+    X[:, :, :m] = Bw
     done = m
-    while done < X.shape[1]:
-        step = min(done, X.shape[1] - done)
-        np.matmul(E, X[:, :step], out=X[:, done : done + step])
+    while done < X.shape[2]:
+        step = min(done, X.shape[2] - done)
+        np.matmul(E, X[:, :, :step], out=X[:, :, done : done + step])
         done += step
-        if done < X.shape[1]:
+        if done < X.shape[2]:
             E = E @ E
     G = Cw @ X
     D = (Cw @ A) @ X
-    lip = 1.1 * math.sqrt(float((D * D).sum(axis=0).max())) if D.size else 0.0
+    lip = 1.1 * np.sqrt((D * D).sum(axis=1).max(axis=1, initial=0.0))
     return G, lip
 
 

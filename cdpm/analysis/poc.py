@@ -47,7 +47,14 @@ from cdpm.analysis._common import (
 )
 from cdpm.analysis.brammer import left_eigen_separator
 from cdpm.analysis.certificate import POCCertificate
-from cdpm.analysis.margin import grid_points, margin_horizon, sample_curve, signed_inradius
+from cdpm.analysis.margin import (
+    grid_points,
+    margin_horizon,
+    margin_horizons,
+    sample_curve,
+    sample_curves,
+    signed_inradius,
+)
 from cdpm.analysis.rank import output_reachable_basis, reachable_basis
 from cdpm.analysis.span import (
     SPAN_TOL,
@@ -522,10 +529,14 @@ def _lift_yes(A, B, C, mask, pairs, Fpairs, square_zero=False, vectors=None):
 
 def _is_square_zero(A: np.ndarray) -> bool:
     """A^2 = 0 up to round-off, entrywise relative to |A| @ |A| (scale-free)."""
+    return bool(_square_zero(A[None])[0])
+
+
+def _square_zero(A: np.ndarray) -> np.ndarray:
+    """:func:`_is_square_zero` of the matrices A (k, n, n), shape (k,)."""
     AA = A @ A
-    if not AA.any():
-        return True
-    return bool(np.all(np.abs(AA) <= 1e-12 * (np.abs(A) @ np.abs(A))))
+    small = np.abs(AA) <= 1e-12 * (np.abs(A) @ np.abs(A))
+    return ~np.any(AA, axis=(1, 2)) | np.all(small, axis=(1, 2))
 
 
 _REASON_RANK = (
@@ -1221,13 +1232,51 @@ def poc_margin(res: POCResult) -> tuple[float, float]:
     square_zero = _is_square_zero(A)
     K = 2 if square_zero else grid_points(p)
     G, lip = sample_curve(A, Bw, Cw, T, K, square_zero)
-    if mask.all():
-        mu, hi = signed_inradius(G)
-    else:
-        cols = np.tile(mask, K)
-        mu, hi = signed_inradius(G[:, cols], G[:, ~cols])
+    mu, hi = _sampled_inradius(G, mask, K)
     # the curve between grid points is within lip * h / 2 of the samples
     hi = max(hi, mu) + lip * T / (K - 1) / 2
     if res.verdict is not Verdict.YES:
         mu, hi = min(mu, 0.0), min(hi, 0.0)
     return float(mu), float(hi)
+
+
+def _sampled_inradius(G: np.ndarray, mask: np.ndarray, K: int) -> tuple[float, float]:
+    """signed_inradius of curve samples G (p, K m) (column k m + j = g_j(t_k)),
+    the free inputs (mask False) with both signs."""
+    if mask.all():
+        return signed_inradius(G)
+    cols = np.tile(mask, K)
+    return signed_inradius(G[:, cols], G[:, ~cols])
+
+
+def poc_margins(A, B, C, mask, yes) -> np.ndarray:
+    """The margins (``POCResult.margin``) of k systems at once, with the
+    default horizon, unit input scales and output weights.
+
+    Equal to ``positive_output_controllability(A[i], B[i], C[i],
+    mask[i]).margin`` given its verdict (``yes[i]``: the margin is clipped
+    to <= 0 otherwise); the horizons and curve samples are computed for all
+    systems together, the hull of each system's samples on its own.
+
+    Args:
+        A: (k, n, n); B: (k, n, m); C: (k, p, n), p >= 1; mask: (k, m) bool,
+        True for sign-constrained inputs; yes: (k,) bool, the verdicts.
+
+    Returns:
+        Margins, shape (k,).
+    """
+    k, p = A.shape[0], C.shape[1]
+    out = np.empty(k)
+    if k == 0:
+        return out
+    T = margin_horizons(A, B, C)
+    square_zero = _square_zero(A)
+    curved = np.flatnonzero(~square_zero)
+    K = grid_points(p)
+    G, _ = sample_curves(A[curved], B[curved], C[curved], T[curved], K)
+    for g, i in zip(G, curved, strict=True):
+        out[i] = _sampled_inradius(g, mask[i], K)[0]
+    for i in np.flatnonzero(square_zero):
+        g, _ = sample_curve(A[i], B[i], C[i], T[i], 2, True)
+        out[i] = _sampled_inradius(g, mask[i], 2)[0]
+    return np.where(yes, out, np.minimum(out, 0.0))

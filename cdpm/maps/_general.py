@@ -12,13 +12,18 @@ with everything but the POC decision batched over the chunk:
    ``A = [[0, I], [K, K_v]]``, ``B = [0; -M^-1 L^T]`` (as ``B_cone``),
    ``C = [C_q, 0]`` with ``K = -M^-1 (dG/dq + sum_i f_i Hess l_i)`` from
    Pinocchio's gravity derivatives and the robot's
-   :meth:`~cdpm.robot.CableRobot.cable_stiffness`, ``K_v = -M^-1 D``;
+   :meth:`~cdpm.robot.CableRobot.cable_stiffness_batch`, ``K_v = -M^-1 D``;
 4. output controllability from the batched output Krylov matrix, positive
    controllability where the free (taut) inputs alone make the system
    controllable (poses near rank deficiency, and the others, are left to
    the analyser);
-5. per pose, the analyser's POC decision and margin (and Brammer's test
-   where step 4 did not settle it).
+5. POC where the free (taut) inputs alone reach every output direction
+   (the analyser's mixed-cone exit, from the batched Krylov rank of the
+   free inputs) and the margins of those poses
+   (:func:`cdpm.analysis.poc.poc_margins`: horizons and curve samples for
+   all of them at once);
+6. per pose, the analyser's POC decision and margin for the others (and
+   Brammer's test where step 4 did not settle it).
 """
 
 from __future__ import annotations
@@ -97,6 +102,9 @@ def equilibria(robot, qs, LT, load, setting):
     return f, feasible
 
 
+_STIFFNESS_KEYS = ("point_jacobians", "segment_units", "segment_lengths", "spatial_jacobian")
+
+
 def _linear_systems(robot, qs, kin, idx, f, Minv):
     """Pose-first (A, B_cone, C, mask) of the linearisations at poses idx."""
     import pinocchio as pin
@@ -116,8 +124,9 @@ def _linear_systems(robot, qs, kin, idx, f, Minv):
         derivative = pin.computeGeneralizedGravityDerivatives
         for j, i in enumerate(idx):
             load_stiffness[j] = derivative(model, data, qs[i])
-    for j in np.flatnonzero(np.any(f != 0, axis=1)):
-        load_stiffness[j] += robot.cable_stiffness(qs[idx[j]], f[j])
+    if np.any(f):
+        sub = {key: kin[key][idx] for key in _STIFFNESS_KEYS}
+        load_stiffness += robot.cable_stiffness_batch(sub, f)
     A = np.zeros((k, 2 * nv, 2 * nv))
     A[:, :nv, nv:] = np.eye(nv)
     A[:, nv:, :nv] = -(Minv @ load_stiffness)
@@ -188,10 +197,11 @@ def _output_controllable(A, B, C):
 def evaluate_general(robot, qs: np.ndarray, kin: dict, setting, margin: bool = True) -> dict:
     """Every map quantity at poses qs (N, nq) whose batch kinematics (with
     dynamics) are ``kin``, under the tension setting ``setting``; without
-    ``margin`` the POC margin stays NaN and poses whose free (taut) inputs
-    reach every output direction are decided YES without the analyser."""
+    ``margin`` the POC margin stays NaN. Poses whose free (taut) inputs
+    reach every output direction are decided YES without the per-pose
+    analyser (their margins computed together)."""
     from cdpm.analysis.brammer import _positive_controllability
-    from cdpm.analysis.poc import _poc
+    from cdpm.analysis.poc import _poc, poc_margins
 
     out, ok = ev.prelude(robot, kin, qs.shape[0])
     LT = np.swapaxes(kin["jacobian"][ok], 1, 2)  # (k, nv, m)
@@ -214,10 +224,14 @@ def evaluate_general(robot, qs: np.ndarray, kin: dict, setting, margin: bool = T
     A, B, C, mask = _linear_systems(robot, qs, kin, idx, f, Minv[..., use])
     oc = _output_controllable(A, B, C)
     pc = _free_controllable(A, B, mask)
-    mixed_yes = np.zeros(idx.size, dtype=bool)
-    if not margin:
-        mixed_yes = _output_controllable(A, B * ~mask[:, None, :], C) == ev.YES
-        out["poc"][idx[mixed_yes]] = ev.YES
+    # the analyser's mixed-cone exit, batched: the free (taut) inputs alone
+    # reach every output direction, so POC holds
+    mixed_yes = _output_controllable(A, B * ~mask[:, None, :], C) == ev.YES
+    out["poc"][idx[mixed_yes]] = ev.YES
+    if margin and C.shape[1]:
+        out["poc_margin"][idx[mixed_yes]] = poc_margins(
+            A[mixed_yes], B[mixed_yes], C[mixed_yes], mask[mixed_yes], True
+        )
     status = out["status"]
     for j, i in enumerate(idx):
         try:
