@@ -97,3 +97,97 @@ def test_public_names_survive_submodule_imports():
     assert callable(cdpm.linearise) and callable(cdpm.positive_output_controllability)
     for name in cdpm.__all__:
         assert not isinstance(getattr(cdpm, name), type(cdpm)), name
+
+
+# ------------------------------------------------------------------ cdpm map
+
+
+@pytest.mark.parametrize(
+    ("axis", "message"),
+    [
+        ("q1=0,1,", r"value 3 of axis 'q1' is empty; remove the stray ','"),
+        ("q1=0,,1", r"value 2 of axis 'q1' is empty"),
+        ("q1=,", r"value 1 of axis 'q1' is empty"),
+        ("q1=:1:3", r"LOW of axis 'q1' is empty"),
+        ("q1=0:1:5,", r"axis 'q1' mixes a range \(':'\) and a list \(','\)"),
+        ("q1=0:inf:3", r"HIGH of axis 'q1' is inf; axis values must be finite"),
+        ("q1=-inf,1", r"value 1 of axis 'q1' is -inf; axis values must be finite"),
+        ("q1=0:1:x", r"COUNT of axis 'q1' must be an integer, got 'x'"),
+    ],
+)
+def test_map_axis_items_are_all_checked(axis, message, capsys):
+    import re
+
+    assert main(["map", str(PAPER_SPEC), "--axis", axis, "--quiet", "--workers", "1"]) == 1
+    out, err = capsys.readouterr()
+    assert re.search(message, err), err
+    assert err.startswith(f"cdpm map: error: --axis {axis!r}") and "Warning" not in err
+    assert out == ""
+
+
+def test_map_axis_given_twice_is_an_error(capsys):
+    argv = ["map", str(PAPER_SPEC), "--axis", "q1=0:1:3", "--axis", "q1=0,1", "--quiet"]
+    assert main(argv) == 1
+    out, err = capsys.readouterr()
+    assert "--axis q1 is given twice ('q1=0:1:3' and 'q1=0,1')" in err
+    assert "NAME=V1,V2" in err and out == ""
+
+
+def test_map_plot_is_checked_before_computing(tmp_path, capsys, monkeypatch):
+    store = tmp_path / "m.zarr"
+    argv = ["map", str(PAPER_SPEC), "--axis", "q1=0:1:3", "--out", str(store), "--quiet"]
+    assert main([*argv, "--plot", str(tmp_path / "m.xyz")]) == 1
+    err = capsys.readouterr().err
+    assert "--plot" in err and "unknown image format '.xyz'" in err and "png" in err
+    assert not store.exists()
+    # matplotlib missing: the install hint, and nothing computed
+    monkeypatch.setitem(sys.modules, "matplotlib", None)
+    monkeypatch.setitem(sys.modules, "matplotlib.backend_bases", None)
+    assert main([*argv, "--plot", str(tmp_path / "m.png")]) == 1
+    err = capsys.readouterr().err
+    assert "--plot needs matplotlib: pip install 'cdpm[maps]'" in err
+    assert not store.exists()
+
+
+def test_map_store_with_other_settings_names_the_fix(tmp_path, capsys):
+    store = str(tmp_path / "m.zarr")
+    common = ["--out", store, "--quiet", "--workers", "1"]
+    assert main(["map", str(PAPER_SPEC), "--axis", "q1=0:1:3", *common]) == 0
+    capsys.readouterr()
+    assert main(["map", str(PAPER_SPEC), "--axis", "q1=0:1:4", *common]) == 1
+    err = capsys.readouterr().err
+    assert "axis 'q1': stored 3 values" in err and "--overwrite" in err
+
+
+def test_map_interrupted_ends_the_progress_line_and_resumes(tmp_path, capsys, monkeypatch):
+    import cdpm.maps
+
+    real = cdpm.maps.workspace_map
+
+    def interrupted_after_one_chunk(robot, axes, **kwargs):
+        def progress(done, total, index):
+            sys.stderr.write(f"\rmap {done}/{total} poses")  # a bar without its newline
+            if index >= 0:
+                raise KeyboardInterrupt
+
+        return real(robot, axes, **{**kwargs, "progress": progress})
+
+    store = tmp_path / "m.zarr"
+    argv = ["map", str(PAPER_SPEC), "--axis", "q1=0:1:12", "--out", str(store)]
+    argv += ["--workers", "1", "--chunk-size", "4"]
+    monkeypatch.setattr(cdpm.maps, "workspace_map", interrupted_after_one_chunk)
+    assert main(argv) == 130
+    err = capsys.readouterr().err
+    assert "map 4/12 poses\ncdpm map: interrupted; " in err
+    assert f"the finished chunks are kept in {store}: run the same command again" in err
+    # the same command again computes only the 8 poses of the two chunks left
+    totals = []
+
+    def recording(robot, axes, **kwargs):
+        progress = lambda done, total, index: totals.append(total)  # noqa: E731
+        return real(robot, axes, **{**kwargs, "progress": progress})
+
+    monkeypatch.setattr(cdpm.maps, "workspace_map", recording)
+    assert main(argv) == 0
+    assert "12 poses" in capsys.readouterr().out
+    assert totals and set(totals) == {8}

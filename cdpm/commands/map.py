@@ -78,7 +78,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def parse_axis(text: str, sampled: bool):
-    """(name, values or (low, high)) from NAME=LOW:HIGH:COUNT, NAME=V1,V2 or NAME=LOW:HIGH."""
+    """(name, values or (low, high)) from NAME=LOW:HIGH:COUNT, NAME=V1,V2 or NAME=LOW:HIGH.
+
+    Every value must be a finite number and every item present: an empty
+    item (``q1=0:1:5,`` or ``q1=0,,1``) is an error, not skipped.
+    """
+    import math
+
     import numpy as np
 
     from cdpm.errors import InputError
@@ -89,30 +95,68 @@ def parse_axis(text: str, sampled: bool):
     if not sep or not name or not rest.strip():
         raise InputError(f"--axis {text!r}: expected NAME=LOW:HIGH:COUNT or NAME=V1,V2,...")
 
-    def number(token: str) -> float:
+    def number(token: str, what: str) -> float:
+        if not token.strip():
+            raise InputError(
+                f"--axis {text!r}: {what} of axis {name!r} is empty; "
+                "remove the stray ',' or ':' or fill in the value"
+            )
         try:
-            return parse_number(token.strip())
+            value = parse_number(token.strip())
         except ValueError as exc:
-            raise InputError(f"--axis {text!r}: {exc}") from exc
+            raise InputError(f"--axis {text!r}: {what} of axis {name!r}: {exc}") from exc
+        if not math.isfinite(value):
+            raise InputError(
+                f"--axis {text!r}: {what} of axis {name!r} is {value}; axis values must be "
+                "finite numbers (e.g. -pi:pi:181)"
+            )
+        return value
 
+    if ":" in rest and "," in rest:
+        raise InputError(
+            f"--axis {text!r}: axis {name!r} mixes a range (':') and a list (','); give "
+            f"either {name}=LOW:HIGH:COUNT or {name}=V1,V2,..."
+        )
     if ":" in rest:
         parts = rest.split(":")
         if sampled:
             if len(parts) != 2:
                 raise InputError(f"--axis {text!r}: with --samples give a range NAME=LOW:HIGH")
-            return name, (number(parts[0]), number(parts[1]))
+            return name, (number(parts[0], "LOW"), number(parts[1], "HIGH"))
         if len(parts) != 3:
             raise InputError(f"--axis {text!r}: expected NAME=LOW:HIGH:COUNT")
+        low, high = number(parts[0], "LOW"), number(parts[1], "HIGH")
         try:
             count = int(parts[2])
         except ValueError as exc:
-            raise InputError(f"--axis {text!r}: COUNT must be an integer") from exc
+            raise InputError(
+                f"--axis {text!r}: COUNT of axis {name!r} must be an integer, "
+                f"got {parts[2]!r} (e.g. {name}=0:1:11)"
+            ) from exc
         if count < 1:
             raise InputError(f"--axis {text!r}: COUNT must be at least 1")
-        return name, np.linspace(number(parts[0]), number(parts[1]), count)
+        return name, np.linspace(low, high, count)
     if sampled:
         raise InputError(f"--axis {text!r}: with --samples give a range NAME=LOW:HIGH")
-    return name, np.array([number(t) for t in rest.split(",") if t.strip()])
+    items = rest.split(",")
+    return name, np.array([number(t, f"value {k + 1}") for k, t in enumerate(items)])
+
+
+def parse_axes(texts: list[str], sampled: bool) -> dict:
+    """{name: values or (low, high)} from every --axis; each coordinate once."""
+    from cdpm.errors import InputError
+
+    axes: dict = {}
+    given: dict[str, str] = {}
+    for text in texts:
+        name, values = parse_axis(text, sampled)
+        if name in axes:
+            raise InputError(
+                f"--axis {name} is given twice ({given[name]!r} and {text!r}); give each "
+                "coordinate one --axis (list several values as NAME=V1,V2,...)"
+            )
+        axes[name], given[name] = values, text
+    return axes
 
 
 def parse_base(tokens):
@@ -140,33 +184,90 @@ def parse_base(tokens):
     return list(tokens)
 
 
+def _check_plot_path(path: str) -> None:
+    """Fail before any work when --plot cannot be written: matplotlib
+    missing, or an image format it does not write."""
+    from pathlib import Path
+
+    from cdpm.errors import InputError, MissingExtraError
+
+    try:
+        from matplotlib.backend_bases import FigureCanvasBase
+    except ImportError as exc:
+        raise MissingExtraError(
+            "--plot needs matplotlib: pip install 'cdpm[maps]' (or leave out --plot and "
+            "draw the stored map later with `cdpm plot STORE -o map.png`)"
+        ) from exc
+    suffix = Path(path).suffix
+    formats = sorted(FigureCanvasBase.get_supported_filetypes())
+    if suffix and suffix[1:].lower() not in formats:
+        raise InputError(
+            f"--plot {path}: unknown image format {suffix!r}; use one of {', '.join(formats)}"
+        )
+
+
+def _check_tension(robot, method: str | None) -> None:
+    """The pretension method needs a pretension, which `cdpm map` takes
+    from the spec only."""
+    from cdpm.errors import InputError
+
+    method = method or robot.spec.equilibrium_method
+    if method == "pretension" and not robot.spec.pretension > 0:
+        raise InputError(
+            f"--tension pretension needs a pretension > 0 N, and {robot.spec.path.name} gives "
+            "none (with 0 it is the min_norm method): set equilibrium: {pretension: N} in the "
+            "spec, or use --tension min_norm"
+        )
+
+
+def _interrupted(args: argparse.Namespace) -> int:
+    """End the progress line and say how to go on."""
+    if not args.quiet:
+        sys.stderr.write("\n")  # the progress bar redraws one line without ending it
+    if args.out:
+        hint = (
+            f"the finished chunks are kept in {args.out}: run the same command again to "
+            "resume from them"
+        )
+    else:
+        hint = "nothing was kept: add --out STORE to keep finished chunks and resume later"
+    print(f"cdpm map: interrupted; {hint}", file=sys.stderr)
+    return 130
+
+
 def run(args: argparse.Namespace) -> int:
     import numpy as np
 
     from cdpm.maps import STATUS_CODES, VERDICT_CODES, workspace_map
     from cdpm.robot import load_robot
 
+    if args.plot:
+        _check_plot_path(args.plot)
     robot = load_robot(args.spec)
     sampled = args.samples is not None
-    axes = dict(parse_axis(a, sampled) for a in args.axis)
+    axes = parse_axes(args.axis, sampled)
     base = parse_base(args.base)
     if isinstance(base, list):
         base = robot.configuration(base)
-    ds = workspace_map(
-        robot,
-        axes,
-        base=base,
-        tension=args.tension,
-        samples=args.samples,
-        seed=args.seed,
-        workers=args.workers,
-        scheduler=args.scheduler,
-        store=args.out,
-        overwrite=args.overwrite,
-        chunk_size=args.chunk_size,
-        progress=not args.quiet,
-        margin=not args.no_margin,
-    )
+    _check_tension(robot, args.tension)
+    try:
+        ds = workspace_map(
+            robot,
+            axes,
+            base=base,
+            tension=args.tension,
+            samples=args.samples,
+            seed=args.seed,
+            workers=args.workers,
+            scheduler=args.scheduler,
+            store=args.out,
+            overwrite=args.overwrite,
+            chunk_size=args.chunk_size,
+            progress=not args.quiet,
+            margin=not args.no_margin,
+        )
+    except KeyboardInterrupt:
+        return _interrupted(args)
     poc = np.asarray(ds["poc"].values)
     status = np.asarray(ds["status"].values)
     total = poc.size
@@ -185,6 +286,6 @@ def run(args: argparse.Namespace) -> int:
     if args.plot:
         from cdpm.plotting import save_map_plot
 
-        save_map_plot(ds, args.plot)
-        print(f"plot written to {args.plot}", file=sys.stderr if args.quiet else sys.stdout)
+        written = save_map_plot(ds, args.plot)
+        print(f"plot written to {written}", file=sys.stderr if args.quiet else sys.stdout)
     return 0
