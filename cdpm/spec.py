@@ -296,11 +296,13 @@ def load_spec(path: str | os.PathLike) -> CableSpec:
                 hint = f"; did you mean {candidates[0]}?"
         raise SpecError(f"cable spec file not found: {spec_path}{hint}")
     try:
-        data = yaml.safe_load(spec_path.read_text(encoding="utf-8"))
+        data, duplicates = _load_yaml(spec_path.read_text(encoding="utf-8"))
     except yaml.YAMLError as exc:
         raise SpecError(f"not valid YAML: {exc}", path=str(spec_path)) from exc
     except UnicodeDecodeError as exc:
         raise SpecError(f"not a UTF-8 text file: {exc}", path=str(spec_path)) from exc
+    if duplicates:
+        raise SpecError(duplicates, path=str(spec_path))
     if not isinstance(data, dict):
         raise SpecError(
             "a cable spec is a YAML mapping with keys urdf, gravity, cables, outputs, poses",
@@ -349,6 +351,52 @@ def load_spec(path: str | os.PathLike) -> CableSpec:
         external_wrench=external,
         sha256=_file_hash(spec_path, urdf_path),
     )
+
+
+def _load_yaml(text: str) -> tuple[Any, list[str]]:
+    """``yaml.safe_load`` that also lists keys given twice in one mapping.
+
+    YAML parsers keep the last of two equal keys without a word, so a spec
+    with ``cables:`` twice would silently lose the first list. Merge keys
+    (``<<: *anchor``) may still be overridden, as YAML intends.
+
+    Returns:
+        (data, problems): the loaded document and one line per repeated key
+        with its line numbers (1-based).
+    """
+    import yaml
+
+    problems: list[tuple[int, str]] = []
+
+    class _Loader(yaml.SafeLoader):
+        pass
+
+    def construct_mapping(loader, node, deep=False):
+        first_line: dict[Any, int] = {}
+        for key_node, _ in node.value:
+            if key_node.tag == "tag:yaml.org,2002:merge":
+                continue
+            key = loader.construct_object(key_node, deep=True)
+            try:
+                seen = first_line.get(key)
+            except TypeError:  # an unhashable key: safe_load reports it
+                continue
+            line = key_node.start_mark.line + 1
+            if seen is None:
+                first_line[key] = line
+            else:
+                problems.append(
+                    (
+                        line,
+                        f"line {line}: key {key!r} is given twice in the same mapping (first on "
+                        f"line {seen}); YAML would keep only the last one: remove or merge one",
+                    )
+                )
+        return yaml.SafeLoader.construct_mapping(loader, node, deep=deep)
+
+    _Loader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, construct_mapping)
+    data = yaml.load(text, Loader=_Loader)  # noqa: S506 - a SafeLoader subclass
+    return data, [message for _, message in sorted(problems)]
 
 
 #: pip distribution that installs a ROS-style package's files, where the
@@ -693,4 +741,10 @@ def _parse_equilibrium(problems: _Problems, raw: Any) -> tuple[str, float]:
         else:
             if not (math.isfinite(pretension) and pretension >= 0):
                 problems.add("equilibrium.pretension", "must be finite and >= 0 N")
+    if method == "pretension" and pretension == 0:
+        problems.add(
+            "equilibrium",
+            "method 'pretension' needs pretension: N > 0 (every cable at least N newtons); "
+            "with 0 it is the min_norm method, so give the pretension or use method: min_norm",
+        )
     return method, pretension

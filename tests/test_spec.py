@@ -179,3 +179,37 @@ def test_outputs_are_required_and_may_be_offset_points(write_spec):
 def test_number_parser_refuses_huge_powers_quickly():
     with pytest.raises(ValueError, match="is not a number"):
         parse_number("9**9**9")
+
+
+def test_duplicate_keys_are_refused_with_their_lines(write_spec):
+    text = GOOD.replace("  - name: c1\n", "  - name: c1\n    name: c2\n") + (
+        "poses:\n  a: [0, 0]\nposes:\n  b: [1, 1]\n"
+    )
+    path = write_spec(text)
+    with pytest.raises(cdpm.SpecError) as info:
+        load_spec(path)
+    message = str(info.value)
+    assert message.startswith(f"{path}: 2 problems in cable spec:")
+    assert (
+        "line 6: key 'name' is given twice in the same mapping (first on line 5); "
+        "YAML would keep only the last one" in message
+    )
+    assert "line 14: key 'poses' is given twice in the same mapping (first on line 12)" in message
+    assert message.index("line 6:") < message.index("line 14:")
+    # equal keys in different mappings, and merged keys overridden, are fine
+    spec = load_spec(
+        write_spec(GOOD + "poses:\n  a: &a {q1: 0.1, q2: 0.2}\n  b: {<<: *a, q2: 0.5}\n")
+    )
+    np.testing.assert_array_equal(spec.poses["a"], [0.1, 0.2])
+    np.testing.assert_array_equal(spec.poses["b"], [0.1, 0.5])
+
+
+def test_pretension_method_needs_a_pretension(write_spec):
+    for equilibrium in ("{method: pretension}", "{method: pretension, pretension: 0}"):
+        with pytest.raises(
+            cdpm.SpecError,
+            match=r"equilibrium: method 'pretension' needs pretension: N > 0 .*method: min_norm",
+        ):
+            load_spec(write_spec(GOOD + f"equilibrium: {equilibrium}\n"))
+    spec = load_spec(write_spec(GOOD + "equilibrium: {method: pretension, pretension: 5}\n"))
+    assert (spec.equilibrium_method, spec.pretension) == ("pretension", 5.0)
