@@ -606,6 +606,51 @@ def test_worker_processes_give_the_same_map(paper_robot, paper_map, tmp_path):
     _same(ds, paper_map)
 
 
+_UNGUARDED_SCRIPT = """
+import sys, numpy as np, cdpm
+axes = {"q1": np.linspace(-3.1, 3.1, 40), "q2": np.linspace(-3.1, 3.1, 40)}
+cdpm.workspace_map(sys.argv[1], axes, workers=2, chunk_size=100, store=sys.argv[2])
+print("finished")
+"""
+
+
+def test_unguarded_script_with_workers_fails_clearly_and_keeps_the_store(paper_map, tmp_path):
+    """Local workers import the main script (as Python's spawn does): a map
+    call at a script's top level must not run again in them (it would
+    replace the store being written); the user is told the fix, and
+    re-running the guarded script resumes the kept store."""
+    script = tmp_path / "unguarded.py"
+    script.write_text(_UNGUARDED_SCRIPT)
+    store = tmp_path / "u.zarr"
+    env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[1]))
+    run = subprocess.run(
+        [sys.executable, str(script), str(PAPER_SPEC), str(store)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        env=env,
+    )
+    assert run.returncode != 0
+    assert "finished" not in run.stdout
+    assert 'if __name__ == "__main__":' in run.stderr
+    assert (store / ".cdpm" / "created").is_file()  # the store was not replaced
+    guarded = tmp_path / "guarded.py"
+    body = _UNGUARDED_SCRIPT.strip().splitlines()
+    guarded.write_text(
+        "\n".join(body[:2] + ['if __name__ == "__main__":'] + ["    " + x for x in body[2:]])
+    )
+    run = subprocess.run(
+        [sys.executable, str(guarded), str(PAPER_SPEC), str(store)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        env=env,
+    )
+    assert run.returncode == 0, run.stderr
+    axes = {"q1": np.linspace(-3.1, 3.1, 40), "q2": np.linspace(-3.1, 3.1, 40)}
+    _same(open_map(store), workspace_map(PAPER_SPEC, axes, workers=1))
+
+
 def test_dask_cluster_gives_the_same_map(paper_robot, paper_map, tmp_path):
     distributed = pytest.importorskip("distributed")
     with distributed.LocalCluster(

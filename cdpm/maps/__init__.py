@@ -29,10 +29,17 @@ __all__ = [
     "STATUS_CODES",
 ]
 
-#: chunk size when poses need the analyser's per-pose decision (under load:
-#: milliseconds per pose, so small chunks keep progress, interruption and
-#: the spread over workers responsive)
-PER_POSE_CHUNK_SIZE = 64
+#: largest chunk when poses go through the analyser (under load: a few
+#: tenths of a millisecond per pose): writing a chunk costs about 20 ms
+#: whatever its size, and a chunk of this size about half a second
+PER_POSE_CHUNK_SIZE = 1024
+
+
+def _per_pose_chunk_size(n_poses: int) -> int:
+    """Chunk size under load: PER_POSE_CHUNK_SIZE, or smaller for maps of
+    fewer than 16 such chunks (a multiple of 64, at least 64), so that
+    progress and the spread over workers stay even."""
+    return int(min(PER_POSE_CHUNK_SIZE, max(64, 64 * -(-n_poses // (16 * 64)))))
 
 
 def workspace_map(
@@ -76,14 +83,13 @@ def workspace_map(
             store made with the same settings is resumed (only chunks not
             yet done are computed). None keeps the map in memory.
         overwrite: replace an existing ``store`` instead of resuming it.
-        chunk_size: poses per chunk (default 16384; 64 when poses need the
-            analyser per pose, e.g. under gravity).
+        chunk_size: poses per chunk (default 16384; under load, when poses
+            go through the analyser, 1024, or less for maps of fewer than
+            16384 poses).
         progress: True prints a progress bar on stderr; a callable is called
             as ``progress(done_poses, total_poses, chunk_index)``.
-        margin: compute the POC margin (``poc_margin``). Under load it is
-            most of the cost of a pose; ``False`` leaves it NaN and decides
-            poses whose taut cables alone reach every output direction
-            without the analyser (same verdicts, several times faster).
+        margin: compute the POC margin (``poc_margin``); ``False`` leaves
+            it NaN (same verdicts; under load about 1.5x faster).
 
     Returns:
         ``xarray.Dataset`` with dims the axis names (grid) or ``sample``, and
@@ -102,10 +108,11 @@ def workspace_map(
     from cdpm import __version__
     from cdpm.maps._evaluate import _zero_equilibrium
     from cdpm.maps._plan import make_plan
-    from cdpm.maps._runner import ProgressPrinter, run_chunks
+    from cdpm.maps._runner import ProgressPrinter, prestart_workers, run_chunks
     from cdpm.maps._store import MemorySink, ZarrSink
     from cdpm.robot import CableRobot, load_robot
 
+    _refuse_in_worker_bootstrap()
     if not isinstance(robot, CableRobot):
         robot = load_robot(robot)
     if samples is not None:
@@ -114,13 +121,17 @@ def workspace_map(
         axes = sample_axes(axes, samples, seed)
     setting = resolve_tension(robot, tension)
     if chunk_size is None:
-        fast = _zero_equilibrium(robot, setting)
-        chunk_size = DEFAULT_CHUNK_SIZE if fast else PER_POSE_CHUNK_SIZE
+        if _zero_equilibrium(robot, setting):
+            chunk_size = DEFAULT_CHUNK_SIZE
+        else:
+            chunk_size = _per_pose_chunk_size(_n_poses(axes))
     plan = make_plan(robot, axes, base, setting, chunk_size, __version__, margin)
     if workers is None:
         workers = os.cpu_count() or 1
     if not isinstance(workers, int) or workers < 1:
         raise InputError(f"workers must be a positive integer, got {workers!r}")
+    if scheduler is None and workers > 1:
+        prestart_workers()  # their start-up overlaps the store's creation
     sink = MemorySink(robot, plan) if store is None else ZarrSink(store, robot, plan, overwrite)
     done = sink.done()
     todo = [k for k in range(plan.n_chunks) if k not in done]
@@ -131,3 +142,33 @@ def workspace_map(
     job = (setting, bool(margin))
     run_chunks(robot, plan, job, todo, sink, workers, scheduler, progress)
     return sink.dataset()
+
+
+def _refuse_in_worker_bootstrap() -> None:
+    """Refuse to run while a worker process imports the main script.
+
+    Local workers start like Python's ``spawn``: each imports the calling
+    script as a module, so a script calling :func:`workspace_map` at its
+    top level would run the map again in every worker (replacing the store
+    being written).
+    """
+    import multiprocessing
+
+    if getattr(multiprocessing.current_process(), "_inheriting", False):
+        raise InputError(
+            "workspace_map was called while a worker process was importing the main script: "
+            "with workers > 1, put the script's map call under "
+            '`if __name__ == "__main__":` (local workers import the script), or pass workers=1'
+        )
+
+
+def _n_poses(axes) -> int:
+    """Number of poses of ``axes`` (a grid's product, or the samples)."""
+    import numpy as np
+
+    if isinstance(axes, SampledAxes):
+        return int(axes.n)
+    try:
+        return int(np.prod([np.size(v) for v in axes.values()]))
+    except (AttributeError, TypeError):
+        return 1  # make_plan explains what is wrong with the axes

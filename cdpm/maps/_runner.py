@@ -259,15 +259,29 @@ def _context():
     return multiprocessing.get_context("spawn")
 
 
+_FORK_SERVER: dict = {}
+
+
 def _start_fork_server(ctx) -> threading.Thread | None:
-    """Start the fork server (with its preloaded modules) in a thread."""
+    """Start the fork server (with its preloaded modules) in a thread, once
+    per process; returns that thread."""
     if ctx.get_start_method() != "forkserver":
         return None
-    from multiprocessing import forkserver
+    thread = _FORK_SERVER.get("thread")
+    if thread is None:
+        from multiprocessing import forkserver
 
-    thread = threading.Thread(target=forkserver.ensure_running, daemon=True)
-    thread.start()
+        thread = threading.Thread(target=forkserver.ensure_running, daemon=True)
+        thread.start()
+        _FORK_SERVER["thread"] = thread
     return thread
+
+
+def prestart_workers() -> None:
+    """Start what local worker processes are forked from (the fork server
+    importing Pinocchio, zarr and cdpm) in the background now, so that it
+    is ready when the first chunks are handed out."""
+    _start_fork_server(_context())
 
 
 def _run_processes(robot, plan, job, todo, finished, workers: int, writer=None) -> None:
@@ -280,6 +294,7 @@ def _run_processes(robot, plan, job, todo, finished, workers: int, writer=None) 
     useful work and small maps gain from workers too.
     """
     from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+    from concurrent.futures.process import BrokenProcessPool
 
     from cdpm.maps._evaluate import evaluate_poses
 
@@ -313,13 +328,21 @@ def _run_processes(robot, plan, job, todo, finished, workers: int, writer=None) 
                 done, running = wait(running, return_when=FIRST_COMPLETED)
             for future in done:
                 finished(*future.result())
-    except BaseException:
+    except BaseException as exc:
         for future in running:
             future.cancel()
         # stop the workers now rather than after their current chunk
         for process in list(getattr(executor, "_processes", {}).values()):
             process.terminate()
         executor.shutdown(wait=False, cancel_futures=True)
+        if isinstance(exc, BrokenProcessPool):
+            raise CdpmError(
+                "a map worker process stopped unexpectedly (its message is above). If a script "
+                "calls workspace_map at its top level, put the call under "
+                '`if __name__ == "__main__":`: local workers import the script; workers=1 '
+                "runs without worker processes. Finished chunks stay in the store: re-running "
+                "resumes."
+            ) from exc
         raise
     executor.shutdown(wait=True)
 

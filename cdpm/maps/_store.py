@@ -286,7 +286,7 @@ class ChunkWriter:
 
     def __init__(self, path: str, plan: MapPlan, names: tuple[str, ...]):
         self.path, self.plan, self.names = path, plan, names
-        self._group = None
+        self._arrays = None
 
     def __getstate__(self) -> dict:
         return {"path": self.path, "plan": self.plan, "names": self.names}
@@ -297,13 +297,14 @@ class ChunkWriter:
     def write(self, index: int, data: dict) -> None:
         import zarr
 
-        if self._group is None:
-            self._group = zarr.open_group(self.path, mode="r+")
+        if self._arrays is None:
+            group = zarr.open_group(self.path, mode="r+")
+            self._arrays = {name: group[name] for name in self.names}
         region = self.plan.region(index)
         shape = tuple(s.stop - s.start for s in region)
-        for name in self.names:
+        for name, array in self._arrays.items():
             value = data[name]
-            self._group[name][region] = value.reshape(shape + value.shape[1:])
+            array[region] = value.reshape(shape + value.shape[1:])
         _touch(Path(self.path) / _META / "done" / str(index))
 
 
