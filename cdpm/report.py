@@ -8,6 +8,7 @@ notebooks (``_repr_html_``) and programs (``as_dict`` -> JSON).
 from __future__ import annotations
 
 import html
+import re
 from dataclasses import dataclass
 from typing import Any
 
@@ -117,7 +118,7 @@ class PoseReport:
             _indent(f"Controllability (Kalman): {self.controllability}"),
             _indent(f"Wrench closure: {self.wrench_closure}"),
         ]
-        return "\n".join(lines)
+        return _without_negative_zeros("\n".join(lines))
 
     def _equilibrium_lines(self) -> list[str]:
         lin = self.linearisation
@@ -147,6 +148,26 @@ class PoseReport:
 
     def _repr_html_(self) -> str:
         return f"<pre>{html.escape(str(self))}</pre>"
+
+
+# A printed zero with a minus sign: "-0", "-0.000", "-0e+00" (from format
+# specs) or numpy's "-0." (followed by padding, "," or "]"), standing alone.
+_NEGATIVE_ZERO = re.compile(r"(?<![\w.])-(0(?:\.0*)?(?:e[+-]?\d+)?)(?![\w.])")
+
+
+def _without_negative_zeros(text: str) -> str:
+    """``text`` with every printed negative zero shown as zero.
+
+    Values such as -1e-17 print as ``-0`` at a few significant digits (and
+    an exact -0.0 always does); the sign carries no information there.
+    numpy's ``-0.`` becomes `` 0.`` so matrix columns stay aligned.
+    """
+
+    def positive(match: re.Match) -> str:
+        zero = match.group(1)
+        return (" " if zero == "0." else "") + zero
+
+    return _NEGATIVE_ZERO.sub(positive, text)
 
 
 def _labelled(label: str, result: Any) -> str:

@@ -191,3 +191,49 @@ def test_map_interrupted_ends_the_progress_line_and_resumes(tmp_path, capsys, mo
     assert main(argv) == 0
     assert "12 poses" in capsys.readouterr().out
     assert totals and set(totals) == {8}
+
+
+# -------------------------------------------------------------- cdpm analyze
+
+
+@pytest.mark.parametrize(
+    ("q", "message"),
+    [
+        (["abc"], r"--q value: 'abc' is not a number .*one number per coordinate \(q1, q2\)"),
+        (["0.5", "x"], r"--q value 2 of 2: 'x' is not a number"),
+        (["1", "2", "3"], r"--q 1 2 3: q has 3 entries, expected nq=2"),
+        (["1", "inf"], r"--q 1 inf: q has non-finite entries"),
+    ],
+)
+def test_analyze_bad_q_names_the_option(q, message, capsys):
+    import re
+
+    assert main(["analyze", str(PAPER_SPEC), "--q", *q]) == 1
+    err = capsys.readouterr().err
+    assert re.search(f"^cdpm analyze: error: {message}", err), err
+
+
+def test_analyze_prints_no_negative_zeros(capsys):
+    import re
+
+    from tests.conftest import MODELS
+
+    # q1 = -0 exactly, and the spatial robot's pitch (and many matrix entries)
+    # are -0.0 or round to it; numpy prints those as "-0."
+    for argv in (
+        ["analyze", str(PAPER_SPEC), "--q", "-0", "pi/3"],
+        ["analyze", str(MODELS / "spatial_8cable")],
+        ["analyze", str(MODELS / "multilink_arm")],
+    ):
+        assert main(argv) == 0
+        out = capsys.readouterr().out
+        assert not re.search(r"(?<![\w.])-0(\.0*)?(?![\w.])", out), out
+    assert main(["analyze", str(PAPER_SPEC), "--q", "-0", "pi/3"]) == 0
+    out = capsys.readouterr().out
+    assert "coordinates: q1 = 0, q2 = 1.0472" in out
+    # numbers that are not zero keep their sign, columns stay aligned
+    assert main(["analyze", str(MODELS / "multilink_arm")]) == 0
+    out = capsys.readouterr().out
+    b_rows = out[out.index("  B =\n") : out.index("  C =\n")].splitlines()[1:]
+    assert len({len(row.rstrip("]")) for row in b_rows}) == 1, b_rows
+    assert any("-0.3192" in row for row in b_rows) and any(" 0.  " in row for row in b_rows)

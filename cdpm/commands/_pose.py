@@ -28,10 +28,31 @@ def pose_from_args(robot, args: argparse.Namespace):
     every robot method accepts them.
     """
     if args.q is not None:
-        return robot.configuration(list(args.q))
+        return _configuration_from_q(robot, args.q)
     if args.pose is not None:
         robot.configuration(args.pose)  # unknown names fail here, listing the poses
         return args.pose
     if robot.poses:
         return next(iter(robot.poses))
     return robot.neutral()
+
+
+def _configuration_from_q(robot, tokens: list[str]):
+    """The configuration from the --q values, with errors that name --q."""
+    from cdpm.errors import InputError
+    from cdpm.spec import parse_number
+
+    values = []
+    for k, token in enumerate(tokens):
+        try:
+            values.append(parse_number(token))
+        except ValueError as exc:
+            where = f"value {k + 1} of {len(tokens)}" if len(tokens) > 1 else "value"
+            raise InputError(
+                f"--q {where}: {exc}; give one number per coordinate "
+                f"({', '.join(robot.coordinate_names)})"
+            ) from exc
+    try:
+        return robot.configuration(values)
+    except InputError as exc:
+        raise InputError(f"--q {' '.join(tokens)}: {exc}") from exc
