@@ -48,6 +48,7 @@ __all__ = [
     "DEFAULT_METHOD",
     "STATICS_RTOL",
     "EquilibriumResult",
+    "EquilibriumWarning",
     "InfeasibleEquilibriumError",
     "equilibrium_tension",
     "check_equilibrium",
@@ -61,20 +62,52 @@ DEFAULT_METHOD = "min_norm"
 STATICS_RTOL = 1e-9
 
 
+class EquilibriumWarning(UserWarning):
+    """An equilibrium request that is valid but probably not what was meant
+    (e.g. the ``pretension`` method with a pretension of 0 N)."""
+
+
 class InfeasibleEquilibriumError(ModelError):
     """No tension within the cable bounds holds the robot at the pose.
+
+    The message says what to change, naming the Python arguments by
+    default; a command line passes its own spelling of the options.
+
+    Args:
+        result: the infeasible :class:`EquilibriumResult`.
+        method_option: how to spell "use this tension method", a format
+            string taking the method name (default ``"tension={!r}"``, the
+            argument of :func:`cdpm.linearise` and :func:`cdpm.analyze_pose`).
+        pretension_option: how to spell "use this pretension", a format
+            string taking a placeholder (default ``"pretension={}"``).
 
     Attributes:
         result: the :class:`EquilibriumResult` (``feasible`` False, with the
             smallest statics residual reachable within the bounds).
     """
 
-    def __init__(self, result: EquilibriumResult):
+    def __init__(
+        self,
+        result: EquilibriumResult,
+        *,
+        method_option: str = "tension={!r}",
+        pretension_option: str = "pretension={}",
+    ):
         self.result = result
+        min_norm = method_option.format("min_norm")
+        bounds = "wider tension bounds for the cables in the spec"
+        if result.method == "zero":
+            fix = f"let the cables take the load ({min_norm}), or try another pose"
+        elif result.method == "pretension":
+            fix = (
+                f"try a lower pretension ({pretension_option.format('N')}, now "
+                f"{result.pretension:g} N), {min_norm}, another pose or {bounds}"
+            )
+        else:
+            fix = f"try another pose or {bounds}"
         super().__init__(
             f"no equilibrium at this pose with method {result.method!r}: {result.message}. "
-            "Try another pose, tension method (--tension min_norm, or a lower "
-            "--pretension) or wider tension bounds in the spec"
+            f"To fix: {fix}"
         )
 
 
@@ -322,6 +355,28 @@ def _polish(lt, load, lower, upper, x) -> np.ndarray:
     return np.clip(f, lower, upper)  # pragma: no cover - the loop adds a cable each pass
 
 
+#: What DAQP's negative exit flags mean, in words (DAQP's documentation).
+_DAQP_FAILURES = {
+    -2: "cycled between working sets",
+    -3: "found the problem unbounded",
+    -4: "reached its iteration limit",
+    -5: "found the problem not convex",
+    -6: "started from an overdetermined working set",
+}
+
+
+def _solver_failure(exitflag: int) -> str:
+    """Why the least-norm QP gave no tension, in plain words (the solver's
+    exit flag kept as a detail)."""
+    if exitflag == -1:
+        return (
+            "no tension within the cable bounds balances the load (the QP solver proved "
+            "it infeasible; DAQP exit flag -1)"
+        )
+    what = _DAQP_FAILURES.get(exitflag, "failed")
+    return f"the QP solver stopped without a tension: it {what} (DAQP exit flag {exitflag})"
+
+
 def _min_norm_in_bounds(lt, load, lower, upper) -> tuple[np.ndarray | None, str]:
     """Least-norm f with L^T f = load and lower <= f <= upper, or None."""
     try:
@@ -352,7 +407,7 @@ def _min_norm_in_bounds(lt, load, lower, upper) -> tuple[np.ndarray | None, str]
         sense,
     )
     if exitflag < 1:
-        return None, f"no tension within the bounds balances the load (QP exit flag {exitflag})"
+        return None, _solver_failure(int(exitflag))
     return _polish(lt, load, lower, upper, np.asarray(x, dtype=float)), ""
 
 
@@ -373,7 +428,9 @@ def equilibrium_tension(
         method: how to choose among the equilibria; None uses the spec's
             ``equilibrium.method`` (``min_norm`` when the spec names none).
         pretension: least tension [N] of every cable for the ``pretension``
-            method; None uses the spec's ``equilibrium.pretension``.
+            method; None uses the spec's ``equilibrium.pretension``. The
+            other methods do not use it. With 0 N the ``pretension`` method
+            is ``min_norm``, which an :class:`EquilibriumWarning` points out.
 
     Returns:
         The :class:`EquilibriumResult`; ``feasible`` is False (with the
@@ -399,6 +456,16 @@ def equilibrium_tension(
         raise InputError(f"pretension must be a number of newtons, got {pretension!r}") from exc
     if not (math.isfinite(pretension) and pretension >= 0):
         raise InputError(f"pretension must be finite and >= 0 N, got {pretension}")
+    if method == "pretension" and pretension == 0:
+        import warnings
+
+        warnings.warn(
+            "the 'pretension' method with a pretension of 0 N is the 'min_norm' method "
+            "(cables the load does not need stay slack); give a pretension > 0 N "
+            "(pretension=N or the spec's equilibrium.pretension) to keep every cable taut",
+            EquilibriumWarning,
+            stacklevel=2,
+        )
 
     q, lt, load = _statics(robot, q)
     fmin, fmax = robot.tension_min.copy(), robot.tension_max.copy()

@@ -237,3 +237,58 @@ def test_analyze_prints_no_negative_zeros(capsys):
     b_rows = out[out.index("  B =\n") : out.index("  C =\n")].splitlines()[1:]
     assert len({len(row.rstrip("]")) for row in b_rows}) == 1, b_rows
     assert any("-0.3192" in row for row in b_rows) and any(" 0.  " in row for row in b_rows)
+
+
+def test_analyze_pretension_flag_is_never_silently_ignored(capsys):
+    from tests.conftest import MODELS
+
+    vertical = str(MODELS / "two_link_vertical")  # spec: method min_norm, pretension 10
+    assert main(["analyze", vertical, "--pose", "nominal", "--pretension", "5"]) == 1
+    err = capsys.readouterr().err
+    assert (
+        "--pretension 5 only applies to --tension pretension, and this analysis uses method "
+        "'min_norm' (two_link_vertical.yaml's equilibrium.method): add --tension pretension"
+    ) in err
+    argv = ["analyze", vertical, "--pose", "horizontal", "--tension", "zero", "--pretension", "5"]
+    assert main(argv) == 1
+    assert "this analysis uses method 'zero': add --tension pretension" in capsys.readouterr().err
+    argv = ["analyze", str(PAPER_SPEC), "--tension", "0", "0", "0", "0", "--pretension", "5"]
+    assert main(argv) == 1
+    assert "this analysis uses given tensions" in capsys.readouterr().err
+    # the pretension method with no pretension anywhere is min_norm in disguise
+    assert main(["analyze", str(PAPER_SPEC), "--tension", "pretension"]) == 1
+    err = capsys.readouterr().err
+    assert (
+        "--tension pretension needs a pretension > 0 N and two_link_planar.yaml gives none" in err
+    )
+    assert "add --pretension N" in err
+    # ... asked for explicitly, it runs, with a warning on stderr
+    argv = ["analyze", str(PAPER_SPEC), "--tension", "pretension", "--pretension", "0", "--json"]
+    assert main(argv) == 0
+    out, err = capsys.readouterr()
+    assert json.loads(out)["equilibrium"]["method"] == "pretension"
+    assert err.startswith("cdpm analyze: warning: the 'pretension' method with a pretension of 0")
+    assert "(--pretension N or the spec's equilibrium.pretension)" in err
+
+
+def test_analyze_infeasible_names_the_options(capsys):
+    from tests.conftest import MODELS
+
+    vertical = str(MODELS / "two_link_vertical")
+    argv = ["analyze", vertical, "--pose", "nominal", "--tension", "pretension"]
+    assert main([*argv, "--pretension", "10"]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("cdpm analyze: error: no equilibrium at this pose")
+    assert "try a lower pretension (--pretension N, now 10 N), --tension min_norm" in err
+    assert "pretension=" not in err and "(QP exit flag" not in err
+
+
+def test_map_pretension_method_needs_the_spec_pretension(tmp_path, capsys):
+    argv = ["map", str(PAPER_SPEC), "--axis", "q1=0:1:3", "--tension", "pretension", "--quiet"]
+    assert main([*argv, "--out", str(tmp_path / "m.zarr")]) == 1
+    err = capsys.readouterr().err
+    assert (
+        "--tension pretension needs a pretension > 0 N, and two_link_planar.yaml gives none" in err
+    )
+    assert "set equilibrium: {pretension: N} in the spec" in err
+    assert not (tmp_path / "m.zarr").exists()

@@ -4,6 +4,7 @@ optimality (KKT) of the least-norm tensions, infeasible poses as results."""
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 import pinocchio as pin
@@ -198,3 +199,44 @@ def test_spec_default_method_and_pretension(vertical):
     assert vertical.spec.pretension == 10.0
     pre = equilibrium_tension(vertical, "horizontal", method="pretension")
     assert pre.pretension == 10.0 and pre.tension[2] == 10.0
+
+
+def test_infeasible_error_names_python_arguments_and_plain_reasons(vertical):
+    with pytest.raises(InfeasibleEquilibriumError) as info:
+        linearise(vertical, "nominal", tension="pretension", pretension=10)
+    message = str(info.value)
+    assert (
+        "no tension within the cable bounds balances the load (the QP solver proved it "
+        "infeasible; DAQP exit flag -1)" in message
+    )
+    assert "try a lower pretension (pretension=N, now 10 N), tension='min_norm'" in message
+    assert "--" not in message and "(QP exit flag" not in message
+    with pytest.raises(InfeasibleEquilibriumError) as info:
+        linearise(vertical, "horizontal", tension="zero")
+    assert "let the cables take the load (tension='min_norm')" in str(info.value)
+    assert "pretension" not in str(info.value)
+    # a command line spells the options its own way
+    cli = InfeasibleEquilibriumError(
+        info.value.result, method_option="--tension {}", pretension_option="--pretension {}"
+    )
+    assert "(--tension min_norm)" in str(cli) and cli.result is info.value.result
+
+
+def test_solver_failures_in_words():
+    from cdpm.equilibrium import _solver_failure
+
+    assert "reached its iteration limit (DAQP exit flag -4)" in _solver_failure(-4)
+    assert "cycled" in _solver_failure(-2) and "failed (DAQP exit flag -9)" in _solver_failure(-9)
+
+
+def test_zero_pretension_warns_that_it_is_min_norm(vertical):
+    from cdpm.equilibrium import EquilibriumWarning
+
+    with pytest.warns(EquilibriumWarning, match=r"pretension of 0 N is the 'min_norm' method"):
+        pre = equilibrium_tension(vertical, "horizontal", method="pretension", pretension=0)
+    plain = equilibrium_tension(vertical, "horizontal", method="min_norm")
+    np.testing.assert_array_equal(pre.tension, plain.tension)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # other methods do not use the pretension: no warning
+        equilibrium_tension(vertical, "horizontal", method="min_norm", pretension=0)
+        equilibrium_tension(vertical, "horizontal", method="pretension", pretension=1e-3)

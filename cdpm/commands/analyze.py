@@ -54,19 +54,64 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    import sys
+    import warnings
+
+    from cdpm.equilibrium import EquilibriumWarning, InfeasibleEquilibriumError
     from cdpm.report import analyze_pose
     from cdpm.robot import load_robot
 
     robot = load_robot(args.spec)
     q = pose_from_args(robot, args)
-    report = analyze_pose(
-        robot, q, tension=_tension_argument(args.tension), pretension=args.pretension
-    )
+    tension = _tension_argument(args.tension)
+    _check_pretension(robot, tension, args.pretension)
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", EquilibriumWarning)
+            report = analyze_pose(robot, q, tension=tension, pretension=args.pretension)
+    except InfeasibleEquilibriumError as exc:
+        raise InfeasibleEquilibriumError(
+            exc.result, method_option="--tension {}", pretension_option="--pretension {}"
+        ) from None
+    for warning in caught:
+        if issubclass(warning.category, EquilibriumWarning):
+            print(f"cdpm analyze: warning: {_cli_words(str(warning.message))}", file=sys.stderr)
+        else:
+            warnings.warn_explicit(
+                warning.message, warning.category, warning.filename, warning.lineno
+            )
     if args.json:
         print(json.dumps(report.as_dict(), indent=2))
     else:
         print(report)
     return 0
+
+
+def _cli_words(message: str) -> str:
+    """A library message with the Python argument named as this command's option."""
+    return message.replace("pretension=N", "--pretension N")
+
+
+def _check_pretension(robot, tension, pretension: float | None) -> None:
+    """--pretension only means something for the pretension method, and that
+    method needs one (from the flag or the spec)."""
+    from cdpm.errors import InputError
+
+    method = tension if isinstance(tension, str) or tension is None else "given"
+    method = method or robot.spec.equilibrium_method
+    if pretension is not None and method != "pretension":
+        source = "" if tension is not None else f" ({robot.spec.path.name}'s equilibrium.method)"
+        what = "given tensions" if method == "given" else f"method {method!r}{source}"
+        raise InputError(
+            f"--pretension {pretension:g} only applies to --tension pretension, and this "
+            f"analysis uses {what}: add --tension pretension, or leave out --pretension"
+        )
+    if method == "pretension" and pretension is None and not robot.spec.pretension > 0:
+        raise InputError(
+            f"--tension pretension needs a pretension > 0 N and {robot.spec.path.name} gives "
+            "none (with 0 it is the min_norm method): add --pretension N, or set "
+            "equilibrium: {pretension: N} in the spec"
+        )
 
 
 def _tension_argument(values: list[str] | None):
