@@ -900,6 +900,9 @@ def import_caspr(
     }
     write_spec()
     robot = load_robot(spec_path)
+    deficit = _output_rank_deficit(robot, natural, lower, upper, seed, links)
+    if deficit:
+        warn(f"{spec_path}: {deficit}")
 
     coordinates = tuple(
         f"{d.joint_name} <- link {d.link.num} {d.link.name!r} ({d.link.joint_type}) q[{d.index}]"
@@ -978,15 +981,69 @@ def _choose_pose(robot, initial, lower, upper, seed, warn) -> tuple[str, np.ndar
     )
 
 
-def _moving_components(robot, lower, upper, seed) -> list[bool]:
-    """Which outputs have a nonzero Jacobian row at some of a few sampled poses."""
+def _output_jacobians(robot, lower, upper, seed, extra=()) -> list[np.ndarray]:
+    """Output Jacobians (p, nv) at a few poses sampled within the limits
+    (and at the natural coordinates ``extra``)."""
     rng = np.random.default_rng(seed)
-    moving = np.zeros(robot.n_outputs, dtype=bool)
-    for _ in range(5):
-        natural = _sample(rng, lower, upper)
+    poses = [_sample(rng, lower, upper) for _ in range(5)] + list(extra)
+    jacobians = []
+    for natural in poses:
         try:
-            jac = robot.output_jacobian(robot.from_natural(natural))
+            jacobians.append(robot.output_jacobian(robot.from_natural(natural)))
         except ModelError:
             continue
+    return jacobians
+
+
+def _moving_components(robot, lower, upper, seed) -> list[bool]:
+    """Which outputs have a nonzero Jacobian row at some of a few sampled poses."""
+    moving = np.zeros(robot.n_outputs, dtype=bool)
+    for jac in _output_jacobians(robot, lower, upper, seed):
         moving |= np.linalg.norm(jac, axis=1) > 1e-9
     return moving.tolist()
+
+
+def _rank(matrix: np.ndarray) -> int:
+    s = np.linalg.svd(matrix, compute_uv=False)
+    return int(np.count_nonzero(s > 1e-9 * max(1.0, float(s[0]) if s.size else 0.0)))
+
+
+#: CASPR joints that turn a link about a fixed point (three rotations).
+_SPHERICAL_JOINTS = ("S_EULER_XYZ", "S_FIXED_XYZ")
+
+
+def _output_rank_deficit(robot, natural, lower, upper, seed, links) -> str | None:
+    """Why the outputs can never be output controllable, or None.
+
+    With fewer independent output directions than outputs at every pose
+    (rank of the output Jacobian < p), rank C [B AB ...] < p everywhere, so
+    output controllability and POC are NO at every pose whatever the cables.
+    """
+    p = robot.n_outputs
+    jacobians = _output_jacobians(robot, lower, upper, seed, extra=[natural])
+    if not jacobians or p == 0:
+        return None
+    rank = max(_rank(jac) for jac in jacobians)
+    if rank >= p:
+        return None
+    # a subset of `rank` outputs that the joints do move independently
+    best = max(jacobians, key=_rank)
+    keep: list[int] = []
+    for i in range(p):
+        if _rank(best[keep + [i]]) > len(keep):
+            keep.append(i)
+    names = robot.output_names
+    why = "the joints cannot move them independently"
+    spherical = [k.name for k in links if k.joint_type in _SPHERICAL_JOINTS]
+    if spherical:
+        why += (
+            f" (link {spherical[0]!r} turns about a spherical joint: a point on it moves on a "
+            "sphere and never along its radius)"
+        )
+    return (
+        f"the {p} outputs ({', '.join(names)}) span only {rank} direction(s) at every sampled "
+        f"pose: {why}. So output controllability fails and positive output controllability "
+        f"is NO at every pose. Keep {rank} output(s) that move independently in the spec's "
+        f"outputs (e.g. {', '.join(names[i] for i in keep)}), or give an operational space "
+        f"(<name>_operational_spaces.xml) with at most {rank} independent position components"
+    )

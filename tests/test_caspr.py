@@ -7,6 +7,7 @@ from __future__ import annotations
 import contextlib
 import csv
 import io
+import json
 import math
 import textwrap
 import warnings
@@ -684,3 +685,72 @@ def test_2r_planar_xz_matches_paper_model(tmp_path):
     assert cdpm.analyze_pose(caspr, [np.pi / 6, np.pi / 3]).poc.verdict == cdpm.Verdict.YES
     # the grid holds both answers, so the agreement says something
     assert {cdpm.Verdict.YES, cdpm.Verdict.NO} <= set(verdicts)
+
+
+def test_rank_deficient_outputs_are_explained(tmp_path):
+    # one link on a spherical joint, no operational space: the default outputs
+    # are the xyz of its end point, which moves on a sphere (rank 2 of 3)
+    bodies, cables = _write_model(tmp_path, ["S_EULER_XYZ"])
+    with pytest.warns(CasprWarning) as record:
+        result = import_caspr(bodies, cables, tmp_path / "out")
+    messages = [str(w.message) for w in record]
+    deficit = [m for m in messages if "span only" in m]
+    assert len(deficit) == 1, messages
+    assert deficit[0].startswith(f"{result.spec_path}: the 3 outputs (link1_end_x, link1_end_y")
+    assert "span only 2 direction(s)" in deficit[0]
+    assert "link 'L1' turns about a spherical joint" in deficit[0]
+    assert "positive output controllability is NO at every pose" in deficit[0]
+    assert "Keep 2 output(s)" in deficit[0] and "operational_spaces.xml" in deficit[0]
+    assert deficit[0] in result.warnings
+    # the warning tells the truth: POC is NO there (without gravity, to have an
+    # equilibrium), and the outputs it names are independent
+    path = _zero_gravity_copy(result.spec_path)
+    robot = cdpm.load_robot(path)
+    report = cdpm.analyze_pose(robot, robot.from_natural(result.pose))
+    assert report.output_controllability.rank == 2 and report.poc.verdict == cdpm.Verdict.NO
+    kept = deficit[0].split("(e.g. ")[1].split(")")[0].split(", ")
+    spec = yaml.safe_load(path.read_text())
+    spec["outputs"] = [o for o in spec["outputs"] if o["name"] in kept]
+    path.write_text(yaml.safe_dump(spec, sort_keys=False))
+    robot = cdpm.load_robot(path)
+    report = cdpm.analyze_pose(robot, robot.from_natural(result.pose))
+    assert report.output_controllability.rank == 2 == robot.n_outputs
+
+
+def test_independent_outputs_get_no_rank_warning(tmp_path):
+    bodies, cables = _write_model(tmp_path, ["U_XY", "R_Z"])
+    with warnings.catch_warnings(record=True) as record:
+        warnings.simplefilter("always")
+        result = import_caspr(bodies, cables, tmp_path / "out")
+    assert not any("span only" in str(w.message) for w in record)
+    assert cdpm.load_robot(result.spec_path).n_outputs == 3
+
+
+@needs_library
+def test_spherical_library_model_warns_about_its_outputs(tmp_path):
+    folder = CASPR / "examples" / "Example_spherical"
+    result = _import_quietly(
+        folder / "Example_spherical_bodies.xml",
+        folder / "Example_spherical_cables.xml",
+        tmp_path / "Example_spherical",
+    )
+    deficit = [w for w in result.warnings if "span only 2 direction(s)" in w]
+    assert len(deficit) == 1 and "'link 1' turns about a spherical joint" in deficit[0]
+
+
+def test_cli_json_is_clean_for_piping(tmp_path, capsys):
+    bodies, cables = _write_model(tmp_path, ["S_EULER_XYZ"])
+    argv = ["import-caspr", str(bodies), str(cables), "--out", str(tmp_path / "M")]
+    assert cdpm.cli.main([*argv, "--json"]) == 0
+    out, err = capsys.readouterr()
+    assert err == ""
+    summary = json.loads(out)  # stdout is the JSON document and nothing else
+    assert summary["outputs"] == ["link1_end_x", "link1_end_y", "link1_end_z"]
+    # the warnings travel inside the JSON
+    assert any("no position operational space" in w for w in summary["warnings"])
+    assert any("span only 2 direction(s)" in w for w in summary["warnings"])
+    # text mode lists them on stdout and counts them on stderr
+    assert cdpm.cli.main(argv) == 0
+    out, err = capsys.readouterr()
+    assert "span only 2 direction(s)" in out
+    assert err == f"{len(summary['warnings'])} warning(s), listed above\n"
