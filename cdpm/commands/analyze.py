@@ -45,8 +45,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--pretension",
         type=float,
         metavar="N",
-        help="least tension of every cable for --tension pretension [N] "
-        "(default: the spec's equilibrium.pretension)",
+        help="least tension of every cable for the pretension method [N] "
+        "(default: the spec's equilibrium.pretension); an error with any other method",
     )
     parser.add_argument(
         "--json", action="store_true", help="print the report as JSON instead of text"

@@ -52,7 +52,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--tension",
         metavar="METHOD",
-        help="equilibrium tension method: zero, min_norm or pretension (default: the spec's)",
+        help="equilibrium tension method: zero, min_norm or pretension (with the spec's "
+        "equilibrium.pretension) (default: the spec's method)",
     )
     parser.add_argument(
         "--workers",
