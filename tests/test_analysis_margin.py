@@ -12,7 +12,13 @@ from scipy.spatial import ConvexHull
 
 import cdpm
 from cdpm.analysis import Verdict, positive_output_controllability
-from cdpm.analysis.margin import margin_horizon, signed_inradius
+from cdpm.analysis.margin import (
+    margin_horizon,
+    margin_horizons,
+    planar_signed_inradii,
+    signed_inradius,
+)
+from cdpm.analysis.poc import poc_margins
 from cdpm.analysis.span import min_norm_separator
 from tests.conftest import MODELS
 from tests.test_analysis_properties import random_system
@@ -219,6 +225,61 @@ def test_planar_inradius_of_long_thin_hulls():
         ]
     )
     assert signed_inradius(P)[0] == pytest.approx(_qhull_signed(P), rel=1e-9)
+
+
+def test_batched_planar_inradii_equal_qhull_and_degenerate_hulls():
+    """planar_signed_inradii (quickhull over many clouds at once) against
+    Qhull on random clouds of different sizes, offsets and aspect ratios,
+    and on hulls Qhull cannot take: a point, a segment, collinear points."""
+    rng = np.random.default_rng(7)
+    clouds = []
+    for shift in np.linspace(0.0, 3.0, 7):
+        for aspect in (1.0, 1e-3, 1e3):
+            P = rng.normal(size=(2, 60)) * np.array([[1.0], [aspect]]) + shift
+            clouds.append(P)
+    t = np.linspace(0.0, 2 * np.pi, 1000, endpoint=False)
+    clouds.append(np.stack([np.cos(t), np.sin(t)]) + 0.3)  # every point a vertex
+    clouds.append(np.repeat(rng.normal(size=(2, 5)), 12, axis=1)[:, :60])  # duplicates
+    got = planar_signed_inradii(np.stack([c[:, :60] for c in clouds]))
+    for g, P in zip(got, clouds, strict=True):
+        assert g == pytest.approx(_qhull_signed(P[:, :60]), rel=1e-9, abs=1e-12)
+    circle = planar_signed_inradii(clouds[-2][None])[0]
+    assert circle == pytest.approx(1.0 - 0.3 * math.sqrt(2.0), rel=1e-5)
+    point = np.array([[[1.0, 1.0], [2.0, 2.0]]])
+    assert planar_signed_inradii(point)[0] == pytest.approx(-math.hypot(1.0, 2.0))
+    through_zero = np.array([[[1.0, -1.0, 0.5], [1.0, -1.0, 0.5]]])
+    assert planar_signed_inradii(through_zero)[0] == pytest.approx(0.0, abs=1e-15)
+    off_line = np.array([[[1.0, 2.0, 3.0], [1.0, 1.0, 1.0]]])
+    assert planar_signed_inradii(off_line)[0] == pytest.approx(-math.sqrt(2.0))
+
+
+def test_batched_margins_equal_the_analyser_one_system_at_a_time():
+    """poc_margins (horizons, curves and hulls for many systems at once)
+    equals POCResult.margin system by system, for p = 1, 2, 3, mixed cones
+    and verdicts of every kind."""
+    checked = {}
+    for p in (1, 2, 3):
+        systems = [random_system(seed, 4, 4, p, "mechanical") for seed in range(12)]
+        A, B, C, mask = (np.stack(x) for x in zip(*systems, strict=True))
+        results = [positive_output_controllability(*s[:3], s[3]) for s in systems]
+        yes = np.array([r.verdict is Verdict.YES for r in results])
+        got = poc_margins(A, B, C, mask, yes)
+        want = np.array([r.margin for r in results])
+        np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-14)
+        checked[p] = (int(yes.sum()), int((~mask.all(axis=1)).sum()))
+    assert all(n_yes > 0 for n_yes, _ in checked.values()), checked
+    assert any(mixed > 0 for _, mixed in checked.values()), checked
+
+
+def test_batched_horizons_equal_the_scalar_rule():
+    rng = np.random.default_rng(3)
+    A = rng.normal(size=(20, 4, 4))
+    A[:5] = np.triu(A[:5], 1)  # nilpotent
+    A[5] = 0.0
+    B, C = rng.normal(size=(20, 4, 3)), rng.normal(size=(20, 2, 4))
+    got = margin_horizons(A, B, C)
+    for i in range(20):
+        assert got[i] == margin_horizon(A[i], B[i], C[i])
 
 
 def test_p4_bracket_contains_the_inradius_of_a_cube():

@@ -244,105 +244,173 @@ def signed_inradius(S: np.ndarray, S_sym: np.ndarray | None = None) -> tuple[flo
     return r1 / math.sqrt(p), hi
 
 
-# --------------------------------------------------------------------------
-# planar: monotone chain on the points outside an inner polygon
+def signed_inradii(S: np.ndarray, S_sym: np.ndarray) -> np.ndarray:
+    """Lower bounds of :func:`signed_inradius` of k clouds at once.
 
-_DIRS = np.exp(1j * np.linspace(0.0, 2 * np.pi, 16, endpoint=False))
-_DIRS = np.stack([_DIRS.real, _DIRS.imag])  # (2, 16), counter-clockwise
+    Args:
+        S: points, shape (k, p, N1); S_sym: points used with both signs,
+            shape (k, p, N2).
+
+    Returns:
+        Shape (k,); vectorised for p <= 2, one cloud at a time otherwise.
+    """
+    k, p = S.shape[0], S.shape[1]
+    P = np.concatenate([S, S_sym, -S_sym], axis=2)
+    if p == 0:
+        return np.full(k, math.inf)
+    if P.shape[2] == 0:
+        return np.zeros(k)
+    if p == 1:
+        return np.minimum(P[:, 0].max(axis=1), -P[:, 0].min(axis=1))
+    if p == 2:
+        return planar_signed_inradii(P)
+    return np.array([signed_inradius(S[i], S_sym[i])[0] for i in range(k)])
+
+
+# --------------------------------------------------------------------------
+# planar: quickhull from the extreme points in 16 directions, all clouds at once
+
+#: 16 unit directions, counter-clockwise, shape (2, 16)
+_DIRS = np.stack([np.cos(np.arange(16) * np.pi / 8), np.sin(np.arange(16) * np.pi / 8)])
+#: clouds per block of :func:`planar_signed_inradii` (bounds its memory)
+_PLANAR_BLOCK = 128
 
 
 def _planar(P: np.ndarray) -> float:
     """Signed inradius about 0 of conv of the columns of P (2, k)."""
-    P = _prefilter(P)
-    return _polygon_signed_inradius(_monotone_chain(P[0], P[1]))
+    return float(planar_signed_inradii(P[None])[0])
 
 
-def _prefilter(P: np.ndarray) -> np.ndarray:
-    """Drop points strictly inside the polygon of the extreme points in 16
-    directions of the whitened cloud (Akl-Toussaint); the hull is unchanged.
+def planar_signed_inradii(P: np.ndarray) -> np.ndarray:
+    """Signed inradius about 0 of the convex hull of each point cloud.
 
-    Whitening (``z = L^-1 x`` with ``P P^T = L L^T``) keeps the directions
-    useful for the long thin hulls of growing systems; the extreme points
-    of counter-clockwise directions come in counter-clockwise order. The
-    polygon is used only when it is convex and winds once (round-off in
-    near-collinear extreme points can break that), and points within a
-    round-off band of its edges are kept.
+    Args:
+        P: clouds of points in the plane, shape (k, 2, N), finite.
+
+    Returns:
+        Shape (k,): the distance from 0 to the nearest hull edge line when 0
+        is interior to the hull, else minus the distance from 0 to the hull.
     """
-    if P.shape[1] <= 24:
-        return P
-    (a, b), (_, c) = (P @ P.T).tolist()
-    if not a > 0:
-        return P
-    l11 = math.sqrt(a)
-    l21 = b / l11
-    d2 = c - l21 * l21
-    if not d2 > 1e-24 * c:
-        return P
-    l22 = math.sqrt(d2)
-    # support in direction d of z is support in direction L^-T d of x
-    Linv_T = np.array([[1 / l11, -l21 / (l11 * l22)], [0.0, 1 / l22]])
-    idx = np.argmax((Linv_T @ _DIRS).T @ P, axis=1).tolist()
-    ext = [i for k, i in enumerate(idx) if i != idx[k - 1]]
-    if len(ext) < 3:
-        return P
-    ex, ey = P[0, ext].tolist(), P[1, ext].tolist()
-    h = len(ext)
-    dx = [ex[(k + 1) % h] - ex[k] for k in range(h)]
-    dy = [ey[(k + 1) % h] - ey[k] for k in range(h)]
-    ang = [math.atan2(y, x) for x, y in zip(dx, dy, strict=True)]
-    turns = [(ang[(k + 1) % h] - ang[k]) % (2 * math.pi) for k in range(h)]
-    convex = all(0 < t < math.pi for t in turns) and abs(sum(turns) - 2 * math.pi) < 1e-9
-    if not (convex and all(x or y for x, y in zip(dx, dy, strict=True))):
-        return P
-    # cross(e_{k+1} - e_k, x - e_k) > band for every edge: strictly inside
-    scale = 1e-12 * float(np.abs(P).max())
-    normals = np.array([[-y for y in dy], dx]).T
-    rhs = [
-        x * yk - y * xk + scale * math.hypot(x, y)
-        for x, y, xk, yk in zip(dx, dy, ex, ey, strict=True)
-    ]
-    inside = (normals @ P > np.array(rhs)[:, None]).all(axis=0)
-    return P[:, ~inside]
+    out = np.empty(P.shape[0])
+    for start in range(0, P.shape[0], _PLANAR_BLOCK):
+        block = P[start : start + _PLANAR_BLOCK]
+        pose, pa, pb = _hull_edges(block)
+        out[start : start + block.shape[0]] = _edges_signed_inradius(block, pose, pa, pb)
+    return out
 
 
-def _monotone_chain(x: np.ndarray, y: np.ndarray) -> list[tuple[float, float]]:
-    """Counter-clockwise hull vertices of the points (x, y) (Andrew)."""
-    order = np.lexsort((y, x))
-    pts = list(zip(x[order].tolist(), y[order].tolist(), strict=True))
+def _hull_edges(P: np.ndarray):
+    """Counter-clockwise hull edges of each cloud of P (k, 2, N), as flat
+    arrays (cloud (E,), start point (E, 2), end point (E, 2)).
 
-    def half(seq):
-        out = []
-        for px, py in seq:
-            while len(out) >= 2:
-                (ax, ay), (bx, by) = out[-2], out[-1]
-                if (bx - ax) * (py - ay) - (by - ay) * (px - ax) > 0:
-                    break
-                out.pop()
-            out.append((px, py))
-        return out
+    Quickhull for all clouds at once: the extreme points in 16 directions of
+    each whitened cloud are hull vertices in counter-clockwise order; a
+    point outside their polygon is assigned to the edge it lies farthest
+    outside of (the others are inside the hull); then every edge with
+    points assigned is split at the farthest one and its points are handed
+    to the two new edges, until no edge has any. Points on an edge line
+    are not vertices. Every round makes at least one candidate a vertex and
+    drops it (its side of both new edges is exactly 0), so the loop ends.
+    A cloud whose hull is a point has no edge.
+    """
+    k = P.shape[0]
+    s = np.argmax(np.swapaxes(_whitened_directions(P), 1, 2) @ P, axis=2)  # (k, D) extreme points
+    pa = np.take_along_axis(P, s[:, None, :], axis=2).transpose(0, 2, 1)  # (k, D, 2)
+    pb = np.roll(pa, -1, axis=1)
+    normal = np.stack([pa[..., 1] - pb[..., 1], pb[..., 0] - pa[..., 0]], axis=2)
+    # cross(b - a, p - a) = normal . (p - a): positive on the inner side
+    side = normal @ P - np.einsum("kdi,kdi->kd", normal, pa)[..., None]  # (k, D, N)
+    # repeated extreme points (equal coordinates) make no edge
+    point_edge = np.all(pa == pb, axis=2)  # (k, D)
+    side[np.broadcast_to(point_edge[..., None], side.shape)] = np.inf
+    edge = np.argmin(side, axis=1)  # (k, N): the edge each point is farthest outside of
+    outside = np.take_along_axis(side, edge[:, None], axis=1)[:, 0] < 0
+    cloud, point = np.nonzero(outside)
+    D = s.shape[1]
+    ids = np.full(k * D, -1)
+    flat = ~point_edge.reshape(-1)
+    ids[flat] = np.arange(int(flat.sum()))
+    pose = np.repeat(np.arange(k), D)[flat]
+    pa, pb = pa.reshape(-1, 2)[flat], pb.reshape(-1, 2)[flat]
+    owner = ids[cloud * D + edge[cloud, point]]  # (M,) candidate -> edge
+    pts = P[cloud, :, point]  # (M, 2)
+    done = [(pose[:0], pa[:0], pb[:0])]
+    while pose.size:
+        side = _sides(pa[owner], pb[owner], pts)
+        out = side < 0  # (the first assignment's sides are computed otherwise)
+        owner, pts, side = owner[out], pts[out], side[out]
+        best = np.full(pose.size, np.inf)
+        np.minimum.at(best, owner, side)
+        has = np.isfinite(best)  # edges with points outside: split
+        done.append((pose[~has], pa[~has], pb[~has]))
+        # the farthest point of each split edge (the first one on ties)
+        hit = np.flatnonzero(side == best[owner])
+        first = hit[np.unique(owner[hit], return_index=True)[1]]
+        pc = np.empty((pose.size, 2))
+        pc[owner[first]] = pts[first]
+        # split edge e (new index j) -> (a, c) as j and (c, b) as n_split + j
+        split = np.flatnonzero(has)
+        new = np.full(pose.size, -1)
+        new[split] = np.arange(split.size)
+        pose = np.concatenate([pose[split], pose[split]])
+        pa, pb = np.concatenate([pa[split], pc[split]]), np.concatenate([pc[split], pb[split]])
+        # hand each point to the new edge it lies outside of
+        j = new[owner]
+        left = _sides(pa[j], pb[j], pts) < 0
+        go = left | (_sides(pa[j + split.size], pb[j + split.size], pts) < 0)
+        owner = np.where(left, j, j + split.size)[go]
+        pts = pts[go]
+    return tuple(np.concatenate(parts) for parts in zip(*done, strict=True))
 
-    lower, upper = half(pts), half(reversed(pts))
-    return (lower[:-1] + upper[:-1]) or pts[:1]
+
+def _sides(pa: np.ndarray, pb: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """cross(b - a, p - a) of points a, b, p (M, 2): positive on the left
+    (inner) side of a -> b."""
+    ex, ey = pb[:, 0] - pa[:, 0], pb[:, 1] - pa[:, 1]
+    return ex * (p[:, 1] - pa[:, 1]) - ey * (p[:, 0] - pa[:, 0])
 
 
-def _polygon_signed_inradius(V: list[tuple[float, float]]) -> float:
-    """Signed inradius about 0 of the convex polygon with counter-clockwise
-    vertices V (plain floats: a hull has few vertices)."""
-    h = len(V)
-    edges = [(V[k], V[(k + 1) % h]) for k in range(h)]
-    if h >= 3:
-        # distance of 0 to each edge line, positive on the inner side
-        off = [(ax * by - ay * bx) / math.hypot(bx - ax, by - ay) for (ax, ay), (bx, by) in edges]
-        if min(off) > 0:
-            return min(off)
+def _whitened_directions(P: np.ndarray) -> np.ndarray:
+    """The 16 directions of each cloud in its whitened coordinates, mapped
+    back (support in direction d of ``z = L^-1 x``, ``P P^T = L L^T``, is
+    support in direction ``L^-T d`` of x), shape (k, 2, 16): long thin
+    clouds (growing systems) still get 16 distinct extreme points. Clouds
+    without a regular second moment keep the plain directions."""
+    a = np.einsum("kn,kn->k", P[:, 0], P[:, 0])
+    b = np.einsum("kn,kn->k", P[:, 0], P[:, 1])
+    c = np.einsum("kn,kn->k", P[:, 1], P[:, 1])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        l11 = np.sqrt(a)
+        l21 = b / l11
+        d2 = c - l21 * l21
+        l22 = np.sqrt(d2)
+        regular = (a > 0) & (d2 > 1e-24 * c)
+        one = np.ones_like(a)
+        m11 = np.where(regular, 1 / l11, one)
+        m12 = np.where(regular, -l21 / (l11 * l22), 0.0)
+        m22 = np.where(regular, 1 / l22, one)
+    dx, dy = _DIRS
+    return np.stack([m11[:, None] * dx + m12[:, None] * dy, m22[:, None] * dy + 0 * dx], axis=1)
+
+
+def _edges_signed_inradius(P: np.ndarray, pose, pa, pb) -> np.ndarray:
+    """Signed inradius about 0 of each cloud of P (k, 2, N) from its
+    counter-clockwise hull edges (flat arrays cloud, start, end)."""
+    k = P.shape[0]
+    (ax, ay), (dx, dy) = pa.T, (pb - pa).T
+    length = np.hypot(dx, dy)
+    # distance of 0 to each edge line, positive on the inner side
+    offset = (ax * dy - ay * dx) / length
+    inner = np.full(k, np.inf)
+    np.minimum.at(inner, pose, offset)
+    edges = np.bincount(pose, minlength=k)
     # 0 outside or on the boundary: minus its distance to the edges
-    best = math.inf
-    for (ax, ay), (bx, by) in edges:
-        dx, dy = bx - ax, by - ay
-        ll = dx * dx + dy * dy
-        s = min(max(-(ax * dx + ay * dy) / ll, 0.0), 1.0) if ll > 0 else 0.0
-        best = min(best, math.hypot(ax + s * dx, ay + s * dy))
-    return -best
+    t = np.clip(-(ax * dx + ay * dy) / length**2, 0.0, 1.0)
+    gap = np.full(k, np.inf)
+    np.minimum.at(gap, pose, np.hypot(ax + t * dx, ay + t * dy))
+    point = edges == 0  # the hull is a point
+    gap[point] = np.hypot(P[point, 0, 0], P[point, 1, 0])
+    return np.where((edges >= 3) & (inner > 0), inner, -gap)
 
 
 # --------------------------------------------------------------------------

@@ -53,6 +53,7 @@ from cdpm.analysis.margin import (
     margin_horizons,
     sample_curve,
     sample_curves,
+    signed_inradii,
     signed_inradius,
 )
 from cdpm.analysis.rank import output_reachable_basis, reachable_basis
@@ -1255,8 +1256,8 @@ def poc_margins(A, B, C, mask, yes) -> np.ndarray:
 
     Equal to ``positive_output_controllability(A[i], B[i], C[i],
     mask[i]).margin`` given its verdict (``yes[i]``: the margin is clipped
-    to <= 0 otherwise); the horizons and curve samples are computed for all
-    systems together, the hull of each system's samples on its own.
+    to <= 0 otherwise), computed for all systems together (the hulls one
+    system at a time for p >= 3).
 
     Args:
         A: (k, n, n); B: (k, n, m); C: (k, p, n), p >= 1; mask: (k, m) bool,
@@ -1274,8 +1275,12 @@ def poc_margins(A, B, C, mask, yes) -> np.ndarray:
     curved = np.flatnonzero(~square_zero)
     K = grid_points(p)
     G, _ = sample_curves(A[curved], B[curved], C[curved], T[curved], K)
-    for g, i in zip(G, curved, strict=True):
-        out[i] = _sampled_inradius(g, mask[i], K)[0]
+    patterns, group = np.unique(mask[curved], axis=0, return_inverse=True)
+    for g, pattern in enumerate(patterns):
+        sel = np.flatnonzero(group.reshape(-1) == g)
+        cols = np.tile(pattern, K)
+        Gs = G[sel]
+        out[curved[sel]] = signed_inradii(Gs[:, :, cols], Gs[:, :, ~cols])
     for i in np.flatnonzero(square_zero):
         g, _ = sample_curve(A[i], B[i], C[i], T[i], 2, True)
         out[i] = _sampled_inradius(g, mask[i], 2)[0]
