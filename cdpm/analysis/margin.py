@@ -17,7 +17,8 @@ Everything here is a continuous function of (A, B, C, s, W):
 - the curve is sampled on a fixed grid ``t_k = k T / N`` (N fixed per p) by
   stepping with ``e^{A T / N}`` (doubling: ``[X, E X]``, ``E <- E^2``);
 - the signed inradius of the sampled hull is computed exactly for p <= 3
-  (planar hull by a monotone chain, spatial hull by Qhull) and bracketed by
+  (planar hulls by a quickhull over many clouds at once, spatial hulls by
+  Qhull) and bracketed by
   2p small LPs for p >= 4 (:func:`cdpm.analysis.span.cross_polytope_radius`).
 
 The sampled hull lies inside ``H_T`` (its points are curve points), so the
