@@ -23,6 +23,7 @@ _EXPORTS: dict[str, str] = {
     # spec and robot
     "CableSpec": "cdpm.spec",
     "load_spec": "cdpm.spec",
+    "parse_number": "cdpm.spec",
     "CableRobot": "cdpm.robot",
     "load_robot": "cdpm.robot",
     # equilibrium and linearisation
@@ -55,16 +56,23 @@ _EXPORTS: dict[str, str] = {
     "sample_axes": "cdpm.maps",
     "SampledAxes": "cdpm.maps",
     "open_map": "cdpm.maps",
+    "evaluate_poses": "cdpm.maps",
+    "VERDICT_CODES": "cdpm.maps",
+    "STATUS_CODES": "cdpm.maps",
     "plot_map": "cdpm.plotting",
+    "save_map_plot": "cdpm.plotting",
     # viewer and pictures (extra: cdpm[viz])
     "Viewer": "cdpm.viewer",
     "PoseInspector": "cdpm.viewer",
     "PoseState": "cdpm.viewer",
+    "CableState": "cdpm.viewer",
     "pose_state": "cdpm.viewer",
     "render_pose": "cdpm.picture",
     # CASPR import (extra: cdpm[caspr])
     "import_caspr": "cdpm.caspr",
     "CasprImport": "cdpm.caspr",
+    "CasprWarning": "cdpm.caspr",
+    "cable_sets": "cdpm.caspr",
 }
 
 __all__ = ["__version__", *_EXPORTS]
@@ -100,7 +108,7 @@ if TYPE_CHECKING:  # pragma: no cover - for static type checkers only
         positively_spans,
         wrench_closure,
     )
-    from cdpm.caspr import CasprImport, import_caspr  # noqa: F401
+    from cdpm.caspr import CasprImport, CasprWarning, cable_sets, import_caspr  # noqa: F401
     from cdpm.equilibrium import (  # noqa: F401
         EquilibriumResult,
         InfeasibleEquilibriumError,
@@ -116,10 +124,18 @@ if TYPE_CHECKING:  # pragma: no cover - for static type checkers only
         UnsupportedError,
     )
     from cdpm.linearisation import Linearisation, linearise  # noqa: F401
-    from cdpm.maps import SampledAxes, open_map, sample_axes, workspace_map  # noqa: F401
+    from cdpm.maps import (  # noqa: F401
+        STATUS_CODES,
+        VERDICT_CODES,
+        SampledAxes,
+        evaluate_poses,
+        open_map,
+        sample_axes,
+        workspace_map,
+    )
     from cdpm.picture import render_pose  # noqa: F401
-    from cdpm.plotting import plot_map  # noqa: F401
+    from cdpm.plotting import plot_map, save_map_plot  # noqa: F401
     from cdpm.report import PoseReport, analyze_pose  # noqa: F401
     from cdpm.robot import CableRobot, load_robot  # noqa: F401
-    from cdpm.spec import CableSpec, load_spec  # noqa: F401
-    from cdpm.viewer import PoseInspector, PoseState, Viewer, pose_state  # noqa: F401
+    from cdpm.spec import CableSpec, load_spec, parse_number  # noqa: F401
+    from cdpm.viewer import CableState, PoseInspector, PoseState, Viewer, pose_state  # noqa: F401
