@@ -31,6 +31,7 @@ _EXPORTS: dict[str, str] = {
     "equilibrium_tension": "cdpm.equilibrium",
     "check_equilibrium": "cdpm.equilibrium",
     "InfeasibleEquilibriumError": "cdpm.equilibrium",
+    "EquilibriumWarning": "cdpm.equilibrium",
     "Linearisation": "cdpm.linearisation",
     "linearise": "cdpm.linearisation",
     # analysis (pure LTI, no Pinocchio)
@@ -56,6 +57,7 @@ _EXPORTS: dict[str, str] = {
     "sample_axes": "cdpm.maps",
     "SampledAxes": "cdpm.maps",
     "open_map": "cdpm.maps",
+    "StoreSettingsError": "cdpm.maps",
     "evaluate_poses": "cdpm.maps",
     "VERDICT_CODES": "cdpm.maps",
     "STATUS_CODES": "cdpm.maps",
@@ -111,6 +113,7 @@ if TYPE_CHECKING:  # pragma: no cover - for static type checkers only
     from cdpm.caspr import CasprImport, CasprWarning, cable_sets, import_caspr  # noqa: F401
     from cdpm.equilibrium import (  # noqa: F401
         EquilibriumResult,
+        EquilibriumWarning,
         InfeasibleEquilibriumError,
         check_equilibrium,
         equilibrium_tension,
@@ -128,6 +131,7 @@ if TYPE_CHECKING:  # pragma: no cover - for static type checkers only
         STATUS_CODES,
         VERDICT_CODES,
         SampledAxes,
+        StoreSettingsError,
         evaluate_poses,
         open_map,
         sample_axes,

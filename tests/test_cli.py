@@ -156,7 +156,8 @@ def test_map_store_with_other_settings_names_the_fix(tmp_path, capsys):
     capsys.readouterr()
     assert main(["map", str(PAPER_SPEC), "--axis", "q1=0:1:4", *common]) == 1
     err = capsys.readouterr().err
-    assert "axis 'q1': stored 3 values" in err and "--overwrite" in err
+    assert "axis 'q1': stored 3 values" in err and "add --overwrite" in err
+    assert "re-run with the stored settings" in err and "overwrite=True" not in err
 
 
 def test_map_interrupted_ends_the_progress_line_and_resumes(tmp_path, capsys, monkeypatch):

@@ -16,7 +16,14 @@ import pytest
 
 import cdpm
 from cdpm.errors import InputError
-from cdpm.maps import STATUS_CODES, VERDICT_CODES, open_map, sample_axes, workspace_map
+from cdpm.maps import (
+    STATUS_CODES,
+    VERDICT_CODES,
+    StoreSettingsError,
+    open_map,
+    sample_axes,
+    workspace_map,
+)
 from tests.conftest import MODELS, PAPER_SPEC
 
 CODE = {"yes": 1, "no": 0, "marginal": 2}
@@ -512,7 +519,9 @@ def test_store_roundtrip_and_settings_mismatch(paper_robot, paper_map, tmp_path)
     _same(open_map(store), paper_map)
     assert len(os.listdir(store / ".cdpm" / "done")) == 6  # 41 x 37 poses, chunks of 8 x 37
     other = {"q1": PAPER_AXES["q1"], "q2": PAPER_AXES["q2"][:-1]}
-    with pytest.raises(InputError, match=r"different settings(.|\n)*axis 'q2'(.|\n)*--overwrite"):
+    with pytest.raises(
+        StoreSettingsError, match=r"different settings(.|\n)*axis 'q2'(.|\n)*overwrite=True"
+    ):
         workspace_map(paper_robot, other, workers=1, store=store, chunk_size=300)
     with pytest.raises(InputError, match="chunk_size: stored 300, now 400"):
         workspace_map(paper_robot, PAPER_AXES, workers=1, store=store, chunk_size=400)

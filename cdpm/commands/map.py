@@ -239,7 +239,9 @@ def _interrupted(args: argparse.Namespace) -> int:
 def run(args: argparse.Namespace) -> int:
     import numpy as np
 
+    from cdpm.errors import InputError
     from cdpm.maps import STATUS_CODES, VERDICT_CODES, workspace_map
+    from cdpm.maps._store import StoreSettingsError
     from cdpm.robot import load_robot
 
     if args.plot:
@@ -269,6 +271,10 @@ def run(args: argparse.Namespace) -> int:
         )
     except KeyboardInterrupt:
         return _interrupted(args)
+    except StoreSettingsError as exc:
+        raise InputError(
+            exc.explain("re-run with the stored settings", "add --overwrite", "--out path")
+        ) from None
     poc = np.asarray(ds["poc"].values)
     status = np.asarray(ds["status"].values)
     total = poc.size

@@ -17,13 +17,14 @@ from typing import Any
 from cdpm.errors import InputError
 from cdpm.maps._evaluate import STATUS_CODES, VERDICT_CODES, evaluate_poses, resolve_tension
 from cdpm.maps._plan import DEFAULT_CHUNK_SIZE, SampledAxes, sample_axes
-from cdpm.maps._store import open_map
+from cdpm.maps._store import StoreSettingsError, open_map
 
 __all__ = [
     "workspace_map",
     "sample_axes",
     "SampledAxes",
     "open_map",
+    "StoreSettingsError",
     "evaluate_poses",
     "VERDICT_CODES",
     "STATUS_CODES",
@@ -102,8 +103,9 @@ def workspace_map(
         dataset is lazily loaded.
 
     Raises:
-        InputError: unknown coordinates, bad values, or a ``store`` made
-            with other settings (the message names the differences).
+        InputError: unknown coordinates or bad values.
+        StoreSettingsError: ``store`` holds a map made with other settings
+            (an InputError; the message names each difference).
     """
     from cdpm import __version__
     from cdpm.maps._evaluate import _zero_equilibrium

@@ -156,6 +156,32 @@ class MemorySink:
         )
 
 
+class StoreSettingsError(InputError):
+    """A map store holds a map made with other settings, so it cannot be
+    resumed.
+
+    Attributes:
+        path: the store.
+        differences: one line per differing setting (stored vs asked for).
+    """
+
+    def __init__(self, path, differences: list[str]):
+        self.path, self.differences = Path(path), list(differences)
+        super().__init__(
+            self.explain("call again with the stored settings", "pass overwrite=True", "store=")
+        )
+
+    def explain(self, resume: str, replace: str, other: str) -> str:
+        """The message, with the ways to resume, replace or go elsewhere
+        worded for the caller (Python arguments or command-line options)."""
+        lines = "\n".join(f"  - {d}" for d in self.differences)
+        return (
+            f"{self.path} holds a map made with different settings, so it cannot be "
+            f"resumed:\n{lines}\nto resume it, {resume}; to replace it, {replace}; or give "
+            f"another {other}"
+        )
+
+
 class ZarrSink:
     """A resumable zarr store on the local file system.
 
@@ -213,12 +239,7 @@ class ZarrSink:
         stored = json.loads(group.attrs.get("cdpm_settings", "{}"))
         diff = settings_difference(stored, self.plan.settings)
         if diff:
-            lines = "\n".join(f"  - {d}" for d in diff)
-            raise InputError(
-                f"{self.path} holds a map made with different settings, so it cannot be "
-                f"resumed:\n{lines}\nwrite to a new store (another --out path) or replace it "
-                "(--overwrite, or overwrite=True)"
-            )
+            raise StoreSettingsError(self.path, diff)
 
     def _create(self) -> None:
         import xarray as xr
