@@ -194,7 +194,7 @@ class SpanResult:
             cert = f"separator v = {fmt_array(c.separator)}"
         return (
             f"positively spans R^{self.p}: {self.verdict} ({self.method}; "
-            f"rank {self.rank}; margin {self.margin:.4g})\n  {self.reason}\n  {cert}"
+            f"rank {self.rank}; margin {self.margin + 0.0:.4g})\n  {self.reason}\n  {cert}"
         )
 
     def _repr_html_(self) -> str:
@@ -202,7 +202,7 @@ class SpanResult:
             f"Positive span of R^{self.p}: {self.verdict}",
             [
                 ("method", self.method),
-                ("margin", f"{self.margin:.4g}"),
+                ("margin", f"{self.margin + 0.0:.4g}"),
                 ("reason", self.reason),
                 ("certificate", str(self.certificate.as_dict())),
             ],
