@@ -32,7 +32,7 @@ from cdpm.viewer import (
     tension_scale,
 )
 
-__all__ = ["render_pose", "PLANES"]
+__all__ = ["render_pose", "check_picture_path", "PLANES"]
 
 #: Projection planes: name -> (horizontal axis, vertical axis) indices.
 PLANES = {"xy": (0, 1), "xz": (0, 2), "yz": (1, 2)}
@@ -42,6 +42,8 @@ _CABLE_STYLE = {
     CableState.SLACK: (0, (5, 3)),
     CableState.UNAVAILABLE: ":",
 }
+#: a taut cable is drawn wider, so a slack one on the same line shows inside it
+_CABLE_WIDTH = {CableState.TAUT: 3.2, CableState.SLACK: 1.8, CableState.UNAVAILABLE: 1.8}
 
 
 def _import_matplotlib():
@@ -96,9 +98,14 @@ def render_pose(
 
     Raises:
         MissingExtraError: matplotlib is not installed.
-        InputError: unknown plane or unsupported file suffix.
+        InputError: unknown plane, unsupported file suffix or a dpi that is
+            not positive (checked before anything is computed).
     """
     Figure, FigureCanvasAgg = _import_matplotlib()
+    from cdpm.plotting import check_dpi
+
+    dpi = check_dpi(dpi)
+    target = None if path is None else check_picture_path(path)
     pose_name = q if isinstance(q, str) else None
     q = robot.as_q(_default_pose(robot) if q is None else q)
     geometry = _Geometry(robot)
@@ -156,11 +163,20 @@ def render_pose(
     seen_states: dict[CableState, Any] = {}
     fixed = geometry.point_joint == 0
     offset = 0
+    # cable names at their anchors; cables whose anchors coincide in this
+    # projection (e.g. an upper and a lower cable seen from above) share one label
+    tol = 1e-6 * max(float(np.ptp(everything[:, [h, v]])), 1.0)
+    groups: dict[tuple[int, ...], tuple[np.ndarray, list[tuple[int, str]]]] = {}
     for i, (name, route, rgb, cstate) in enumerate(
         zip(state.cable_names, cable_points, colors, state.cable_states, strict=True)
     ):
         (line,) = ax.plot(
-            route[:, h], route[:, v], color=rgb, lw=2.2, linestyle=_CABLE_STYLE[cstate], zorder=3
+            route[:, h],
+            route[:, v],
+            color=rgb,
+            lw=_CABLE_WIDTH[cstate],
+            linestyle=_CABLE_STYLE[cstate],
+            zorder=3 if cstate is CableState.TAUT else 3.1,  # a slack one shows on a taut one
         )
         seen_states.setdefault(cstate, line)
         on_world = fixed[offset : offset + len(route)]
@@ -176,17 +192,10 @@ def render_pose(
         ax.scatter(
             route[~on_world, h], route[~on_world, v], s=18, color=COLORS["attachment"], zorder=5
         )
-        label_at = route[0] if on_world[0] else route[-1]
+        label_at = (route[0] if on_world[0] else route[-1])[[h, v]]
+        key = tuple(int(k) for k in np.round(label_at / tol))
         label = name if cstate is not CableState.TAUT else f"{name} ({state.tension[i]:.3g} N)"
-        ax.annotate(
-            label,
-            (label_at[h], label_at[v]),
-            xytext=(-6, 4),
-            textcoords="offset points",
-            ha="right",
-            fontsize=9,
-            color="0.15",
-        )
+        groups.setdefault(key, (label_at, []))[1].append((i, label))
 
     verdict_rgb = COLORS[state.verdict_key]
     out = state.output_frame_positions
@@ -200,14 +209,10 @@ def render_pose(
         linewidth=0.8,
         zorder=6,
     )
-    for name, p in zip(state.output_frames, out, strict=True):
+    frame_labels = [
         ax.annotate(name, (p[h], p[v]), xytext=(8, -12), textcoords="offset points", fontsize=9)
-
-    handles = [seen_states[s] for s in CableState if s in seen_states]
-    labels = [_state_label(s, scale) for s in CableState if s in seen_states]
-    handles.append(marker)
-    labels.append(f"output: POC {_verdict_text(state)}")
-    ax.legend(handles, labels, loc="best", fontsize=8, framealpha=0.9)
+        for name, p in zip(state.output_frames, out, strict=True)
+    ]
 
     axes = "xyz"
     ax.set_xlabel(f"{axes[h]} [m]")
@@ -216,26 +221,198 @@ def render_pose(
     ax.grid(True, color="0.9", linewidth=0.6)
     ax.margins(0.08)
     if title is None:
-        coords = ", ".join(
-            f"{n}={x:.3g}" for n, x in zip(state.coordinate_names, state.natural, strict=True)
-        )
-        where = f", pose {pose_name!r}" if pose_name else ""
-        title = f"{robot.spec.path.stem}{where}: {coords}\nPOC {_verdict_text(state)}"
-    ax.set_title(title, fontsize=10)
-    fig.tight_layout()
-    if path is not None:
-        target = Path(path)
-        suffix = target.suffix.lower()
-        if suffix not in (".png", ".pdf", ".svg"):
-            raise InputError(f"picture file {target.name!r}: use a .png, .pdf or .svg name")
+        # one line for the pose if it fits, else the name above the coordinates
+        head = f"{robot.spec.path.stem}" + (f", pose {pose_name!r}" if pose_name else "")
+        coords, verdict = _coordinates_text(state), f"POC {_verdict_text(state)}"
+        titles = [f"{head}: {coords}\n{verdict}", f"{head}\n{coords}\n{verdict}"]
+    else:
+        titles = [title]
+    handles = [seen_states[s] for s in CableState if s in seen_states]
+    legend_labels = [_state_label(s, scale) for s in CableState if s in seen_states]
+    handles.append(marker)
+    legend_labels.append(f"output: POC {_verdict_text(state)}")
+    # under the axes: inside, any spot covers a cable, a link or a label somewhere
+    legend = ax.legend(
+        handles, legend_labels, loc="upper center", fontsize=8, ncol=2, frameon=False
+    )
+    renderer = _renderer(fig)
+    if renderer is not None and legend.get_window_extent(renderer).width > fig.bbox.width:
+        legend.remove()
+        legend = ax.legend(handles, legend_labels, loc="upper center", fontsize=8, frameon=False)
+    centre = 0.5 * (everything[:, [h, v]].min(axis=0) + everything[:, [h, v]].max(axis=0))
+    labels = _CableLabels(ax, list(groups.values()), centre, frame_labels)
+    for _ in range(3):  # the layout moves the axes; labels, limits and legend follow
+        _fit_title(ax, titles, renderer)
+        _put_under_axes(legend, renderer)
+        fig.tight_layout()
+        labels.settle(renderer)
+    _put_under_axes(legend, renderer)
+    if target is not None:
         fig.savefig(target, dpi=dpi)
     return fig
+
+
+def check_picture_path(path: str | os.PathLike) -> Path:
+    """``path`` as a Path when its suffix is one a picture is written as.
+
+    Raises:
+        InputError: any other suffix.
+    """
+    target = Path(path)
+    if target.suffix.lower() not in (".png", ".pdf", ".svg"):
+        raise InputError(f"picture file {target.name!r}: use a .png, .pdf or .svg name")
+    return target
+
+
+def _put_under_axes(legend, renderer) -> None:
+    """Anchor a legend just below its axes' tick labels and x label."""
+    ax = legend.axes
+    y = -0.13  # without a renderer: about one label's height
+    if renderer is not None:
+        bottom = ax.xaxis.get_tightbbox(renderer).y0 - 2
+        y = ax.transAxes.inverted().transform((0, bottom))[1]
+    legend.set_bbox_to_anchor((0.5, y), transform=ax.transAxes)
+
+
+def _renderer(fig):
+    """The figure's renderer, or None when its canvas has none (no fitting then)."""
+    get = getattr(fig.canvas, "get_renderer", None)
+    return get() if get is not None else None
+
+
+def _number(x: float) -> str:
+    return f"{float(x) + 0.0:.3g}"  # + 0.0: no "-0"
+
+
+def _coordinates_text(state: PoseState) -> str:
+    """``q1=0.524, q2=1.05``; coordinates of one joint (``joint.x``, ...) are
+    grouped: ``joint: x=0, y=0, z=1, roll=0, pitch=0, yaw=0``."""
+    parts: list[str] = []
+    joint = None
+    for name, value in zip(state.coordinate_names, state.natural, strict=True):
+        prefix, dot, component = name.rpartition(".")
+        if dot and prefix == joint:
+            parts[-1] += f", {component}={_number(value)}"
+        elif dot:
+            parts.append(f"{prefix}: {component}={_number(value)}")
+        else:
+            parts.append(f"{name}={_number(value)}")
+        joint = prefix if dot else None
+    grouped = any("." in name for name in state.coordinate_names)
+    return ("; " if grouped else ", ").join(parts)
+
+
+def _fit_title(ax, titles: list[str], renderer, fontsize: float = 10) -> None:
+    """Set the first of ``titles`` that fits the figure's width, else the
+    last one wrapped (at spaces) until it fits."""
+    import textwrap
+
+    def fits() -> bool:
+        box, figure = ax.title.get_window_extent(renderer), ax.figure.bbox
+        return box.x0 >= figure.x0 and box.x1 <= figure.x1
+
+    for title in titles:
+        ax.set_title(title, fontsize=fontsize)
+        if renderer is None or fits():
+            return
+    lines = titles[-1].splitlines()
+    width = max(len(line) for line in lines)
+    while width > 12 and not fits():
+        box = ax.title.get_window_extent(renderer)
+        width = min(width - 1, int(width * ax.figure.bbox.width / box.width * 0.95))
+        wrapped = (
+            textwrap.fill(line, width, break_long_words=False, break_on_hyphens=False)
+            for line in lines
+        )
+        ax.set_title("\n".join(wrapped), fontsize=fontsize)
+
+
+class _CableLabels:
+    """Cable names at their anchors (above those in the upper half of the
+    scene, below the others, running towards the middle); labels whose boxes
+    overlap are merged into one, and the axis limits grow until every label
+    is inside the axes.
+
+    Args:
+        ax: the axes.
+        groups: (projected point, [(cable index, label text), ...]) per anchor.
+        centre: projected centre of the scene.
+        obstacles: other texts the labels must not cover (output frame names).
+    """
+
+    def __init__(self, ax, groups, centre, obstacles) -> None:
+        self.ax, self.centre, self.obstacles = ax, np.asarray(centre), obstacles
+        self.groups = [(np.asarray(p, dtype=float), list(names)) for p, names in groups]
+        self.texts = [self._annotate(p, names) for p, names in self.groups]
+
+    def _annotate(self, point, names):
+        # above an anchor in the upper half, below one in the lower half, and
+        # running towards the middle: labels stay clear of the frame
+        d = point - self.centre
+        scale = max(float(np.abs(d).max()), 1e-12)
+        inward = 0 if abs(d[0]) < 0.05 * scale else -int(np.sign(d[0]))
+        up = 1 if d[1] >= -0.05 * scale else -1
+        return self.ax.annotate(
+            ", ".join(text for _, text in sorted(names)),
+            tuple(point),
+            xytext=(-3 * inward, 6 * up),
+            textcoords="offset points",
+            ha={1: "left", 0: "center", -1: "right"}[inward],
+            va="bottom" if up > 0 else "top",
+            fontsize=9,
+            color="0.15",
+            zorder=7,
+            bbox={
+                "boxstyle": "round,pad=0.1",
+                "facecolor": "white",
+                "edgecolor": "none",
+                "alpha": 0.7,
+            },
+        )
+
+    def _merge_one(self, renderer) -> bool:
+        boxes = [t.get_window_extent(renderer) for t in self.texts]
+        for i in range(len(boxes)):
+            for j in range(i):
+                if boxes[i].overlaps(boxes[j]):
+                    (pi, ni), (pj, nj) = self.groups[i], self.groups[j]
+                    for k in (i, j):  # i > j: remove the later one first
+                        self.texts.pop(k).remove()
+                        self.groups.pop(k)
+                    merged = ((len(ni) * pi + len(nj) * pj) / (len(ni) + len(nj)), nj + ni)
+                    self.groups.append(merged)
+                    self.texts.append(self._annotate(*merged))
+                    return True
+        return False
+
+    def _fit_limits(self, renderer) -> bool:
+        ax = self.ax
+        ax.apply_aspect()
+        frame = ax.get_window_extent(renderer)
+        boxes = [t.get_window_extent(renderer) for t in self.texts + self.obstacles]
+        if all(frame.containsx(b.x0) and frame.containsx(b.x1) for b in boxes) and all(
+            frame.containsy(b.y0) and frame.containsy(b.y1) for b in boxes
+        ):
+            return False
+        inverse = ax.transData.inverted()
+        corners = [inverse.transform([[b.x0, b.y0], [b.x1, b.y1]]) for b in boxes]
+        ax.update_datalim(np.concatenate(corners))
+        ax.autoscale_view()
+        return True
+
+    def settle(self, renderer) -> None:
+        """Merge overlapping labels and grow the limits until neither changes."""
+        if renderer is None:
+            return
+        for _ in range(4 * len(self.texts) + 8):
+            if not (self._merge_one(renderer) or self._fit_limits(renderer)):
+                return
 
 
 def _verdict_text(state: PoseState) -> str:
     if state.verdict is None:
         return "unavailable"
-    margin = "" if state.margin is None else f" (margin {state.margin:.3g})"
+    margin = "" if state.margin is None else f" (margin {_number(state.margin)})"
     return f"{str(state.verdict).upper()}{margin}"
 
 

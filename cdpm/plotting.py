@@ -11,23 +11,36 @@ with :func:`cdpm.maps.open_map`) as one figure:
 - an output-space view: each pose at its outputs y (or at the position of
   the first output's frame when p = 1), coloured by verdict.
 
-Random-sample maps are drawn as scatter plots in the first two coordinates.
+A map over one axis (a grid or samples of one coordinate) is drawn as a
+coloured verdict band along that axis above a line of the margin. Random-sample
+maps of more axes are drawn as scatter plots in the first two coordinates.
 Figures are built with the object-oriented API (no pyplot state), so it
-works headless; :func:`save_map_plot` writes a PNG.
+works headless; :func:`save_map_plot` writes an image in any format
+matplotlib writes (:func:`image_formats`).
 """
 
 from __future__ import annotations
 
 import json
+import math
 import os
+import warnings
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from cdpm.errors import InputError, MissingExtraError
+from cdpm.errors import CdpmError, InputError, MissingExtraError
 
-__all__ = ["plot_map", "save_map_plot", "VERDICT_COLORS"]
+__all__ = [
+    "plot_map",
+    "save_map_plot",
+    "read_map",
+    "image_formats",
+    "check_image_path",
+    "check_dpi",
+    "VERDICT_COLORS",
+]
 
 #: colour of each verdict code (yes, no, marginal, not analysed)
 VERDICT_COLORS = {1: "#2e9e44", 0: "#d4453a", 2: "#f2a33a", -1: "#c8c8c8"}
@@ -44,11 +57,97 @@ def _matplotlib():
     return matplotlib, Figure
 
 
+def image_formats() -> list[str]:
+    """File extensions (no dot) matplotlib can write, sorted."""
+    from matplotlib.backend_bases import FigureCanvasBase
+
+    return sorted(FigureCanvasBase.get_supported_filetypes())
+
+
+def check_image_path(path: str | os.PathLike) -> Path:
+    """The image file a figure saved at ``path`` ends up in: ``path`` itself
+    when matplotlib writes its extension, ``path`` + ``.png`` without one.
+
+    Raises:
+        InputError: matplotlib cannot write the extension (the message lists
+            those it can).
+    """
+    _matplotlib()
+    out = Path(path).expanduser()
+    if not out.suffix:
+        return out.with_name(out.name + ".png")  # what matplotlib would write
+    formats = image_formats()
+    extension = out.suffix[1:].lower()
+    if extension not in formats:
+        raise InputError(
+            f"cannot write {out.name}: unknown image format {out.suffix!r}; "
+            f"use one of {', '.join(formats)}"
+        )
+    if extension == "pgf":
+        import shutil
+
+        import matplotlib
+
+        tex = matplotlib.rcParams["pgf.texsystem"]
+        if shutil.which(tex) is None:
+            raise InputError(f"cannot write {out.name}: .pgf needs {tex}, not found; use .pdf")
+    return out
+
+
+def check_dpi(dpi: Any) -> float:
+    """``dpi`` as a float, when it is a positive finite number.
+
+    Raises:
+        InputError: it is not.
+    """
+    try:
+        value = float(dpi)
+    except (TypeError, ValueError):
+        value = math.nan
+    if not (math.isfinite(value) and value > 0):
+        raise InputError(f"dpi={dpi} must be a positive number of dots per inch")
+    return value
+
+
+def read_map(path: str | os.PathLike):
+    """A map store written by ``cdpm map`` (:func:`cdpm.open_map`), with an
+    error that names the problem and the fix for anything else.
+
+    Raises:
+        InputError: ``path`` is missing, not a zarr store, a zarr store that
+            cdpm did not write (or cannot read), or an incomplete map.
+    """
+    from cdpm.maps import open_map
+
+    p = Path(path).expanduser()
+    if not p.exists():
+        raise InputError(f"map store {p} not found; make it with `cdpm map SPEC ... --out {p}`")
+    fix = "give a store written by `cdpm map SPEC ... --out STORE`"
+    try:
+        with warnings.catch_warnings():
+            # a store without consolidated metadata reads as well, only slower
+            warnings.filterwarnings("ignore", "Failed to open Zarr", RuntimeWarning)
+            ds = open_map(p)
+    except CdpmError as exc:
+        problem = str(exc).split("; ")[0]  # the path exists: the fix is another path
+        raise InputError(f"map store {problem}; {fix}") from exc
+    except (ValueError, KeyError, TypeError, OSError) as exc:
+        # zarr's and json's errors on a damaged store or on a zarr array (not a group)
+        reason = (str(exc).splitlines() or [""])[0]
+        raise InputError(
+            f"map store {p} cannot be read as a zarr group ({type(exc).__name__}: {reason}); {fix}"
+        ) from exc
+    if "poc" not in ds.data_vars:
+        raise InputError(
+            f"map store {p} is an incomplete cdpm map (no 'poc' variable: its run stopped while "
+            f"creating it); re-run the `cdpm map SPEC ... --out {p}` that made it"
+        )
+    return ds
+
+
 def _load(ds_or_path):
     if isinstance(ds_or_path, (str, os.PathLike)):
-        from cdpm.maps import open_map
-
-        return open_map(ds_or_path)
+        return read_map(ds_or_path)
     return ds_or_path
 
 
@@ -184,6 +283,10 @@ def plot_map(
     dims = _pose_dims(ds)
     sample = dims == ["sample"]
     axes_names = list(ds.attrs.get("axes", dims))
+    if len(axes_names) == 1:
+        fig = _plot_one_axis(ds, variable, axes_names[0], margin, output_view)
+        _suptitle(fig, ds, title)
+        return fig
     panels: list[str] = []
     slices: list[dict] = [{}]
     if not sample and len(dims) > 2:
@@ -202,16 +305,11 @@ def plot_map(
     fig = Figure(figsize=(4.6 * ncols, 4.0 * nrows), layout="constrained")
     axs = [fig.add_subplot(nrows, ncols, k + 1) for k in range(len(panels))]
     mid = slices[len(slices) // 2]
-    tension = ds.attrs.get("tension", "?")
-    try:
-        tension = json.loads(tension)
-    except (TypeError, ValueError):
-        pass
     for k, (ax, kind) in enumerate(zip(axs, panels, strict=True)):
         if kind == "output":
             _output_view(ax, ds, variable)
             continue
-        if sample or len(dims) == 1:
+        if sample:
             _sample_panel(
                 ax, ds, variable if kind == "verdict" else "poc_margin", dims, axes_names, kind, fig
             )
@@ -224,19 +322,111 @@ def plot_map(
         ax.set_title(name + (f" ({where})" if where else ""), fontsize=10)
         if kind == "verdict" and k == 0:
             _legend(ax, np.asarray(ds[variable].values), variable)
+    _suptitle(fig, ds, title)
+    return fig
+
+
+def _suptitle(fig, ds, title: str | None) -> None:
+    tension = ds.attrs.get("tension", "?")
+    try:
+        tension = json.loads(tension)
+    except (TypeError, ValueError):
+        pass
     spec = Path(str(ds.attrs.get("spec", "map"))).name
     fig.suptitle(title or f"{spec}: equilibrium tension {tension}", fontsize=11)
+
+
+def _cell_edges(x: np.ndarray) -> np.ndarray:
+    """Edges of cells centred on sorted values x (half-way between neighbours)."""
+    if x.size == 1:
+        half = 0.5 * max(abs(float(x[0])), 1.0)
+        return np.array([x[0] - half, x[0] + half])
+    mid = 0.5 * (x[1:] + x[:-1])
+    return np.concatenate([[2 * x[0] - mid[0]], mid, [2 * x[-1] - mid[-1]]])
+
+
+def _plot_one_axis(ds, variable: str, name: str, margin: bool, output_view: bool):
+    """A map over one coordinate: the verdict as a coloured band along it,
+    the margin as a line over it (same x axis), the output-space view beside."""
+    matplotlib, Figure = _matplotlib()
+    x = np.asarray(ds[name].values, dtype=float).reshape(-1)
+    order = np.argsort(x, kind="stable")
+    x = x[order]
+    codes = np.asarray(ds[variable].values).reshape(-1)[order]
+    tall = margin or output_view
+    fig = Figure(figsize=(10.6 if output_view else 6.4, 4.0 if tall else 1.9), layout="constrained")
+    widths = [1.4, 1.0] if output_view else [1.0]
+    grid = fig.add_gridspec(1, len(widths), width_ratios=widths)
+    if margin:
+        left = grid[0, 0].subgridspec(2, 1, height_ratios=[1, 4])
+    elif output_view:  # the band alone, at mid height beside the output view
+        left = grid[0, 0].subgridspec(3, 1, height_ratios=[3, 2, 3])
+        left = [left[1]]
+    else:
+        left = [grid[0, 0]]
+    strip = fig.add_subplot(left[0])
+    cmap, norm = _verdict_cmap(matplotlib)
+    strip.pcolormesh(
+        _cell_edges(x), [0.0, 1.0], _verdict_index(codes)[None, :], cmap=cmap, norm=norm
+    )
+    strip.set_ylim(0.0, 1.0)
+    strip.set_yticks([])
+    strip.set_title(f"{variable} along {name}", fontsize=10, loc="left")
+    from matplotlib.patches import Patch
+
+    present = [c for c in (1, 0, 2, -1) if np.any(codes == c)]
+    strip.legend(
+        handles=[
+            Patch(facecolor=VERDICT_COLORS[c], edgecolor="0.3", label=_VERDICT_LABELS[c])
+            for c in present
+        ],
+        loc="lower right",
+        bbox_to_anchor=(1.0, 1.0),
+        ncol=len(present),
+        fontsize=8,
+        frameon=False,
+        borderaxespad=0.1,
+        handlelength=1.2,
+        columnspacing=1.0,
+    )
+    axis_label = _label(ds, name)
+    if margin:
+        line = fig.add_subplot(left[1], sharex=strip)
+        strip.tick_params(labelbottom=False)
+        values = np.asarray(ds["poc_margin"].values, dtype=float).reshape(-1)[order]
+        line.axhline(0.0, color="0.55", lw=0.8, ls="--")
+        line.fill_between(
+            x, 0.0, values, where=values > 0, color=VERDICT_COLORS[1], alpha=0.25, lw=0
+        )
+        line.plot(x, values, color="0.15", lw=1.4, label="POC margin")
+        # a value between two gaps draws no line segment: mark it
+        finite = np.isfinite(values)
+        padded = np.concatenate([[False], finite, [False]])
+        alone = finite & ~padded[:-2] & ~padded[2:]
+        line.plot(x[alone], values[alone], ".", color="0.15", ms=4)
+        if not np.isfinite(values).any():
+            line.text(
+                0.5,
+                0.5,
+                "no margin in this map (made with --no-margin)",
+                transform=line.transAxes,
+                ha="center",
+                va="center",
+                color="0.4",
+            )
+        line.set_ylabel("POC margin")
+        line.set_xlabel(axis_label)
+        line.grid(True, color="0.9", lw=0.6)
+    else:
+        strip.set_xlabel(axis_label)
+    if output_view:
+        _output_view(fig.add_subplot(grid[0, 1]), ds, variable)
     return fig
 
 
 def _sample_panel(ax, ds, variable, dims, axes_names, kind, fig):
-    if len(axes_names) >= 2:
-        xn, yn = axes_names[0], axes_names[1]
-        xv, yv = np.asarray(ds[xn].values), np.asarray(ds[yn].values)
-    else:
-        xn, yn = axes_names[0], None
-        xv = np.asarray(ds[xn].values)
-        yv = np.zeros_like(xv)
+    xn, yn = axes_names[0], axes_names[1]
+    xv, yv = np.asarray(ds[xn].values), np.asarray(ds[yn].values)
     values = np.asarray(ds[variable].values).reshape(-1)
     size = max(3.0, min(40.0, 30000.0 / max(values.size, 1)))
     if kind == "verdict":
@@ -267,15 +457,21 @@ def _sample_panel(ax, ds, variable, dims, axes_names, kind, fig):
         fig.colorbar(sc, ax=ax, shrink=0.85, label=variable)
         ax.set_title("POC margin", fontsize=10)
     ax.set_xlabel(_label(ds, xn))
-    if yn:
-        ax.set_ylabel(_label(ds, yn))
+    ax.set_ylabel(_label(ds, yn))
 
 
-def save_map_plot(ds_or_path: Any, path: str | os.PathLike, *, dpi: int = 100, **kwargs) -> Path:
-    """Draw a map with :func:`plot_map` and write it as an image (PNG by
-    the file extension); returns the path written."""
+def save_map_plot(ds_or_path: Any, path: str | os.PathLike, *, dpi: float = 100, **kwargs) -> Path:
+    """Draw a map with :func:`plot_map` and write it as an image in the
+    format of the file extension (PNG without one); returns the path written.
+
+    Raises:
+        InputError: matplotlib cannot write the extension, ``dpi`` is not
+            positive (both checked before any drawing), or the store is not
+            a cdpm map.
+    """
+    out = check_image_path(path)
+    dpi = check_dpi(dpi)
     fig = plot_map(ds_or_path, **kwargs)
-    out = Path(path).expanduser()
     out.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out, dpi=dpi)
     return out

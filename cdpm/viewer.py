@@ -55,6 +55,8 @@ __all__ = [
     "coordinate_ranges",
     "Viewer",
     "PoseInspector",
+    "check_map_spec",
+    "check_port",
     "LOOPBACK",
     "COLORS",
     "VERDICT_CODES",
@@ -566,6 +568,23 @@ def _serve(argv: list[str] | None = None) -> None:
         bridge.run()
 
 
+def check_port(port: Any) -> int:
+    """``port`` as an int when it is a TCP port (1-65535).
+
+    Raises:
+        InputError: it is not.
+    """
+    try:
+        value = int(str(port).strip())
+    except ValueError:
+        value = 0
+    if not 1 <= value <= 65535:
+        raise InputError(
+            f"port {port} is not a TCP port; use 1-65535 (or omit it: the first free from 7000)"
+        )
+    return value
+
+
 class _Server:
     """A meshcat server subprocess (see :func:`_serve`) and its log file."""
 
@@ -638,7 +657,8 @@ class Viewer:
         robot: a :class:`~cdpm.robot.CableRobot`.
         q: first pose (name, configuration or natural coordinates); default
             the spec's first pose, else neutral.
-        port: web port of the started server (default: first free from 7000).
+        port: web port of the started server, 1-65535 (default: first free
+            from 7000).
         zmq_url: connect to this running meshcat server instead of starting one.
         geometry: ``"auto"`` (URDF visuals when the URDF has some, else
             generated), ``"urdf"`` or ``"generated"``.
@@ -647,6 +667,7 @@ class Viewer:
 
     Raises:
         MissingExtraError: meshcat is not installed.
+        InputError: a port outside 1-65535 or an unknown geometry.
         CdpmError: the server could not start (e.g. the port is in use).
     """
 
@@ -660,6 +681,8 @@ class Viewer:
         geometry: str = "auto",
         tension_scale: float | None = None,
     ) -> None:
+        if port is not None:
+            port = check_port(port)
         meshcat = _import_meshcat()
         if geometry not in ("auto", "urdf", "generated"):
             raise InputError(f"geometry={geometry!r}; use 'auto', 'urdf' or 'generated'")
@@ -965,6 +988,7 @@ class Viewer:
         color_by: str = "verdict",
         position: str = "output_frame_position",
         point_size: float | None = None,
+        check_spec: bool = True,
     ) -> int:
         """Overlay a workspace map as a point cloud (path ``/meshcat/cdpm/map``).
 
@@ -978,13 +1002,18 @@ class Viewer:
                 positive, scaled by the largest |margin|; NaN grey).
             position: the position variable to plot (dims ``(..., "xyz")``).
             point_size: size of the points [m] (default: 1.5 % of the scene).
+            check_spec: refuse a map made from another spec file (see
+                :func:`check_map_spec`); ``False`` overlays it anyway.
 
         Returns:
             The number of points drawn (poses with a finite position).
 
         Raises:
-            InputError: the dataset lacks a variable or has the wrong dims.
+            InputError: the dataset lacks a variable or has the wrong dims, or
+                was made from another spec.
         """
+        if check_spec:
+            check_map_spec(dataset, self.robot)
         positions, colors = map_points(dataset, color_by=color_by, position=position)
         size = 0.015 * self._size if point_size is None else float(point_size)
         g = self._g
@@ -995,6 +1024,39 @@ class Viewer:
     def hide_map(self) -> None:
         """Remove the workspace map overlay."""
         self._send("cdpm/map", "delete")
+
+
+def check_map_spec(dataset, robot, *, override: str = "check_spec=False") -> None:
+    """Refuse a map made from another spec than ``robot``'s.
+
+    A map records the sha256 of its spec file and URDF (attribute
+    ``spec_sha256``, the hash :func:`cdpm.load_robot` computes as
+    ``robot.spec.sha256``); a map without it (e.g. made by hand) is not checked.
+
+    Args:
+        dataset: the map (``xarray.Dataset``).
+        robot: the robot it is to be shown with.
+        override: how the caller skips this check, named in the message.
+
+    Raises:
+        InputError: the hashes differ; the message names both spec files.
+    """
+    stored = getattr(dataset, "attrs", {}).get("spec_sha256")
+    if not stored or stored == robot.spec.sha256:
+        return
+    store = getattr(dataset, "encoding", {}).get("source")
+    made_from = dataset.attrs.get("spec", "another spec")
+    spec, now = robot.spec.path, robot.spec.sha256
+    if str(made_from) == str(spec):
+        source = f"an earlier version of {spec} or its URDF (sha256 {stored[:12]}, now {now[:12]})"
+    else:
+        source = f"{made_from} (sha256 {stored[:12]}), not from {spec} (sha256 {now[:12]})"
+    what = f"map {store}" if store else "the map"
+    rerun = f"`cdpm map {spec} ... --out {store} --overwrite`" if store else "it with this spec"
+    raise InputError(
+        f"{what} was made from {source}; re-run {rerun} or view it with the spec it was made "
+        f"from ({override} overlays it anyway)"
+    )
 
 
 def map_points(dataset, *, color_by: str = "verdict", position: str = "output_frame_position"):

@@ -79,6 +79,13 @@ def test_picture_command(tmp_path, capsys):
     assert out.stat().st_size > 10_000
     assert main(["picture", str(PAPER_SPEC), "--pose", "nope", "-o", str(out)]) == 1
     assert "pose 'nope' not in spec; poses: nominal" in capsys.readouterr().err
+    # the file name is checked before the spec is even read
+    with pytest.raises(SystemExit) as info:
+        main(["picture", "missing.yaml", "-o", str(tmp_path / "pose.jpeg")])
+    assert info.value.code == 2
+    assert "argument -o/--output: picture file 'pose.jpeg': use a .png, .pdf or .svg name" in (
+        capsys.readouterr().err
+    )
 
 
 def test_missing_matplotlib_gives_install_hint():
@@ -104,3 +111,83 @@ def test_missing_matplotlib_gives_install_hint():
     )
     assert out.returncode == 0, out.stderr
     assert 'pip install "cdpm[viz]"' in out.stdout
+
+
+SPATIAL_SPEC = ROOT / "models" / "spatial_8cable" / "spatial_8cable.yaml"
+MULTILINK_SPEC = ROOT / "models" / "multilink_arm" / "multilink_arm.yaml"
+
+
+def _extents(fig):
+    """Rendered boxes (display pixels) of the title, the legend and the labels."""
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    ax = fig.axes[0]
+    labels = [t for t in ax.texts if t.get_text()]
+    boxes = [t.get_window_extent(renderer) for t in labels]
+    return ax.title.get_window_extent(renderer), ax.get_legend(), labels, boxes, renderer
+
+
+def _inside(box, outer, slack=0.5):
+    return (
+        box.x0 >= outer.x0 - slack
+        and box.x1 <= outer.x1 + slack
+        and box.y0 >= outer.y0 - slack
+        and box.y1 <= outer.y1 + slack
+    )
+
+
+@pytest.mark.parametrize("spec, pose", [(SPATIAL_SPEC, "centre"), (MULTILINK_SPEC, "hanging")])
+def test_long_titles_fit_the_figure(spec, pose, tmp_path):
+    import cdpm
+    from cdpm.picture import render_pose
+
+    fig = render_pose(cdpm.load_robot(spec), pose, tmp_path / "pose.png")
+    title, *_ = _extents(fig)
+    assert _inside(title, fig.bbox), (title, fig.bbox)
+    text = fig.axes[0].get_title()
+    assert f"pose {pose!r}" in text and "POC " in text
+    assert "-0 " not in text + " " and "=-0," not in text  # no negative zeros
+    if spec == SPATIAL_SPEC:
+        # a free flyer's coordinates are grouped under its joint's name
+        assert "platform_joint: x=0, y=0, z=1, roll=0, pitch=0, yaw=0" in " ".join(text.split())
+
+
+def test_a_long_custom_title_is_wrapped_to_fit(paper_robot):
+    from cdpm.picture import render_pose
+
+    words = "a caption far too long for one line of the default figure width " * 3
+    fig = render_pose(paper_robot, "nominal", title=words.strip())
+    title, *_ = _extents(fig)
+    assert _inside(title, fig.bbox)
+    assert " ".join(fig.axes[0].get_title().split()) == words.strip()
+
+
+@pytest.mark.parametrize(
+    "spec, pose, plane",
+    [(SPATIAL_SPEC, "centre", "xy"), (SPATIAL_SPEC, "offset", "xz"), (MULTILINK_SPEC, None, "yz")],
+)
+def test_cable_labels_neither_collide_nor_leave_the_axes(spec, pose, plane, tmp_path):
+    import cdpm
+    from cdpm.picture import render_pose
+
+    robot = cdpm.load_robot(spec)
+    fig = render_pose(robot, pose, tmp_path / "pose.png", plane=plane)
+    _, legend, labels, boxes, renderer = _extents(fig)
+    ax = fig.axes[0]
+    frame = ax.get_window_extent(renderer)
+    legend_box = legend.get_window_extent(renderer)
+    # the legend sits under the axes (and their x label), inside the figure
+    assert legend_box.y1 < ax.xaxis.get_tightbbox(renderer).y0 and _inside(legend_box, fig.bbox)
+    cable_names = {c.name for c in robot.spec.cables}
+    named = set()
+    for text, box in zip(labels, boxes, strict=True):
+        assert _inside(box, frame), f"{text.get_text()!r} leaves the axes"
+        assert not box.overlaps(legend_box), f"{text.get_text()!r} is under the legend"
+        named |= {w.strip(",") for w in text.get_text().split()} & cable_names
+    for i in range(len(boxes)):
+        for j in range(i):
+            assert not boxes[i].overlaps(boxes[j]), (labels[i].get_text(), labels[j].get_text())
+    assert named == cable_names  # every cable is still named
+    if plane == "xy":
+        # seen from above, the upper and lower cable of a corner share an anchor and a label
+        assert any(t.get_text().startswith("c1 (") and "c5" in t.get_text() for t in labels)

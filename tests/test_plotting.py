@@ -191,8 +191,8 @@ def test_cli_map_samples_and_errors(tmp_path, capsys):
         == 0
     )
     assert "3 poses" in capsys.readouterr().out
-    assert main(["plot", str(tmp_path / "missing.zarr"), "-o", str(tmp_path / "x.png")]) == 1
-    assert "not a zarr store" in capsys.readouterr().err
+    assert main(["plot", str(tmp_path / "missing.zarr"), "-o", str(tmp_path / "x.png")]) == 2
+    assert "missing.zarr not found" in capsys.readouterr().err
 
 
 def test_map_command_without_margin_keeps_verdicts(tmp_path):
@@ -210,3 +210,141 @@ def test_map_command_without_margin_keeps_verdicts(tmp_path):
     assert (full["poc"].values == 1).any() and (full["poc"].values == 0).any()
     assert np.isnan(fast["poc_margin"].values).all()
     assert np.isfinite(full["poc_margin"].values[full["status"].values == 0]).all()
+
+
+# ------------------------------------------------- command-line input errors
+
+
+def _bad_stores(tmp_path):
+    """Paths that are not cdpm maps, each with a phrase its error must name."""
+    import xarray as xr
+    import zarr
+
+    (tmp_path / "folder").mkdir()
+    (tmp_path / "folder" / "notes.txt").write_text("hi")
+    (tmp_path / "plain.txt").write_text("hi")
+    xr.Dataset({"a": ("x", np.arange(3))}).to_zarr(tmp_path / "foreign.zarr", consolidated=False)
+    zarr.create_array(str(tmp_path / "array.zarr"), shape=(3,), dtype="f8")
+    (tmp_path / "corrupt.zarr").mkdir()
+    (tmp_path / "corrupt.zarr" / "zarr.json").write_text("{not json")
+    group = zarr.open_group(str(tmp_path / "skeleton.zarr"), mode="w")
+    group.attrs["cdpm_settings"] = "{}"  # a `cdpm map` stopped while creating its store
+    return {
+        "missing.zarr": "not found",
+        "folder": "not a zarr store",
+        "plain.txt": "not a zarr store",
+        "foreign.zarr": "not a cdpm map",
+        "array.zarr": "cannot be read as a zarr group",
+        "corrupt.zarr": "cannot be read as a zarr group",
+        "skeleton.zarr": "incomplete",
+    }
+
+
+def test_plot_command_bad_store_is_a_one_line_input_error(tmp_path, capsys):
+    from cdpm.errors import InputError
+    from cdpm.plotting import save_map_plot
+
+    for name, phrase in _bad_stores(tmp_path).items():
+        store = tmp_path / name
+        assert main(["plot", str(store), "-o", str(tmp_path / "m.png")]) == 2, name
+        err = capsys.readouterr().err
+        assert err.startswith(f"cdpm plot: error: map store {store} "), err
+        assert phrase in err and "cdpm map SPEC" in err, err
+        assert "Traceback" not in err and len(err.strip().splitlines()) == 1, err
+        with pytest.raises(InputError, match=phrase):
+            save_map_plot(store, tmp_path / "m.png")
+    assert not (tmp_path / "m.png").exists()
+
+
+@pytest.fixture(scope="module")
+def small_store(tmp_path_factory):
+    store = tmp_path_factory.mktemp("maps") / "small.zarr"
+    robot = cdpm.load_robot(PAPER_SPEC)
+    workspace_map(robot, {"q1": np.linspace(-3, 3, 9), "q2": [0.5, 1.0]}, store=store, workers=1)
+    return store
+
+
+def test_plot_command_checks_the_image_name_before_any_work(small_store, tmp_path, capsys):
+    import shutil
+
+    import matplotlib
+
+    from cdpm.plotting import image_formats, save_map_plot
+
+    formats = image_formats()
+    assert {"png", "pdf", "svg", "jpg"} <= set(formats) and "xyz" not in formats
+    with pytest.raises(SystemExit) as info:
+        main(["plot", str(tmp_path / "missing.zarr"), "-o", str(tmp_path / "map.xyz")])
+    assert info.value.code == 2
+    err = capsys.readouterr().err
+    assert "argument -o/--output: cannot write map.xyz: unknown image format '.xyz'" in err
+    assert "png, ps, raw" in err and "Traceback" not in err
+    with pytest.raises(cdpm.InputError, match="unknown image format '.xyz'"):
+        save_map_plot(tmp_path / "missing.zarr", tmp_path / "map.xyz")  # before reading
+    if shutil.which(matplotlib.rcParams["pgf.texsystem"]) is None:  # .pgf runs TeX
+        with pytest.raises(cdpm.InputError, match=r"\.pgf needs \w+, not found; use \.pdf"):
+            save_map_plot(small_store, tmp_path / "map.pgf")
+    # no extension: matplotlib writes a PNG at NAME.png; that is the path reported
+    assert main(["plot", str(small_store), "-o", str(tmp_path / "map")]) == 0
+    assert f"plot written to {tmp_path / 'map.png'}" in capsys.readouterr().out
+    assert (tmp_path / "map.png").is_file()
+    assert main(["plot", str(small_store), "-o", str(tmp_path / "map.svg")]) == 0
+    assert (tmp_path / "map.svg").read_text().lstrip().startswith("<?xml")
+
+
+@pytest.mark.parametrize("dpi", ["0", "-3", "nan", "ten"])
+def test_plot_and_picture_reject_a_dpi_that_is_not_positive(dpi, tmp_path, capsys):
+    from cdpm.picture import render_pose
+    from cdpm.plotting import save_map_plot
+
+    for command in (["plot", str(tmp_path / "m.zarr")], ["picture", str(PAPER_SPEC)]):
+        with pytest.raises(SystemExit) as info:
+            main([*command, "-o", str(tmp_path / "x.png"), "--dpi", dpi])
+        assert info.value.code == 2
+        err = capsys.readouterr().err
+        assert f"argument --dpi: dpi={dpi} must be a positive number of dots per inch" in err
+    if dpi != "ten":
+        with pytest.raises(cdpm.InputError, match="must be a positive number of dots per inch"):
+            save_map_plot(tmp_path / "m.zarr", tmp_path / "x.png", dpi=float(dpi))
+        with pytest.raises(cdpm.InputError, match="must be a positive number of dots per inch"):
+            render_pose(cdpm.load_robot(PAPER_SPEC), "nominal", dpi=float(dpi))
+
+
+# ---------------------------------------------------------------- one axis
+
+
+@pytest.mark.parametrize("sample", [False, True])
+def test_one_axis_map_is_a_strip_and_a_margin_line(paper_robot, tmp_path, sample):
+    from matplotlib.collections import PathCollection, QuadMesh
+
+    from cdpm.plotting import VERDICT_COLORS, plot_map, save_map_plot
+
+    if sample:
+        ds = workspace_map(paper_robot, {"q1": (-3, 3)}, samples=80, seed=1, workers=1)
+    else:
+        ds = workspace_map(paper_robot, {"q1": np.linspace(-3, 3, 61)}, workers=1)
+    order = np.argsort(ds["q1"].values)
+    fig = plot_map(ds)
+    strip, line, output = fig.axes[:3]
+    # the verdict: one coloured band along q1, cell k in the verdict colour of pose k
+    (mesh,) = [c for c in strip.collections if isinstance(c, QuadMesh)]
+    colors = mesh.to_rgba(np.asarray(mesh.get_array()).reshape(-1))[:, :3]
+    assert colors.shape == (ds.sizes[ds["poc"].dims[0]], 3)
+    expected = [VERDICT_COLORS[int(c)] for c in ds["poc"].values[order]]
+    from matplotlib.colors import to_rgb
+
+    np.testing.assert_allclose(colors, [to_rgb(c) for c in expected], atol=1e-6)
+    assert not [c for c in strip.collections if isinstance(c, PathCollection)]  # no dots
+    assert strip.get_yticks().size == 0 and strip.get_legend() is not None
+    assert strip.get_title(loc="left") == "poc along q1"
+    # the margin: a line over q1, on the same x axis
+    (margin,) = [ln for ln in line.get_lines() if ln.get_label() == "POC margin"]
+    np.testing.assert_allclose(margin.get_xdata(), ds["q1"].values[order])
+    np.testing.assert_allclose(margin.get_ydata(), ds["poc_margin"].values[order])
+    assert line.get_xlabel() == "q1 [rad]" and line.get_ylabel() == "POC margin"
+    assert strip.get_shared_x_axes().joined(strip, line)
+    assert output.get_xlabel() == "tip x [m]"
+    _check_image(save_map_plot(ds, tmp_path / "line.png"))
+    # without the margin panel the band carries the axis label itself
+    fig = plot_map(ds, margin=False, output_view=False)
+    assert len(fig.axes) == 1 and fig.axes[0].get_xlabel() == "q1 [rad]"

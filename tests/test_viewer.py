@@ -431,11 +431,36 @@ def test_view_command_ctrl_c_exits_130_and_stops_the_server():
         assert _listening(port) == []
 
 
-def test_view_command_bad_map(capsys):
+def test_view_command_bad_map(tmp_path, capsys):
     from cdpm.cli import main
 
-    assert main(["view", str(PAPER_SPEC), "--map", "missing.zarr", "--seconds", "0"]) == 1
-    assert "map 'missing.zarr' not found" in capsys.readouterr().err
+    xr = pytest.importorskip("xarray")
+    missing = tmp_path / "missing.zarr"
+    assert main(["view", str(PAPER_SPEC), "--map", str(missing), "--seconds", "0"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"cdpm view: error: map store {missing} not found; make it with")
+    # a zarr store that cdpm did not write is refused, not overlaid (cdpm.open_map)
+    ds, _ = _synthetic_map(xr, sample=True)
+    ds.to_zarr(tmp_path / "foreign.zarr", consolidated=False)
+    args = ["view", str(PAPER_SPEC), "--map", str(tmp_path / "foreign.zarr"), "--seconds", "0"]
+    assert main(args) == 2
+    assert "is a zarr store but not a cdpm map" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("port", ["0", "-1", "65536", "99999", "http"])
+def test_view_command_port_out_of_range(port, capsys):
+    from cdpm.cli import main
+
+    with pytest.raises(SystemExit) as info:
+        main(["view", str(PAPER_SPEC), "--port", port, "--seconds", "0"])
+    assert info.value.code == 2
+    err = capsys.readouterr().err
+    assert f"argument --port: port {port} is not a TCP port; use 1-65535" in err
+
+
+def test_viewer_port_out_of_range(paper_robot):
+    with pytest.raises(InputError, match="port 99999 is not a TCP port; use 1-65535"):
+        cdpm.viewer.Viewer(paper_robot, port=99999)
 
 
 # ---------------------------------------------------------------- real browser
@@ -504,16 +529,63 @@ def test_browser_renders_cables_and_verdict(paper_robot, tmp_path):
     assert _count_near(pixels, COLORS["taut_high"]) < 20  # no taut cable at zero tension
 
 
-def test_view_command_overlays_a_zarr_map(tmp_path, capsys):
-    pytest.importorskip("meshcat")
-    xr = pytest.importorskip("xarray")
+@pytest.fixture(scope="module")
+def paper_map(tmp_path_factory):
     pytest.importorskip("zarr")
+    store = tmp_path_factory.mktemp("maps") / "paper.zarr"
+    robot = cdpm.load_robot(PAPER_SPEC)
+    cdpm.workspace_map(robot, {"q1": np.linspace(-3, 3, 5)}, store=store, workers=1)
+    return store
+
+
+def test_view_command_overlays_a_map_without_warnings(paper_map, capsys):
+    import warnings
+
+    pytest.importorskip("meshcat")
     from cdpm.cli import main
 
-    ds, _ = _synthetic_map(xr, sample=True)
-    ds.to_zarr(tmp_path / "map.zarr")
-    args = ["view", str(PAPER_SPEC), "--map", str(tmp_path / "map.zarr"), "--seconds", "0"]
-    assert main([*args, "--color-by", "margin"]) == 0
-    assert (
-        f"map: 5 poses from {tmp_path / 'map.zarr'}, coloured by margin" in capsys.readouterr().out
+    args = ["view", str(PAPER_SPEC), "--map", str(paper_map), "--seconds", "0"]
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        assert main([*args, "--color-by", "margin"]) == 0
+    assert f"map: 5 poses from {paper_map}, coloured by margin" in capsys.readouterr().out
+    from_map_reading = [w for w in caught if "xarray" in w.filename or "zarr" in w.filename]
+    assert not from_map_reading, [str(w.message) for w in from_map_reading]
+
+
+def test_view_command_refuses_a_map_of_another_spec(paper_map, write_spec, capsys):
+    from cdpm.cli import main
+
+    # the same robot with one more comment line: another file, another hash
+    other = write_spec(
+        "# edited\n" + PAPER_SPEC.read_text().replace("two_link_planar.urdf", "arm.urdf")
     )
+    args = ["view", str(other), "--map", str(paper_map), "--seconds", "0"]
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"cdpm view: error: map {paper_map} was made from {PAPER_SPEC} ")
+    assert f"not from {other} " in err
+    assert f"re-run `cdpm map {other} ... --out {paper_map} --overwrite`" in err
+    assert "--allow-other-spec" in err and len(err.strip().splitlines()) == 1
+    # the Python check says the same, naming its own override
+    dataset = cdpm.open_map(paper_map)
+    with pytest.raises(InputError, match="check_spec=False"):
+        cdpm.viewer.check_map_spec(dataset, cdpm.load_robot(other))
+    cdpm.viewer.check_map_spec(dataset, cdpm.load_robot(PAPER_SPEC))  # its own spec: fine
+    pytest.importorskip("meshcat")
+    assert main([*args, "--allow-other-spec"]) == 0
+    assert f"map: 5 poses from {paper_map}, coloured by verdict" in capsys.readouterr().out
+
+
+def test_map_of_an_edited_spec_is_refused(write_spec):
+    text = PAPER_SPEC.read_text().replace("two_link_planar.urdf", "arm.urdf")
+    spec = write_spec(text)
+    dataset = cdpm.workspace_map(cdpm.load_robot(spec), {"q1": [0.1, 0.2]}, workers=1)
+    cdpm.viewer.check_map_spec(dataset, cdpm.load_robot(spec))
+    spec.write_text(text.replace("nominal", "home"))
+    edited = cdpm.load_robot(spec)
+    with pytest.raises(InputError, match=f"an earlier version of {spec} or its URDF"):
+        cdpm.viewer.check_map_spec(dataset, edited)
+    # a map without the hash (made by hand) is not checked
+    dataset.attrs.pop("spec_sha256")
+    cdpm.viewer.check_map_spec(dataset, edited)

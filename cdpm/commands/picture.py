@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from cdpm.commands._pose import add_pose_arguments, pose_from_args
+from cdpm.commands.plot import DPI_TYPE, argument_type
 
 NAME = "picture"
 HELP = "draw a pose (robot, cables by state, POC verdict) to a PNG/PDF/SVG file"
@@ -21,10 +22,21 @@ examples:
   cdpm picture models/two_link_planar/two_link_planar.yaml --q 0.3 1.2 --plane xy -o pose.svg"""
 
 
+def _picture_file(text: str):
+    from cdpm.picture import check_picture_path
+
+    return check_picture_path(text)
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_pose_arguments(parser)
     parser.add_argument(
-        "-o", "--output", required=True, metavar="FILE", help="image file (.png, .pdf or .svg)"
+        "-o",
+        "--output",
+        required=True,
+        metavar="FILE",
+        type=argument_type(_picture_file),
+        help="image file (.png, .pdf or .svg)",
     )
     parser.add_argument(
         "--plane",
@@ -33,7 +45,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="projection plane (default: across the thinnest world axis of the scene)",
     )
     parser.add_argument("--title", default=None, help="figure title (default: pose and verdict)")
-    parser.add_argument("--dpi", type=int, default=110, help="resolution (default 110)")
+    parser.add_argument("--dpi", type=DPI_TYPE, default=110, help="resolution (default 110)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -48,6 +60,7 @@ def run(args: argparse.Namespace) -> int:
         robot, q, args.output, plane=args.plane, title=args.title, dpi=args.dpi, state=state
     )
     print(
-        f"wrote {args.output}: POC {state.verdict_key.upper()} at {state.natural.round(6).tolist()}"
+        f"wrote {args.output}: POC {state.verdict_key.upper()} at "
+        f"{(state.natural.round(6) + 0.0).tolist()}"  # + 0.0: no -0.0
     )
     return 0

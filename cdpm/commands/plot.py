@@ -3,22 +3,68 @@
 from __future__ import annotations
 
 import argparse
+import sys
 
 NAME = "plot"
 HELP = "draw a workspace map (zarr store) into an image"
 DESCRIPTION = """\
 Read a map written by `cdpm map ... --out STORE` and draw it: the verdict over
 the first two axes (slices for more axes), the POC margin, and the poses in
-output space coloured by verdict."""
+output space coloured by verdict. A map over one axis is drawn as a verdict
+band along that axis above a line of the margin."""
 EPILOG = """\
 examples:
   cdpm plot map.zarr -o map.png
-  cdpm plot map.zarr -o closure.png --variable wrench_closure --no-margin"""
+  cdpm plot map.zarr -o closure.pdf --variable wrench_closure --no-margin"""
+
+
+def argument_type(check):
+    """An argparse ``type`` from a cdpm check: the check's error message
+    becomes argparse's (a usage error, exit code 2, before any work)."""
+    from cdpm.errors import CdpmError
+
+    def convert(text: str):
+        try:
+            return check(text.strip())
+        except CdpmError as exc:  # InputError, or MissingExtraError with its pip hint
+            raise argparse.ArgumentTypeError(str(exc)) from exc
+
+    convert.__name__ = check.__name__
+    return convert
+
+
+def _dpi(text: str) -> float:
+    from cdpm.plotting import check_dpi
+
+    return check_dpi(text)
+
+
+def _image(text: str):
+    from cdpm.plotting import check_image_path
+
+    return check_image_path(text)
+
+
+#: ``--dpi`` values: positive numbers (also used by ``cdpm picture``)
+DPI_TYPE = argument_type(_dpi)
+
+
+def input_error(args: argparse.Namespace, exc: Exception) -> int:
+    """Report a bad input file like an argument error: one line, exit code 2."""
+    print(f"cdpm {args.command}: error: {exc}", file=sys.stderr)
+    return 2
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("store", metavar="STORE", help="zarr store written by cdpm map")
-    parser.add_argument("-o", "--output", required=True, metavar="PNG", help="image to write")
+    parser.add_argument(
+        "-o",
+        "--output",
+        required=True,
+        metavar="IMAGE",
+        type=argument_type(_image),
+        help="image to write; the extension picks the format (.png, .pdf, .svg, ...)",
+    )
     parser.add_argument(
         "--variable",
         default="poc",
@@ -29,14 +75,19 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--no-output-view", action="store_true", help="leave out the output-space panel"
     )
-    parser.add_argument("--dpi", type=int, default=100, help="resolution (default 100)")
+    parser.add_argument("--dpi", type=DPI_TYPE, default=100, help="resolution (default 100)")
 
 
 def run(args: argparse.Namespace) -> int:
-    from cdpm.plotting import save_map_plot
+    from cdpm.errors import InputError
+    from cdpm.plotting import read_map, save_map_plot
 
+    try:
+        dataset = read_map(args.store)
+    except InputError as exc:
+        return input_error(args, exc)
     path = save_map_plot(
-        args.store,
+        dataset,
         args.output,
         dpi=args.dpi,
         variable=args.variable,

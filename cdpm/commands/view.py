@@ -8,6 +8,7 @@ import sys
 import time
 
 from cdpm.commands._pose import Q_HELP, add_pose_arguments, pose_from_args
+from cdpm.commands.plot import argument_type, input_error
 
 NAME = "view"
 HELP = "serve a 3-D view of a pose in the browser (robot, cables, POC verdict)"
@@ -17,9 +18,10 @@ robot at one pose with its cables coloured by state (taut: blue, darker with
 more tension; slack: pink; unavailable: grey) and the output frame marker
 coloured by the positive output controllability verdict (green YES, red NO,
 amber MARGINAL), print the URL and serve until Ctrl-C. With --map, overlay a
-workspace map (output positions coloured by verdict or margin). Needs the
-viz extra: pip install "cdpm[viz]". From another machine, forward the port:
-ssh -L 7000:127.0.0.1:7000 HOST."""
+workspace map made by `cdpm map` from the same spec (output positions
+coloured by verdict or margin; --allow-other-spec for a map made from another
+spec file). Needs the viz extra: pip install "cdpm[viz]". From another
+machine, forward the port: ssh -L 7000:127.0.0.1:7000 HOST."""
 EPILOG = (
     """\
 examples:
@@ -32,12 +34,28 @@ examples:
 )
 
 
+def _port(text: str) -> int:
+    from cdpm.viewer import check_port
+
+    return check_port(text)
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_pose_arguments(parser)
     parser.add_argument(
-        "--port", type=int, default=None, help="web port (default: first free from 7000)"
+        "--port",
+        type=argument_type(_port),
+        default=None,
+        help="web port, 1-65535 (default: first free from 7000)",
     )
-    parser.add_argument("--map", metavar="MAP", help="workspace map to overlay (.zarr or .nc)")
+    parser.add_argument(
+        "--map", metavar="STORE", help="workspace map to overlay (zarr store from cdpm map)"
+    )
+    parser.add_argument(
+        "--allow-other-spec",
+        action="store_true",
+        help="overlay a map made from another spec file (default: refuse it)",
+    )
     parser.add_argument(
         "--color-by",
         choices=("verdict", "margin"),
@@ -58,46 +76,32 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def open_map(path: str):
-    """An xarray map from a .zarr store or a netCDF file."""
-    from pathlib import Path
-
-    from cdpm.errors import InputError, MissingExtraError
-
-    p = Path(path)
-    if not p.exists():
-        raise InputError(f"map {path!r} not found")
-    try:
-        import xarray as xr
-    except ImportError as exc:
-        raise MissingExtraError(
-            f"reading a map needs xarray and zarr ({exc}); install them with: "
-            "pip install xarray zarr"
-        ) from exc
-    try:
-        if p.is_dir() or p.suffix == ".zarr":
-            return xr.open_zarr(p)
-        return xr.open_dataset(p)
-    except (ValueError, OSError, KeyError) as exc:
-        raise InputError(f"cannot read the map {path!r}: {exc}") from exc
-
-
 def _exit_on_sigterm(signum, frame) -> None:
     sys.exit(128 + signum)
 
 
 def run(args: argparse.Namespace) -> int:
+    from cdpm.errors import InputError
     from cdpm.robot import load_robot
-    from cdpm.viewer import Viewer
+    from cdpm.viewer import Viewer, check_map_spec
 
     # a plain `kill` also closes the viewer (and stops its server process)
     signal.signal(signal.SIGTERM, _exit_on_sigterm)
     robot = load_robot(args.spec)
     q = pose_from_args(robot, args)
-    dataset = open_map(args.map) if args.map else None
+    dataset = None
+    if args.map:
+        from cdpm.plotting import read_map
+
+        try:  # before the server starts
+            dataset = read_map(args.map)
+            if not args.allow_other_spec:
+                check_map_spec(dataset, robot, override="--allow-other-spec")
+        except InputError as exc:
+            return input_error(args, exc)
     with Viewer(robot, q, port=args.port, geometry=args.geometry) as viewer:
         if dataset is not None:
-            n = viewer.show_map(dataset, color_by=args.color_by)
+            n = viewer.show_map(dataset, color_by=args.color_by, check_spec=False)  # checked
             print(f"map: {n} poses from {args.map}, coloured by {args.color_by}")
         print(viewer.state)
         print(f"viewer: {viewer.url()}  (Ctrl-C to stop)", flush=True)
