@@ -628,33 +628,23 @@ def test_unguarded_script_with_workers_fails_clearly_and_keeps_the_store(paper_m
     call at a script's top level must not run again in them (it would
     replace the store being written); the user is told the fix, and
     re-running the guarded script resumes the kept store."""
-    script = tmp_path / "unguarded.py"
-    script.write_text(_UNGUARDED_SCRIPT)
     store = tmp_path / "u.zarr"
     env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[1]))
-    run = subprocess.run(
-        [sys.executable, str(script), str(PAPER_SPEC), str(store)],
-        capture_output=True,
-        text=True,
-        timeout=300,
-        env=env,
-    )
+
+    def run_script(name: str, text: str) -> subprocess.CompletedProcess:
+        script = tmp_path / name
+        script.write_text(text)
+        command = [sys.executable, str(script), str(PAPER_SPEC), str(store)]
+        return subprocess.run(command, capture_output=True, text=True, timeout=300, env=env)
+
+    run = run_script("unguarded.py", _UNGUARDED_SCRIPT)
     assert run.returncode != 0
     assert "finished" not in run.stdout
     assert 'if __name__ == "__main__":' in run.stderr
     assert (store / ".cdpm" / "created").is_file()  # the store was not replaced
-    guarded = tmp_path / "guarded.py"
     body = _UNGUARDED_SCRIPT.strip().splitlines()
-    guarded.write_text(
-        "\n".join(body[:2] + ['if __name__ == "__main__":'] + ["    " + x for x in body[2:]])
-    )
-    run = subprocess.run(
-        [sys.executable, str(guarded), str(PAPER_SPEC), str(store)],
-        capture_output=True,
-        text=True,
-        timeout=300,
-        env=env,
-    )
+    guarded = body[:2] + ['if __name__ == "__main__":'] + ["    " + x for x in body[2:]]
+    run = run_script("guarded.py", "\n".join(guarded))
     assert run.returncode == 0, run.stderr
     axes = {"q1": np.linspace(-3.1, 3.1, 40), "q2": np.linspace(-3.1, 3.1, 40)}
     _same(open_map(store), workspace_map(PAPER_SPEC, axes, workers=1))
