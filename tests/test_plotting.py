@@ -191,7 +191,7 @@ def test_cli_map_samples_and_errors(tmp_path, capsys):
         == 0
     )
     assert "3 poses" in capsys.readouterr().out
-    assert main(["plot", str(tmp_path / "missing.zarr"), "-o", str(tmp_path / "x.png")]) == 2
+    assert main(["plot", str(tmp_path / "missing.zarr"), "-o", str(tmp_path / "x.png")]) == 1
     assert "missing.zarr not found" in capsys.readouterr().err
 
 
@@ -246,7 +246,7 @@ def test_plot_command_bad_store_is_a_one_line_input_error(tmp_path, capsys):
 
     for name, phrase in _bad_stores(tmp_path).items():
         store = tmp_path / name
-        assert main(["plot", str(store), "-o", str(tmp_path / "m.png")]) == 2, name
+        assert main(["plot", str(store), "-o", str(tmp_path / "m.png")]) == 1, name
         err = capsys.readouterr().err
         assert err.startswith(f"cdpm plot: error: map store {store} "), err
         assert phrase in err and "cdpm map SPEC" in err, err

@@ -436,14 +436,14 @@ def test_view_command_bad_map(tmp_path, capsys):
 
     xr = pytest.importorskip("xarray")
     missing = tmp_path / "missing.zarr"
-    assert main(["view", str(PAPER_SPEC), "--map", str(missing), "--seconds", "0"]) == 2
+    assert main(["view", str(PAPER_SPEC), "--map", str(missing), "--seconds", "0"]) == 1
     err = capsys.readouterr().err
     assert err.startswith(f"cdpm view: error: map store {missing} not found; make it with")
     # a zarr store that cdpm did not write is refused, not overlaid (cdpm.open_map)
     ds, _ = _synthetic_map(xr, sample=True)
     ds.to_zarr(tmp_path / "foreign.zarr", consolidated=False)
     args = ["view", str(PAPER_SPEC), "--map", str(tmp_path / "foreign.zarr"), "--seconds", "0"]
-    assert main(args) == 2
+    assert main(args) == 1
     assert "is a zarr store but not a cdpm map" in capsys.readouterr().err
 
 
@@ -561,7 +561,7 @@ def test_view_command_refuses_a_map_of_another_spec(paper_map, write_spec, capsy
         "# edited\n" + PAPER_SPEC.read_text().replace("two_link_planar.urdf", "arm.urdf")
     )
     args = ["view", str(other), "--map", str(paper_map), "--seconds", "0"]
-    assert main(args) == 2
+    assert main(args) == 1
     err = capsys.readouterr().err
     assert err.startswith(f"cdpm view: error: map {paper_map} was made from {PAPER_SPEC} ")
     assert f"not from {other} " in err

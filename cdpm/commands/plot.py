@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import sys
 
 NAME = "plot"
 HELP = "draw a workspace map (zarr store) into an image"
@@ -49,12 +48,6 @@ def _image(text: str):
 DPI_TYPE = argument_type(_dpi)
 
 
-def input_error(args: argparse.Namespace, exc: Exception) -> int:
-    """Report a bad input file like an argument error: one line, exit code 2."""
-    print(f"cdpm {args.command}: error: {exc}", file=sys.stderr)
-    return 2
-
-
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("store", metavar="STORE", help="zarr store written by cdpm map")
     parser.add_argument(
@@ -79,13 +72,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from cdpm.errors import InputError
     from cdpm.plotting import read_map, save_map_plot
 
-    try:
-        dataset = read_map(args.store)
-    except InputError as exc:
-        return input_error(args, exc)
+    dataset = read_map(args.store)
     path = save_map_plot(
         dataset,
         args.output,

@@ -8,7 +8,7 @@ import sys
 import time
 
 from cdpm.commands._pose import Q_HELP, add_pose_arguments, pose_from_args
-from cdpm.commands.plot import argument_type, input_error
+from cdpm.commands.plot import argument_type
 
 NAME = "view"
 HELP = "serve a 3-D view of a pose in the browser (robot, cables, POC verdict)"
@@ -81,7 +81,6 @@ def _exit_on_sigterm(signum, frame) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from cdpm.errors import InputError
     from cdpm.robot import load_robot
     from cdpm.viewer import Viewer, check_map_spec
 
@@ -93,12 +92,10 @@ def run(args: argparse.Namespace) -> int:
     if args.map:
         from cdpm.plotting import read_map
 
-        try:  # before the server starts
-            dataset = read_map(args.map)
-            if not args.allow_other_spec:
-                check_map_spec(dataset, robot, override="--allow-other-spec")
-        except InputError as exc:
-            return input_error(args, exc)
+        # before the server starts
+        dataset = read_map(args.map)
+        if not args.allow_other_spec:
+            check_map_spec(dataset, robot, override="--allow-other-spec")
     with Viewer(robot, q, port=args.port, geometry=args.geometry) as viewer:
         if dataset is not None:
             n = viewer.show_map(dataset, color_by=args.color_by, check_spec=False)  # checked
