@@ -24,13 +24,12 @@ from __future__ import annotations
 import json
 import math
 import os
-import warnings
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from cdpm.errors import CdpmError, InputError, MissingExtraError
+from cdpm.errors import InputError, MissingExtraError
 
 __all__ = [
     "plot_map",
@@ -110,39 +109,10 @@ def check_dpi(dpi: Any) -> float:
 
 
 def read_map(path: str | os.PathLike):
-    """A map store written by ``cdpm map`` (:func:`cdpm.open_map`), with an
-    error that names the problem and the fix for anything else.
-
-    Raises:
-        InputError: ``path`` is missing, not a zarr store, a zarr store that
-            cdpm did not write (or cannot read), or an incomplete map.
-    """
+    """A map store written by ``cdpm map``: :func:`cdpm.open_map`."""
     from cdpm.maps import open_map
 
-    p = Path(path).expanduser()
-    if not p.exists():
-        raise InputError(f"map store {p} not found; make it with `cdpm map SPEC ... --out {p}`")
-    fix = "give a store written by `cdpm map SPEC ... --out STORE`"
-    try:
-        with warnings.catch_warnings():
-            # a store without consolidated metadata reads as well, only slower
-            warnings.filterwarnings("ignore", "Failed to open Zarr", RuntimeWarning)
-            ds = open_map(p)
-    except CdpmError as exc:
-        problem = str(exc).split("; ")[0]  # the path exists: the fix is another path
-        raise InputError(f"map store {problem}; {fix}") from exc
-    except (ValueError, KeyError, TypeError, OSError) as exc:
-        # zarr's and json's errors on a damaged store or on a zarr array (not a group)
-        reason = (str(exc).splitlines() or [""])[0]
-        raise InputError(
-            f"map store {p} cannot be read as a zarr group ({type(exc).__name__}: {reason}); {fix}"
-        ) from exc
-    if "poc" not in ds.data_vars:
-        raise InputError(
-            f"map store {p} is an incomplete cdpm map (no 'poc' variable: its run stopped while "
-            f"creating it); re-run the `cdpm map SPEC ... --out {p}` that made it"
-        )
-    return ds
+    return open_map(path)
 
 
 def _load(ds_or_path):

@@ -188,23 +188,18 @@ def parse_base(tokens):
 def _check_plot_path(path: str) -> None:
     """Fail before any work when --plot cannot be written: matplotlib
     missing, or an image format it does not write."""
-    from pathlib import Path
-
     from cdpm.errors import InputError, MissingExtraError
+    from cdpm.plotting import check_image_path
 
     try:
-        from matplotlib.backend_bases import FigureCanvasBase
-    except ImportError as exc:
+        check_image_path(path)
+    except MissingExtraError as exc:
         raise MissingExtraError(
             "--plot needs matplotlib: pip install 'cdpm[maps]' (or leave out --plot and "
             "draw the stored map later with `cdpm plot STORE -o map.png`)"
         ) from exc
-    suffix = Path(path).suffix
-    formats = sorted(FigureCanvasBase.get_supported_filetypes())
-    if suffix and suffix[1:].lower() not in formats:
-        raise InputError(
-            f"--plot {path}: unknown image format {suffix!r}; use one of {', '.join(formats)}"
-        )
+    except InputError as exc:
+        raise InputError(f"--plot {path}: {exc}") from None
 
 
 def _check_tension(robot, method: str | None) -> None:

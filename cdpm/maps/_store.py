@@ -342,17 +342,39 @@ def open_map(path):
     ``xarray.Dataset`` (lazily loaded; no Dask needed).
 
     Raises:
-        InputError: ``path`` is not a cdpm map store.
+        InputError: ``path`` is missing, not a zarr store, a zarr store that
+            cdpm did not write (or cannot read), or a map whose run stopped
+            while creating it; the message names the fix.
     """
     import xarray as xr
 
     p = Path(path).expanduser()
+    make = f"make it with `cdpm map SPEC ... --out {p}` (or cdpm.workspace_map(..., store=))"
+    if not p.exists():
+        raise InputError(f"map store {p} not found; {make}")
+    fix = "give a store written by `cdpm map SPEC ... --out STORE` (or cdpm.workspace_map)"
     if not (p / "zarr.json").is_file() and not (p / ".zgroup").is_file():
-        raise InputError(f"{p} is not a zarr store; make one with `cdpm map SPEC ... --out {p}`")
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", UserWarning)
-        warnings.simplefilter("ignore", FutureWarning)
-        ds = xr.open_zarr(str(p), chunks=None)
+        raise InputError(f"map store {p} is not a zarr store; {fix}")
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)
+            warnings.simplefilter("ignore", FutureWarning)
+            # a store without consolidated metadata reads as well, only slower
+            warnings.filterwarnings("ignore", "Failed to open Zarr", RuntimeWarning)
+            ds = xr.open_zarr(str(p), chunks=None)
+    except (ValueError, KeyError, TypeError, OSError) as exc:
+        # zarr's and json's errors on a damaged store or on a zarr array (not a group)
+        reason = (str(exc).splitlines() or [""])[0]
+        raise InputError(
+            f"map store {p} cannot be read as a zarr group ({type(exc).__name__}: {reason}); {fix}"
+        ) from exc
     if "cdpm_settings" not in ds.attrs:
-        raise InputError(f"{p} is a zarr store but not a cdpm map (no cdpm_settings attribute)")
+        raise InputError(
+            f"map store {p} is a zarr store but not a cdpm map (no cdpm_settings); {fix}"
+        )
+    if "poc" not in ds.data_vars:
+        raise InputError(
+            f"map store {p} is an incomplete cdpm map (no 'poc' variable: its run stopped "
+            "while creating it); run the same `cdpm map SPEC ... --out {p}` again to remake it"
+        )
     return ds
