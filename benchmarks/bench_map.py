@@ -14,7 +14,8 @@ for the paper model (zero tension, nilpotent) and two_link_vertical
 (gravity, full linearisation + general analyser); then the throughput of a
 map written to zarr with 1 and 2 local worker processes (a 10^6-pose paper
 map and a 65536-pose gravity map, each in a fresh Python process: while
-chunks run, and end to end with the imports and the store's creation),
+chunks run, and end to end with the imports and the store's creation;
+the best of 3 interleaved runs, 1 with ``--quick``),
 and the peak memory (RSS) of a 10^6-pose map run in a subprocess.
 
 Timings are minima over repeats, with ours and the floor interleaved, so a
@@ -260,7 +261,12 @@ def main(argv=None) -> int:
     if VERTICAL.is_file():
         runs.append(("two_link_vertical (gravity)", VERTICAL, 96 if args.quick else 256))
     for label, path, side in runs:
-        (w1, r1), (w2, r2) = throughput(path, side, 1), throughput(path, side, 2)
+        best: dict[int, tuple[float, float]] = {1: (0.0, 0.0), 2: (0.0, 0.0)}
+        for _ in range(1 if args.quick else 3):  # interleaved: load affects both alike
+            for workers in (1, 2):
+                whole, running = throughput(path, side, workers)
+                best[workers] = (max(best[workers][0], whole), max(best[workers][1], running))
+        (w1, r1), (w2, r2) = best[1], best[2]
         print(
             f"map throughput, {label}, {side}x{side} grid to zarr [poses/s]: while chunks run "
             f"1 worker {r1:,.0f}, 2 workers {r2:,.0f}: {r2 / r1:.2f}x (target >= 1.7x); "
