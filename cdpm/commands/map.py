@@ -66,11 +66,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="ADDR",
         help="run on a Dask distributed scheduler, e.g. tcp://127.0.0.1:8786",
     )
-    parser.add_argument("--chunk-size", type=int, metavar="N", help="poses per chunk")
+    parser.add_argument(
+        "--chunk-size",
+        type=int,
+        metavar="N",
+        help="poses per chunk (default 16384 without load, up to 1024 under load)",
+    )
     parser.add_argument(
         "--no-margin",
         action="store_true",
-        help="skip the POC margin (same verdicts; much faster under gravity or pretension)",
+        help="skip the POC margin (same verdicts; about 2x faster under gravity or pretension)",
     )
     parser.add_argument(
         "--overwrite", action="store_true", help="replace an existing store instead of resuming it"
