@@ -247,7 +247,7 @@ def plot_map(
     """
     _, Figure = _matplotlib()
     ds = _load(ds_or_path)
-    if variable not in ds or "flag_values" not in ds[variable].attrs:
+    if variable not in ds or "flag_values" not in ds[variable].attrs or variable == "status":
         choices = [v for v in ds.data_vars if "flag_values" in ds[v].attrs and v != "status"]
         raise InputError(f"{variable!r} is not a verdict of this map; choose one of {choices}")
     dims = _pose_dims(ds)

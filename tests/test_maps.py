@@ -487,6 +487,14 @@ def test_bad_axes_are_rejected(paper_robot, tmp_path):
         workspace_map(paper_robot, {"q1": [0.0]}, base="nope")
     with pytest.raises(InputError, match="workers must be a positive integer"):
         workspace_map(paper_robot, {"q1": [0.0]}, workers=0)
+    with pytest.raises(InputError, match="axis 'q1' repeats a value"):
+        workspace_map(paper_robot, {"q1": [0.0, 1.0, 1.0]})
+    with pytest.raises(InputError, match=r"1-D list of values, got shape \(2, 2\)"):
+        workspace_map(paper_robot, {"q1": [[0.0, 1.0], [1.0, 2.0]]})
+    # an in-memory map too large for memory is refused before any work
+    huge = {"q1": np.linspace(-3, 3, 100_000), "q2": np.linspace(-3, 3, 100_000)}
+    with pytest.raises(InputError, match=r"10,000,000,000 poses needs about .* GiB(.|\n)*store="):
+        workspace_map(paper_robot, huge)
     (tmp_path / "junk").mkdir()
     (tmp_path / "junk" / "file.txt").write_text("x")
     with pytest.raises(InputError, match="not a cdpm map store"):

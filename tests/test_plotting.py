@@ -105,6 +105,9 @@ def test_plot_rejects_unknown_variable(paper_robot):
     ds = workspace_map(paper_robot, {"q1": [0.1, 0.2]}, workers=1)
     with pytest.raises(InputError, match="not a verdict of this map"):
         plot_map(ds, variable="tension_max")
+    # status has flag meanings too, but its codes are not verdicts
+    with pytest.raises(InputError, match="'status' is not a verdict of this map"):
+        plot_map(ds, variable="status")
 
 
 def test_cli_map_and_plot(tmp_path, capsys):

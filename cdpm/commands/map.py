@@ -26,7 +26,7 @@ examples:
 AXIS is NAME=LOW:HIGH:COUNT (a grid of COUNT values), NAME=V1,V2,... (given
 values) or, with --samples, NAME=LOW:HIGH (a sampling range); values accept
 arithmetic such as -pi/2. NAME is a coordinate of the robot (a joint name, or
-root.x style free-flyer coordinates; `cdpm analyze SPEC` lists them)."""
+<joint>.x ... <joint>.yaw for a free-flyer; `cdpm analyze SPEC` lists them)."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

@@ -252,6 +252,17 @@ def make_plan(
         names.append(name)
         values.append(_as_axis(name, vals))
         columns.append(coords.index(name))
+        if mode != "sample":
+            if np.ndim(vals) > 1:
+                raise InputError(
+                    f"axis {name!r}: a grid axis is a 1-D list of values, got shape "
+                    f"{np.shape(vals)}; for scattered poses use samples= or cdpm.sample_axes"
+                )
+            if np.unique(values[-1]).size != values[-1].size:
+                raise InputError(
+                    f"axis {name!r} repeats a value (a map could not select it); give each "
+                    "value once"
+                )
     if mode == "sample":
         sizes = {v.size for v in values}
         if len(sizes) != 1:
