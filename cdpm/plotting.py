@@ -34,7 +34,6 @@ from cdpm.errors import InputError, MissingExtraError
 __all__ = [
     "plot_map",
     "save_map_plot",
-    "read_map",
     "image_formats",
     "check_image_path",
     "check_dpi",
@@ -108,16 +107,11 @@ def check_dpi(dpi: Any) -> float:
     return value
 
 
-def read_map(path: str | os.PathLike):
-    """A map store written by ``cdpm map``: :func:`cdpm.open_map`."""
-    from cdpm.maps import open_map
-
-    return open_map(path)
-
-
 def _load(ds_or_path):
     if isinstance(ds_or_path, (str, os.PathLike)):
-        return read_map(ds_or_path)
+        from cdpm.maps import open_map
+
+        return open_map(ds_or_path)
     return ds_or_path
 
 

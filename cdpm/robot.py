@@ -152,6 +152,7 @@ class CableRobot:
         self._pin = pin
         self._last_q: np.ndarray | None = None
         self._last_kin: CableKinematics | None = None
+        self._last_batch: dict[str, np.ndarray] | None = None  # its batch-of-one arrays
 
     # ------------------------------------------------------------------ setup
 
@@ -223,11 +224,11 @@ class CableRobot:
         q = self.as_q(q)
         if self._last_q is not None and np.array_equal(q, self._last_q):
             return self._last_kin
-        kin = self._kinematics(q)
-        self._last_q, self._last_kin = q.copy(), kin
+        kin, batch = self._kinematics(q)
+        self._last_q, self._last_kin, self._last_batch = q.copy(), kin, batch
         return kin
 
-    def _kinematics(self, q: np.ndarray) -> CableKinematics:
+    def _kinematics(self, q: np.ndarray) -> tuple[CableKinematics, dict[str, np.ndarray]]:
         batch = self._kinematics_batch(q[None, :])
         seg_len = batch["segment_lengths"][0]
         if seg_len.size and seg_len.min() < MIN_SEGMENT_LENGTH:
@@ -241,7 +242,7 @@ class CableRobot:
                 "avoid this pose"
             )
         n_route = self._n_route_points
-        return CableKinematics(
+        kin = CableKinematics(
             q=q,
             lengths=batch["lengths"][0],
             jacobian=batch["jacobian"][0],
@@ -254,6 +255,7 @@ class CableRobot:
             output=batch["output"][0],
             output_jacobian=batch["output_jacobian"][0],
         )
+        return kin, batch
 
     def kinematics_batch(self, qs: Any, dynamics: bool = False) -> dict[str, np.ndarray]:
         """Cable and output kinematics (and optionally M, G) at many configurations.
@@ -542,8 +544,8 @@ class CableRobot:
         f = np.asarray(tension, dtype=float).reshape(-1)
         if f.shape[0] != self.n_cables:
             raise ModelError(f"tension has {f.shape[0]} entries, expected m={self.n_cables}")
-        self.kinematics(q)  # raises on a zero-length segment
-        return self.cable_stiffness_batch(self._kinematics_batch(q[None, :]), f[None, :])[0]
+        self.kinematics(q)  # raises on a zero-length segment; keeps its batch arrays
+        return self.cable_stiffness_batch(self._last_batch, f[None, :])[0]
 
     def cable_stiffness_batch(self, kin: dict[str, np.ndarray], tension: np.ndarray) -> np.ndarray:
         """:meth:`cable_stiffness` at many poses from their batch kinematics.

@@ -229,11 +229,8 @@ def signed_inradius(S: np.ndarray, S_sym: np.ndarray | None = None) -> tuple[flo
         return math.inf, math.inf
     if P.shape[1] == 0:
         return 0.0, 0.0
-    if p == 1:
-        mu = float(min(P.max(), -P.min()))
-        return mu, mu
-    if p == 2:
-        mu = _planar(P)
+    if p <= 2:
+        mu = float(signed_inradii(P[None], P[None, :, :0])[0])
         return mu, mu
     if p == 3:
         mu = _spatial(P)
@@ -275,11 +272,6 @@ def signed_inradii(S: np.ndarray, S_sym: np.ndarray) -> np.ndarray:
 _DIRS = np.stack([np.cos(np.arange(16) * np.pi / 8), np.sin(np.arange(16) * np.pi / 8)])
 #: clouds per block of :func:`planar_signed_inradii` (bounds its memory)
 _PLANAR_BLOCK = 128
-
-
-def _planar(P: np.ndarray) -> float:
-    """Signed inradius about 0 of conv of the columns of P (2, k)."""
-    return float(planar_signed_inradii(P[None])[0])
 
 
 def planar_signed_inradii(P: np.ndarray) -> np.ndarray:

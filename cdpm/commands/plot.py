@@ -72,9 +72,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from cdpm.plotting import read_map, save_map_plot
+    from cdpm.maps import open_map
+    from cdpm.plotting import save_map_plot
 
-    dataset = read_map(args.store)
+    dataset = open_map(args.store)
     path = save_map_plot(
         dataset,
         args.output,

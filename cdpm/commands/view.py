@@ -90,10 +90,10 @@ def run(args: argparse.Namespace) -> int:
     q = pose_from_args(robot, args)
     dataset = None
     if args.map:
-        from cdpm.plotting import read_map
+        from cdpm.maps import open_map
 
         # before the server starts
-        dataset = read_map(args.map)
+        dataset = open_map(args.map)
         if not args.allow_other_spec:
             check_map_spec(dataset, robot, override="--allow-other-spec")
     with Viewer(robot, q, port=args.port, geometry=args.geometry) as viewer:

@@ -222,12 +222,14 @@ def evaluate_general(robot, qs: np.ndarray, kin: dict, setting, margin: bool = T
     out["tension_min"][idx] = f.min(axis=1) if f.shape[1] else 0.0
     out["tension_max"][idx] = f.max(axis=1) if f.shape[1] else 0.0
     A, B, C, mask = _linear_systems(robot, qs, kin, idx, f, Minv[..., use])
-    oc = _output_controllable(A, B, C)
     pc = _free_controllable(A, B, mask)
     # the analyser's mixed-cone exit, batched: the free (taut) inputs alone
-    # reach every output direction, so POC holds
+    # reach every output direction, so POC holds (and output controllability)
     mixed_yes = _output_controllable(A, B * ~mask[:, None, :], C) == ev.YES
     out["poc"][idx[mixed_yes]] = ev.YES
+    oc = np.full(idx.size, ev.YES, dtype=np.int8)
+    rest = ~mixed_yes
+    oc[rest] = _output_controllable(A[rest], B[rest], C[rest])
     if margin and C.shape[1]:
         out["poc_margin"][idx[mixed_yes]] = poc_margins(
             A[mixed_yes], B[mixed_yes], C[mixed_yes], mask[mixed_yes], True
