@@ -41,7 +41,7 @@ from typing import Any
 import numpy as np
 
 from cdpm.errors import InputError, MissingExtraError, ModelError
-from cdpm.spec import EQUILIBRIUM_METHODS
+from cdpm.numerics import STATICS_RANK_RTOL, STATICS_RTOL
 
 __all__ = [
     "EQUILIBRIUM_METHODS",
@@ -54,12 +54,12 @@ __all__ = [
     "check_equilibrium",
 ]
 
+#: The equilibrium methods, each a way to choose among the tensions that hold
+#: a pose (module docstring). Specs, maps and the command line accept these.
+EQUILIBRIUM_METHODS = ("zero", "min_norm", "pretension")
+
 #: Method used when neither the call nor the spec names one.
 DEFAULT_METHOD = "min_norm"
-
-#: Statics hold when ``|L^T f + G + w_ext| <= STATICS_RTOL * scale`` with
-#: ``scale = max(1 N, |G + w_ext|, |L| |f|)`` (forces in N, torques in N m).
-STATICS_RTOL = 1e-9
 
 
 class EquilibriumWarning(UserWarning):
@@ -391,7 +391,7 @@ def _min_norm_in_bounds(lt, load, lower, upper) -> tuple[np.ndarray | None, str]
     # Equalities in an orthonormal basis of the row space of L^T, so the QP
     # solver never sees dependent or badly scaled equality rows.
     u, s, vt = np.linalg.svd(lt, full_matrices=False)
-    rank = int(np.count_nonzero(s > 1e-12 * (s[0] if s.size else 0.0)))
+    rank = int(np.count_nonzero(s > STATICS_RANK_RTOL * (s[0] if s.size else 0.0)))
     outside = load - u[:, :rank] @ (u[:, :rank].T @ load)
     if np.linalg.norm(outside) > _tolerance(lt, load, np.zeros(0)):
         return None, "the load has a component no cable can balance (L^T lacks rank there)"

@@ -46,6 +46,7 @@ from typing import Any
 
 import numpy as np
 
+from cdpm.equilibrium import EQUILIBRIUM_METHODS
 from cdpm.errors import SpecError
 
 __all__ = [
@@ -56,17 +57,12 @@ __all__ = [
     "load_spec",
     "parse_number",
     "OUTPUT_COMPONENTS",
-    "EQUILIBRIUM_METHODS",
     "WORLD_FRAME_NAMES",
 ]
 
 #: Output components a spec may ask for: position coordinates of a frame
 #: origin in the world frame. Orientation components will extend this table.
 OUTPUT_COMPONENTS = {"x": 0, "y": 1, "z": 2}
-
-#: Equilibrium tension methods a spec may name as its default (see
-#: :func:`cdpm.equilibrium_tension`).
-EQUILIBRIUM_METHODS = ("zero", "min_norm", "pretension")
 
 #: Names that refer to the fixed world frame in a route.
 WORLD_FRAME_NAMES = ("world", "universe")
