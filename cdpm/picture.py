@@ -19,16 +19,16 @@ from typing import Any
 import numpy as np
 
 from cdpm.errors import InputError, MissingExtraError
-from cdpm.viewer import (
+from cdpm.viewer.state import (
     COLORS,
     CableState,
+    PoseGeometry,
     PoseState,
-    _coms,
-    _default_pose,
-    _Geometry,
-    _skeleton,
     cable_colors,
+    centres_of_mass,
+    default_pose,
     pose_state,
+    skeleton_segments,
     tension_scale,
 )
 
@@ -107,8 +107,8 @@ def render_pose(
     dpi = check_dpi(dpi)
     target = None if path is None else check_picture_path(path)
     pose_name = q if isinstance(q, str) else None
-    q = robot.as_q(_default_pose(robot) if q is None else q)
-    geometry = _Geometry(robot)
+    q = robot.as_q(default_pose(robot) if q is None else q)
+    geometry = PoseGeometry(robot)
     state = state if state is not None else pose_state(robot, q, geometry)
     geometry.update(state.q)
     placements = geometry.joint_placements()
@@ -117,11 +117,11 @@ def render_pose(
             placements[j][:3, :3] @ a + placements[j][:3, 3],
             placements[j][:3, :3] @ b + placements[j][:3, 3],
         )
-        for j, a, b in _skeleton(robot.model)
+        for j, a, b in skeleton_segments(robot.model)
     ]
     joints = np.array([T[:3, 3] for T in placements[1:]]).reshape(-1, 3)
     coms = np.array(
-        [placements[j][:3, :3] @ c + placements[j][:3, 3] for j, c in _coms(robot.model)]
+        [placements[j][:3, :3] @ c + placements[j][:3, 3] for j, c in centres_of_mass(robot.model)]
     ).reshape(-1, 3)
     cable_points = state.cable_points
     everything = np.concatenate(
@@ -197,7 +197,7 @@ def render_pose(
         label = name if cstate is not CableState.TAUT else f"{name} ({state.tension[i]:.3g} N)"
         groups.setdefault(key, (label_at, []))[1].append((i, label))
 
-    verdict_rgb = COLORS[state.verdict_key]
+    verdict_rgb = state.verdict_rgb
     out = state.output_frame_positions
     marker = ax.scatter(
         out[:, h],

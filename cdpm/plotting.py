@@ -30,6 +30,16 @@ from typing import Any
 import numpy as np
 
 from cdpm.errors import InputError, MissingExtraError
+from cdpm.verdicts import (
+    MARGINAL,
+    NO,
+    NOT_ANALYSED,
+    VERDICT_CODES,
+    VERDICT_COLORS,
+    VERDICT_LABELS,
+    VERDICT_ORDER,
+    YES,
+)
 
 __all__ = [
     "plot_map",
@@ -40,10 +50,13 @@ __all__ = [
     "VERDICT_COLORS",
 ]
 
-#: colour of each verdict code (yes, no, marginal, not analysed)
-VERDICT_COLORS = {1: "#2e9e44", 0: "#d4453a", 2: "#f2a33a", -1: "#c8c8c8"}
-_VERDICT_LABELS = {1: "yes", 0: "no", 2: "marginal", -1: "not analysed"}
-_ORDER = (-1, 0, 2, 1)  # colour-map index order
+# verdict codes, labels, colours and colour-map order come from cdpm.verdicts;
+# VERDICT_COLORS (code -> hex colour) stays importable from here
+
+#: legends list yes, no, marginal, not analysed (the order of VERDICT_CODES)
+_LEGEND_ORDER = tuple(VERDICT_CODES.values())
+#: scatter plots draw the rarer verdicts on top
+_DRAW_ORDER = (YES, NOT_ANALYSED, MARGINAL, NO)
 
 
 def _matplotlib():
@@ -123,14 +136,14 @@ def _label(ds, name: str) -> str:
 def _verdict_cmap(matplotlib):
     from matplotlib.colors import BoundaryNorm, ListedColormap
 
-    cmap = ListedColormap([VERDICT_COLORS[c] for c in _ORDER])
-    norm = BoundaryNorm(np.arange(len(_ORDER) + 1) - 0.5, len(_ORDER))
+    cmap = ListedColormap([VERDICT_COLORS[c] for c in VERDICT_ORDER])
+    norm = BoundaryNorm(np.arange(len(VERDICT_ORDER) + 1) - 0.5, len(VERDICT_ORDER))
     return cmap, norm
 
 
 def _verdict_index(codes: np.ndarray) -> np.ndarray:
     index = np.zeros(codes.shape, dtype=int)
-    for k, c in enumerate(_ORDER):
+    for k, c in enumerate(VERDICT_ORDER):
         index[codes == c] = k
     return index
 
@@ -138,9 +151,9 @@ def _verdict_index(codes: np.ndarray) -> np.ndarray:
 def _legend(ax, codes: np.ndarray, variable: str) -> None:
     from matplotlib.patches import Patch
 
-    present = [c for c in (1, 0, 2, -1) if np.any(codes == c)]
+    present = [c for c in _LEGEND_ORDER if np.any(codes == c)]
     handles = [
-        Patch(facecolor=VERDICT_COLORS[c], edgecolor="0.3", label=_VERDICT_LABELS[c])
+        Patch(facecolor=VERDICT_COLORS[c], edgecolor="0.3", label=VERDICT_LABELS[c])
         for c in present
     ]
     ax.legend(
@@ -196,7 +209,7 @@ def _output_view(ax, ds, variable: str) -> None:
         xlabel = f"{frame} {'xyz'[axes[0]]} [m]"
         ylabel = f"{frame} {'xyz'[axes[1]]} [m]"
     size = max(1.0, min(30.0, 12000.0 / max(len(codes), 1)))
-    for c in (1, -1, 2, 0):  # the rarer verdicts on top
+    for c in _DRAW_ORDER:
         sel = codes == c
         if sel.any():
             ax.scatter(
@@ -205,7 +218,7 @@ def _output_view(ax, ds, variable: str) -> None:
                 s=size,
                 c=VERDICT_COLORS[int(c)],
                 linewidths=0,
-                label=_VERDICT_LABELS[int(c)],
+                label=VERDICT_LABELS[int(c)],
                 rasterized=True,
             )
     ax.set_xlabel(xlabel)
@@ -338,10 +351,10 @@ def _plot_one_axis(ds, variable: str, name: str, margin: bool, output_view: bool
     strip.set_title(f"{variable} along {name}", fontsize=10, loc="left")
     from matplotlib.patches import Patch
 
-    present = [c for c in (1, 0, 2, -1) if np.any(codes == c)]
+    present = [c for c in _LEGEND_ORDER if np.any(codes == c)]
     strip.legend(
         handles=[
-            Patch(facecolor=VERDICT_COLORS[c], edgecolor="0.3", label=_VERDICT_LABELS[c])
+            Patch(facecolor=VERDICT_COLORS[c], edgecolor="0.3", label=VERDICT_LABELS[c])
             for c in present
         ],
         loc="lower right",
@@ -360,7 +373,7 @@ def _plot_one_axis(ds, variable: str, name: str, margin: bool, output_view: bool
         values = np.asarray(ds["poc_margin"].values, dtype=float).reshape(-1)[order]
         line.axhline(0.0, color="0.55", lw=0.8, ls="--")
         line.fill_between(
-            x, 0.0, values, where=values > 0, color=VERDICT_COLORS[1], alpha=0.25, lw=0
+            x, 0.0, values, where=values > 0, color=VERDICT_COLORS[YES], alpha=0.25, lw=0
         )
         line.plot(x, values, color="0.15", lw=1.4, label="POC margin")
         # a value between two gaps draws no line segment: mark it
@@ -394,7 +407,7 @@ def _sample_panel(ax, ds, variable, dims, axes_names, kind, fig):
     values = np.asarray(ds[variable].values).reshape(-1)
     size = max(3.0, min(40.0, 30000.0 / max(values.size, 1)))
     if kind == "verdict":
-        for c in (1, -1, 2, 0):
+        for c in _DRAW_ORDER:
             sel = values == c
             if sel.any():
                 ax.scatter(

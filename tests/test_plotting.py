@@ -215,6 +215,23 @@ def test_map_command_without_margin_keeps_verdicts(tmp_path):
     assert np.isfinite(full["poc_margin"].values[full["status"].values == 0]).all()
 
 
+def test_plot_legend_takes_verdict_labels_and_colours_from_cdpm_verdicts():
+    xr = pytest.importorskip("xarray")
+    import cdpm.verdicts
+    from cdpm.plotting import VERDICT_COLORS, plot_map
+
+    assert VERDICT_COLORS is cdpm.verdicts.VERDICT_COLORS  # one table, re-exported
+    codes = np.array([[-1, 2], [0, 1]], dtype=np.int8)
+    ds = xr.Dataset(
+        {"poc": (("q1", "q2"), codes, {"flag_values": [1, 0, 2, -1]})},
+        coords={"q1": [0.0, 1.0], "q2": [0.0, 1.0]},
+    )
+    legend = plot_map(ds, margin=False, output_view=False).axes[0].get_legend()
+    assert [t.get_text() for t in legend.get_texts()] == ["yes", "no", "marginal", "not analysed"]
+    for handle, code in zip(legend.legend_handles, (1, 0, 2, -1), strict=True):
+        assert handle.get_facecolor()[:3] == pytest.approx(cdpm.verdicts.VERDICT_RGB[code])
+
+
 # ------------------------------------------------- command-line input errors
 
 

@@ -19,6 +19,15 @@ import pytest
 
 import cdpm
 from cdpm.errors import InputError, MissingExtraError
+from cdpm.verdicts import (
+    NO,
+    NOT_ANALYSED,
+    VERDICT_CODES,
+    VERDICT_ORDER,
+    VERDICT_RGB,
+    YES,
+    verdict_key,
+)
 from cdpm.viewer import (
     COLORS,
     CableState,
@@ -67,7 +76,7 @@ def test_pose_state_text_names_verdict_tensions_and_slack_cables(paper_robot):
     assert "q1 = 0.5236, q2 = 1.0472" in text
     assert "slack cables: c1, c2, c3, c4" in text
     html = pose_state(paper_robot, NOMINAL)._repr_html_()
-    assert "POC: YES" in html and "rgb(31,168,57)" in html
+    assert "POC: YES" in html and "rgb(46,158,68)" in html  # #2e9e44, the verdicts' green
 
 
 def test_arm_stretched_along_x_is_not_poc(paper_robot):
@@ -272,6 +281,56 @@ def test_map_points_errors():
         map_points(bad)
 
 
+# ---------------------------------------------------------------- one verdict palette
+
+
+def _verdict(code: int):
+    """The analysis verdict of a code (None: not analysed)."""
+    from cdpm.analysis import Verdict
+
+    return None if code == NOT_ANALYSED else Verdict(verdict_key(code))
+
+
+def test_verdict_colours_agree_in_marker_overlay_plot_and_picture(paper_robot):
+    pytest.importorskip("matplotlib")
+    xr = pytest.importorskip("xarray")
+    from dataclasses import replace
+
+    from matplotlib.collections import QuadMesh
+    from matplotlib.colors import to_rgb
+
+    from cdpm.picture import render_pose
+    from cdpm.plotting import VERDICT_COLORS, plot_map
+
+    ds, _ = _synthetic_map(xr)  # every verdict code occurs in it
+    codes = ds["poc"].values.reshape(-1)
+    assert set(codes.tolist()) == set(VERDICT_ORDER)
+    # map overlay: one colour per pose (all positions finite here)
+    ds["output_frame_position"] = ds["output_frame_position"].fillna(0.0)
+    _, overlay = map_points(ds)
+    # plot: the verdict panel's cells (rows q1, columns q2, as in the map)
+    fig = plot_map(ds, margin=False, output_view=False)
+    (mesh,) = [c for c in fig.axes[0].collections if isinstance(c, QuadMesh)]
+    cells = mesh.to_rgba(np.asarray(mesh.get_array()).reshape(-1))[:, :3]
+    base = pose_state(paper_robot, NOMINAL)
+    for code in VERDICT_ORDER:
+        expected = VERDICT_RGB[code]
+        np.testing.assert_allclose(to_rgb(VERDICT_COLORS[code]), expected, atol=1e-12)
+        for drawn in (cells, overlay):
+            expected_all = [expected] * int(np.sum(codes == code))
+            np.testing.assert_allclose(drawn[codes == code], expected_all, atol=1e-6)
+        state = replace(base, verdict=_verdict(code))
+        assert state.verdict_code == code
+        assert state.verdict_rgb == expected  # the 3-D view's output marker
+        # the picture's output star (the only scatter of size 260)
+        ax = render_pose(paper_robot, state=state).axes[0]
+        (star,) = [c for c in ax.collections if c.get_sizes().tolist() == [260]]
+        np.testing.assert_allclose(star.get_facecolor()[0][:3], expected, atol=1e-6)
+    # the drawing's named verdict colours are the same ones
+    for name in ("yes", "no", "marginal", "not_analysed"):
+        assert COLORS[name] == VERDICT_RGB[VERDICT_CODES[name]]
+
+
 # ---------------------------------------------------------------- server
 
 
@@ -314,10 +373,10 @@ def test_servers_listen_on_loopback_only(viewer):
 def test_viewer_display_and_map(viewer, paper_robot):
     state = viewer.display([0.0, 0.0])
     assert state.verdict_key == "no" and viewer.state is state
-    assert viewer._marker_color == COLORS["no"]
+    assert viewer._marker_color == COLORS["no"] == VERDICT_RGB[NO]
     assert set(viewer.last_display_seconds) == {"analysis", "draw", "total"}
     state = viewer.display("nominal")
-    assert viewer._marker_color == COLORS["yes"]
+    assert viewer._marker_color == COLORS["yes"] == VERDICT_RGB[YES]
     assert viewer._cable_colors == [COLORS["slack"]] * 4
     assert viewer.geometry == "urdf"  # the paper's URDF has visual cylinders
     xr = pytest.importorskip("xarray")
@@ -326,6 +385,32 @@ def test_viewer_display_and_map(viewer, paper_robot):
     viewer.hide_map()
     page = viewer._root.static_html()  # the server's scene, as a browser gets it
     assert "MeshCat" in page and len(page) > 10_000
+
+
+@pytest.mark.parametrize("code", VERDICT_ORDER)
+def test_viewer_marker_has_the_verdict_colour(viewer, paper_robot, monkeypatch, code):
+    import cdpm.viewer.scene
+
+    def with_verdict(robot, q, geometry=None):
+        from dataclasses import replace
+
+        return replace(pose_state(robot, q, geometry), verdict=_verdict(code))
+
+    monkeypatch.setattr(cdpm.viewer.scene, "pose_state", with_verdict)
+    viewer.display("nominal")
+    assert viewer._marker_color == VERDICT_RGB[code]
+    _, overlay = map_points(_one_pose_map(code))
+    assert tuple(overlay[0]) == viewer._marker_color
+
+
+def _one_pose_map(code: int):
+    xr = pytest.importorskip("xarray")
+    return xr.Dataset(
+        {
+            "poc": (("sample",), np.array([code], dtype=np.int8)),
+            "output_frame_position": (("sample", "xyz"), np.zeros((1, 3))),
+        }
+    )
 
 
 def test_generated_geometry_and_close(paper_robot):
@@ -386,6 +471,31 @@ def test_import_cdpm_loads_no_viewer_dependencies():
     assert "cdpm" in imported  # the profile did run
     for name in ("meshcat", "matplotlib", "ipywidgets", "zmq", "tornado", "cdpm.viewer"):
         assert not any(m == name or m.startswith(name + ".") for m in imported), name
+
+
+def test_import_viewer_loads_no_heavy_dependencies():
+    code = "import cdpm.viewer, cdpm.picture, cdpm.plotting"
+    out = _run(code, "-X", "importtime")
+    assert out.returncode == 0, out.stderr
+    imported = {line.rsplit("|", 1)[-1].strip() for line in out.stderr.splitlines() if "|" in line}
+    assert "cdpm.viewer.scene" in imported  # the profile did run
+    for name in ("meshcat", "matplotlib", "ipywidgets", "pinocchio", "zmq", "tornado"):
+        assert not any(m == name or m.startswith(name + ".") for m in imported), name
+
+
+def test_viewer_modules_import_only_modules_below_them():
+    import ast
+
+    layers = ["state", "server", "overlay", "scene", "inspector"]
+    package = ROOT / "cdpm" / "viewer"
+    for k, name in enumerate(layers):
+        tree = ast.parse((package / f"{name}.py").read_text())
+        used = {
+            node.module.rsplit(".", 1)[-1]
+            for node in ast.walk(tree)
+            if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("cdpm.viewer.")
+        }
+        assert used <= set(layers[:k]), f"cdpm.viewer.{name} imports {used - set(layers[:k])}"
 
 
 # ---------------------------------------------------------------- command

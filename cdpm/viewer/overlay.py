@@ -1,0 +1,106 @@
+"""A workspace map over the 3-D view: points coloured by verdict or margin.
+
+:func:`map_points` turns a map (``xarray.Dataset``) into positions and RGB
+colours (verdict colours from :mod:`cdpm.verdicts`, the same as the plots'),
+which :meth:`cdpm.viewer.Viewer.show_map` sends to meshcat;
+:func:`check_map_spec` refuses a map made from another spec.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from cdpm import verdicts
+from cdpm.errors import InputError
+from cdpm.verdicts import NO, NOT_ANALYSED, VERDICT_RGB, YES
+
+__all__ = ["map_points", "check_map_spec", "VERDICT_CODES"]
+
+#: Codes of the ``poc`` variable of a workspace map (``flag_values``): code ->
+#: name, the inverse of :data:`cdpm.verdicts.VERDICT_CODES` (name -> code).
+VERDICT_CODES: dict[int, str] = {code: name for name, code in verdicts.VERDICT_CODES.items()}
+
+
+def check_map_spec(dataset, robot, *, override: str = "check_spec=False") -> None:
+    """Refuse a map made from another spec than ``robot``'s.
+
+    A map records the sha256 of its spec file and URDF (attribute
+    ``spec_sha256``, the hash :func:`cdpm.load_robot` computes as
+    ``robot.spec.sha256``); a map without it (e.g. made by hand) is not checked.
+
+    Args:
+        dataset: the map (``xarray.Dataset``).
+        robot: the robot it is to be shown with.
+        override: how the caller skips this check, named in the message.
+
+    Raises:
+        InputError: the hashes differ; the message names both spec files.
+    """
+    stored = getattr(dataset, "attrs", {}).get("spec_sha256")
+    if not stored or stored == robot.spec.sha256:
+        return
+    store = getattr(dataset, "encoding", {}).get("source")
+    made_from = dataset.attrs.get("spec", "another spec")
+    spec, now = robot.spec.path, robot.spec.sha256
+    if str(made_from) == str(spec):
+        source = f"an earlier version of {spec} or its URDF (sha256 {stored[:12]}, now {now[:12]})"
+    else:
+        source = f"{made_from} (sha256 {stored[:12]}), not from {spec} (sha256 {now[:12]})"
+    what = f"map {store}" if store else "the map"
+    rerun = f"`cdpm map {spec} ... --out {store} --overwrite`" if store else "it with this spec"
+    raise InputError(
+        f"{what} was made from {source}; re-run {rerun} or view it with the spec it was made "
+        f"from ({override} overlays it anyway)"
+    )
+
+
+def map_points(dataset, *, color_by: str = "verdict", position: str = "output_frame_position"):
+    """Positions (n, 3) [m] and RGB colours (n, 3) of a workspace map's poses.
+
+    See :meth:`cdpm.viewer.Viewer.show_map` for the dataset contract. Poses whose
+    position is not finite are left out.
+    """
+    if color_by not in ("verdict", "margin"):
+        raise InputError(f"color_by={color_by!r}; use 'verdict' or 'margin'")
+    needed = {"verdict": "poc", "margin": "poc_margin"}[color_by]
+    for var in (position, needed):
+        if var not in getattr(dataset, "data_vars", {}):
+            have = ", ".join(getattr(dataset, "data_vars", {})) or "none"
+            raise InputError(
+                f"the map has no variable {var!r} (it has: {have}); "
+                "make it with the workspace-map command or pass position=/color_by="
+            )
+    pos = dataset[position]
+    if "xyz" not in pos.dims or pos.sizes["xyz"] != 3:
+        raise InputError(f"{position} must have a dimension 'xyz' of size 3, got dims {pos.dims}")
+    pose_dims = [d for d in pos.dims if d != "xyz"]
+    positions = pos.transpose(*pose_dims, "xyz").values.reshape(-1, 3).astype(float)
+    values = dataset[needed].transpose(*pose_dims).values.reshape(-1)
+    if values.shape[0] != positions.shape[0]:
+        raise InputError(
+            f"{needed} has dims {dataset[needed].dims}, expected the pose dims {tuple(pose_dims)}"
+        )
+    if color_by == "verdict":
+        codes = values.astype(int)
+        unknown = VERDICT_RGB[NOT_ANALYSED]
+        colors = np.array([VERDICT_RGB.get(int(c), unknown) for c in codes], dtype=float).reshape(
+            -1, 3
+        )
+    else:
+        colors = _margin_colors(values.astype(float))
+    keep = np.all(np.isfinite(positions), axis=1)
+    return positions[keep], colors[keep]
+
+
+def _margin_colors(margin: np.ndarray) -> np.ndarray:
+    """Diverging colours: red (negative) - white (0) - green (positive)."""
+    finite = np.isfinite(margin)
+    scale = float(np.max(np.abs(margin[finite]))) if finite.any() else 1.0
+    scale = scale or 1.0
+    t = np.clip(np.where(finite, margin, 0.0) / scale, -1.0, 1.0)[:, None]
+    white = np.ones(3)
+    pos = white + t * (np.array(VERDICT_RGB[YES]) - white)
+    neg = white - t * (np.array(VERDICT_RGB[NO]) - white)
+    out = np.where(t >= 0, pos, neg)
+    out[~finite] = VERDICT_RGB[NOT_ANALYSED]
+    return out

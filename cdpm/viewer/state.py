@@ -1,0 +1,431 @@
+"""What the viewer and the picture show at one pose, without meshcat.
+
+:func:`pose_state` computes the positions, tensions, cable states and POC
+verdict at a pose as a :class:`PoseState`; the 3-D view
+(:class:`cdpm.viewer.Viewer`), the headless picture (:mod:`cdpm.picture`)
+and the text panel of :class:`cdpm.viewer.PoseInspector` all draw it.
+:class:`PoseGeometry`, :func:`skeleton_segments` and :func:`centres_of_mass`
+give the world positions and generated link geometry they draw, and
+:data:`COLORS` the colours (verdict colours from :mod:`cdpm.verdicts`).
+
+Pinocchio is imported when a :class:`PoseGeometry` is made, not here.
+"""
+
+from __future__ import annotations
+
+import enum
+import html
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from cdpm.errors import CdpmError
+from cdpm.linearisation import linearise
+from cdpm.verdicts import VERDICT_CODES, VERDICT_RGB, verdict_code
+
+__all__ = [
+    "CableState",
+    "PoseState",
+    "PoseGeometry",
+    "pose_state",
+    "skeleton_segments",
+    "centres_of_mass",
+    "default_pose",
+    "tension_scale",
+    "cable_colors",
+    "COLORS",
+]
+
+#: RGB colours (0..1) of the drawing, shared by the 3-D view and the picture:
+#: cable states, links and points, and the verdicts (``"yes"``, ``"no"``,
+#: ``"marginal"``, ``"not_analysed"``: :data:`cdpm.verdicts.VERDICT_RGB`).
+COLORS: dict[str, tuple[float, float, float]] = {
+    "slack": (0.890, 0.467, 0.761),  # pink
+    "taut_low": (0.420, 0.682, 0.839),  # light blue (low tension)
+    "taut_high": (0.031, 0.188, 0.420),  # navy (tension at the scale)
+    "unavailable": (0.55, 0.55, 0.55),
+    **{name: VERDICT_RGB[code] for name, code in VERDICT_CODES.items()},
+    "link": (0.62, 0.64, 0.68),
+    "joint": (0.35, 0.35, 0.38),
+    "com": (0.15, 0.15, 0.15),
+    "anchor": (0.10, 0.10, 0.10),
+    "attachment": (0.35, 0.35, 0.35),
+}
+
+
+class CableState(enum.StrEnum):
+    """State of a cable at the displayed equilibrium."""
+
+    TAUT = "taut"
+    SLACK = "slack"
+    UNAVAILABLE = "unavailable"
+
+
+@dataclass(frozen=True)
+class PoseState:
+    """Everything the viewer and the picture show at one pose (world frame).
+
+    Attributes:
+        q: configuration vector, shape (nq,).
+        natural: natural coordinates, shape (nv,) [rad or m].
+        coordinate_names: names of the nv natural coordinates.
+        cable_names: names of the m cables.
+        cable_points: world positions of each cable's route points [m], one
+            array of shape (k_i, 3) per cable.
+        cable_states: :class:`CableState` of each cable, shape (m,).
+        tension: equilibrium tensions f* [N], shape (m,), or None when unavailable.
+        output_names: names of the p outputs.
+        output: outputs y [m], shape (p,).
+        output_frames: names of the frames the outputs measure (each once).
+        output_frame_positions: their world positions [m], shape (n_frames, 3).
+        verdict: POC verdict (:class:`cdpm.analysis.Verdict`) or None when unavailable.
+        margin: POC margin (positive when POC) or None.
+        reason: why tensions or the verdict are unavailable, else None.
+    """
+
+    q: np.ndarray
+    natural: np.ndarray
+    coordinate_names: tuple[str, ...]
+    cable_names: tuple[str, ...]
+    cable_points: tuple[np.ndarray, ...]
+    cable_states: tuple[CableState, ...]
+    tension: np.ndarray | None
+    output_names: tuple[str, ...]
+    output: np.ndarray
+    output_frames: tuple[str, ...]
+    output_frame_positions: np.ndarray
+    verdict: Any
+    margin: float | None
+    reason: str | None
+
+    @property
+    def verdict_key(self) -> str:
+        """``"yes"``, ``"no"``, ``"marginal"`` or ``"unavailable"``."""
+        return "unavailable" if self.verdict is None else self.verdict.value
+
+    @property
+    def verdict_code(self) -> int:
+        """The verdict's code in :mod:`cdpm.verdicts` (``NOT_ANALYSED`` when unavailable)."""
+        return verdict_code(self.verdict)
+
+    @property
+    def verdict_rgb(self) -> tuple[float, float, float]:
+        """Colour (r, g, b in 0..1) of the verdict: the output marker's, the
+        map overlay's and the plots' (:data:`cdpm.verdicts.VERDICT_RGB`)."""
+        return VERDICT_RGB[self.verdict_code]
+
+    @property
+    def slack_cables(self) -> tuple[str, ...]:
+        """Names of the cables at their lower tension bound."""
+        return tuple(
+            n
+            for n, s in zip(self.cable_names, self.cable_states, strict=True)
+            if s is CableState.SLACK
+        )
+
+    def as_dict(self) -> dict:
+        """JSON-serialisable content."""
+        return {
+            "q": self.q.tolist(),
+            "coordinates": dict(zip(self.coordinate_names, self.natural.tolist(), strict=True)),
+            "output": dict(zip(self.output_names, self.output.tolist(), strict=True)),
+            "verdict": self.verdict_key,
+            "margin": self.margin,
+            "reason": self.reason,
+            "cables": [
+                {
+                    "name": name,
+                    "state": state.value,
+                    "tension": None if self.tension is None else float(self.tension[i]),
+                    "points": self.cable_points[i].tolist(),
+                }
+                for i, (name, state) in enumerate(
+                    zip(self.cable_names, self.cable_states, strict=True)
+                )
+            ],
+        }
+
+    def _verdict_line(self) -> str:
+        if self.verdict is None:
+            return f"POC: unavailable ({self.reason})"
+        margin = "" if self.margin is None else f" (margin {self.margin:.4g})"
+        return f"POC: {str(self.verdict).upper()}{margin}"
+
+    def __str__(self) -> str:
+        coords = ", ".join(
+            f"{n} = {v:.4f}" for n, v in zip(self.coordinate_names, self.natural, strict=True)
+        )
+        outputs = ", ".join(
+            f"{n} = {v:.4f}" for n, v in zip(self.output_names, self.output, strict=True)
+        )
+        lines = [self._verdict_line(), f"pose: {coords}", f"outputs: {outputs or '(none)'}"]
+        for i, (name, state) in enumerate(zip(self.cable_names, self.cable_states, strict=True)):
+            f = "    -" if self.tension is None else f"{self.tension[i]:9.4g} N"
+            lines.append(f"  {name:<10} {f}  {state.value}")
+        slack = ", ".join(self.slack_cables) or "none"
+        lines.append(f"slack cables: {slack}")
+        return "\n".join(lines)
+
+    def _repr_html_(self) -> str:
+        r, g, b = (int(255 * c) for c in self.verdict_rgb)
+        head = html.escape(self._verdict_line())
+        body = html.escape("\n".join(str(self).splitlines()[1:]))
+        return (
+            f'<div><b style="color: rgb({r},{g},{b})">{head}</b>'
+            f'<pre style="margin: 0.3em 0">{body}</pre></div>'
+        )
+
+
+class PoseGeometry:
+    """World positions the drawings need, from one forward-kinematics pass.
+
+    Route points are read from the spec (frame + point in frame), so this
+    never fails, not even at poses where a cable has zero length. Call
+    :meth:`update` with a configuration, then read the positions.
+
+    Args:
+        robot: a :class:`~cdpm.robot.CableRobot`.
+
+    Attributes:
+        model: the robot's Pinocchio model; ``data`` its data at the last update.
+        route_slices: for each cable, its route points' rows in :meth:`points`.
+        point_frames: frame id of each route point (-1: the world), shape (n_points,).
+        point_local: each route point in its frame [m], shape (n_points, 3).
+        point_joint: parent joint of each route point's frame (0: fixed to
+            the world, an anchor), shape (n_points,).
+        output_frames: names of the frames the outputs measure (each once).
+        output_frame_ids: their frame ids (-1: the world).
+    """
+
+    def __init__(self, robot) -> None:
+        import pinocchio as pin
+
+        self._pin = pin
+        self.model = robot.model
+        self.data = self.model.createData()
+        frames: list[int] = []  # -1: world
+        local: list[np.ndarray] = []
+        self.route_slices: list[slice] = []
+        for cable in robot.spec.cables:
+            start = len(frames)
+            for point in cable.route:
+                frames.append(self._frame_id(point.frame))
+                local.append(np.array(point.point_in_frame, dtype=float))
+            self.route_slices.append(slice(start, len(frames)))
+        self.point_frames = np.array(frames, dtype=int)
+        self.point_local = np.array(local, dtype=float).reshape(-1, 3)
+        names: list[str] = []
+        for out in robot.spec.outputs:
+            if out.frame not in names:
+                names.append(out.frame)
+        self.output_frames = tuple(names)
+        self.output_frame_ids = [self._frame_id(n) for n in names]
+        # a route point is fixed to the world when its frame's parent joint is the universe
+        self.point_joint = np.array(
+            [0 if f < 0 else int(self.model.frames[f].parentJoint) for f in frames], dtype=int
+        )
+
+    def _frame_id(self, name: str) -> int:
+        from cdpm.spec import WORLD_FRAME_NAMES
+
+        return -1 if name in WORLD_FRAME_NAMES else int(self.model.getFrameId(name))
+
+    def update(self, q: np.ndarray) -> None:
+        """Forward kinematics and frame placements at q (nq,)."""
+        self._pin.framesForwardKinematics(self.model, self.data, q)
+
+    def _place(self, frame: int, local: np.ndarray) -> np.ndarray:
+        if frame < 0:
+            return local.copy()
+        oMf = self.data.oMf[frame]
+        return oMf.rotation @ local + oMf.translation
+
+    def points(self) -> np.ndarray:
+        """World positions of all route points [m], shape (n_points, 3)."""
+        out = np.empty_like(self.point_local)
+        for k, (f, p) in enumerate(zip(self.point_frames, self.point_local, strict=True)):
+            out[k] = self._place(int(f), p)
+        return out
+
+    def output_positions(self) -> np.ndarray:
+        """World positions of the output frames [m], shape (n_frames, 3)."""
+        return np.array(
+            [self._place(f, np.zeros(3)) for f in self.output_frame_ids], dtype=float
+        ).reshape(-1, 3)
+
+    def output_placements(self) -> list[np.ndarray]:
+        """Homogeneous world placements (4, 4) of the output frames."""
+        return [
+            np.eye(4) if f < 0 else np.asarray(self.data.oMf[f].homogeneous)
+            for f in self.output_frame_ids
+        ]
+
+    def joint_placements(self) -> list[np.ndarray]:
+        """Homogeneous world placement (4, 4) of every joint (index 0: universe)."""
+        return [np.asarray(self.data.oMi[j].homogeneous) for j in range(self.model.njoints)]
+
+
+def skeleton_segments(model) -> list[tuple[int, np.ndarray, np.ndarray]]:
+    """Generated link geometry: segments (joint, start, end) in the joint's frame.
+
+    A joint gets a segment to each child joint and, when it has none, to its
+    farthest frame (e.g. a tool tip), so a serial arm draws as a chain.
+
+    Args:
+        model: a Pinocchio model (``robot.model``).
+
+    Returns:
+        ``(joint index, start (3,), end (3,))`` per segment; start and end
+        [m] in the frame of that joint (world = its placement at the pose).
+    """
+    children: dict[int, list[int]] = {j: [] for j in range(model.njoints)}
+    for j in range(1, model.njoints):
+        children[int(model.parents[j])].append(j)
+    bones: list[tuple[int, np.ndarray, np.ndarray]] = []
+    for j in range(model.njoints):
+        ends = [np.array(model.jointPlacements[c].translation) for c in children[j]]
+        if not ends and j > 0:
+            tips = [
+                np.array(f.placement.translation) for f in model.frames if int(f.parentJoint) == j
+            ]
+            if tips:
+                ends = [max(tips, key=lambda p: float(np.linalg.norm(p)))]
+        for end in ends:
+            if np.linalg.norm(end) > 1e-9:
+                bones.append((j, np.zeros(3), end))
+    return bones
+
+
+def centres_of_mass(model) -> list[tuple[int, np.ndarray]]:
+    """(joint, centre of mass in the joint's frame) of every joint carrying mass.
+
+    Args:
+        model: a Pinocchio model (``robot.model``).
+
+    Returns:
+        ``(joint index, centre of mass (3,) [m] in that joint's frame)`` for
+        each joint whose body has a positive mass.
+    """
+    return [
+        (j, np.array(model.inertias[j].lever))
+        for j in range(1, model.njoints)
+        if model.inertias[j].mass > 0
+    ]
+
+
+def _analyse(robot, q: np.ndarray):
+    """Equilibrium tension, cable states and POC verdict at q.
+
+    :func:`cdpm.linearise` finds the equilibrium tension (the
+    spec's method via :func:`cdpm.equilibrium.equilibrium_tension`, zero
+    tension where that module is absent) and the input cone.
+
+    Returns:
+        (tension (m,), slack mask (m,), verdict, margin, reason); the first
+        four are None when the pose cannot be linearised (reason says why).
+    """
+    try:
+        lin = linearise(robot, q)
+    except CdpmError as exc:
+        return None, None, None, None, str(exc)
+    # slack: at the lower bound, the tension can only grow (a cable at its
+    # upper bound is sign-constrained too, but taut)
+    slack = np.asarray(lin.input_sign > 0, dtype=bool)
+    from cdpm.analysis import positive_output_controllability
+
+    try:
+        poc = positive_output_controllability(
+            lin.A, lin.B_cone, lin.C, sign_constrained=lin.sign_constrained
+        )
+    except CdpmError as exc:
+        return lin.tension, slack, None, None, str(exc)
+    return lin.tension, slack, poc.verdict, float(poc.margin), None
+
+
+def pose_state(robot, q: Any, geometry: PoseGeometry | None = None) -> PoseState:
+    """What the viewer shows at q: positions, tensions, cable states, verdict.
+
+    Args:
+        robot: a :class:`~cdpm.robot.CableRobot`.
+        q: a pose name, a configuration vector (nq,) or natural coordinates (nv,).
+        geometry: reuse a :class:`PoseGeometry` (the viewer keeps one); built if None.
+
+    Returns:
+        The :class:`PoseState`. A pose that cannot be linearised is not an
+        error: its cables and verdict are ``unavailable`` with the reason.
+    """
+    q = robot.as_q(q)
+    geometry = geometry or PoseGeometry(robot)
+    geometry.update(q)
+    points = geometry.points()
+    tension, slack, verdict, margin, reason = _analyse(robot, q)
+    if tension is None:
+        states = (CableState.UNAVAILABLE,) * robot.n_cables
+    else:
+        states = tuple(CableState.SLACK if s else CableState.TAUT for s in slack)
+    outputs = geometry.output_positions()
+    return PoseState(
+        q=q.copy(),
+        natural=robot.to_natural(q),
+        coordinate_names=tuple(robot.coordinate_names),
+        cable_names=tuple(robot.cable_names),
+        cable_points=tuple(points[s].copy() for s in geometry.route_slices),
+        cable_states=states,
+        tension=None if tension is None else np.array(tension, dtype=float),
+        output_names=tuple(robot.output_names),
+        output=_outputs_from_frames(robot, geometry, outputs),
+        output_frames=geometry.output_frames,
+        output_frame_positions=outputs,
+        verdict=verdict,
+        margin=margin,
+        reason=reason,
+    )
+
+
+def _outputs_from_frames(robot, geometry: PoseGeometry, positions: np.ndarray) -> np.ndarray:
+    from cdpm.spec import OUTPUT_COMPONENTS
+
+    return np.array(
+        [
+            positions[geometry.output_frames.index(o.frame), OUTPUT_COMPONENTS[o.component]]
+            for o in robot.spec.outputs
+        ],
+        dtype=float,
+    )
+
+
+def tension_scale(robot, tension: np.ndarray | None) -> float:
+    """Tension [N] drawn in the darkest taut colour: the largest finite upper
+    bound of the cables, else the largest tension at the pose (at least 1e-9)."""
+    upper = robot.tension_max[np.isfinite(robot.tension_max)]
+    if upper.size == robot.n_cables and upper.size:
+        return float(max(upper.max(), 1e-9))
+    if tension is None or not tension.size:
+        return 1.0
+    return float(max(np.max(np.abs(tension)), 1e-9))
+
+
+def cable_colors(
+    state: PoseState, scale: float, levels: int = 32
+) -> list[tuple[float, float, float]]:
+    """RGB colour (0..1) of each cable: taut cables shade from light blue to
+    navy as tension goes from 0 to ``scale`` [N] (in ``levels`` steps, so a
+    small tension change does not resend a material)."""
+    colors = []
+    for i, s in enumerate(state.cable_states):
+        if s is CableState.TAUT:
+            t = min(max(float(state.tension[i]) / scale, 0.0), 1.0)
+            t = round(t * (levels - 1)) / (levels - 1)
+            low, high = np.array(COLORS["taut_low"]), np.array(COLORS["taut_high"])
+            colors.append(tuple(float(c) for c in low + t * (high - low)))
+        else:
+            colors.append(COLORS[s.value])
+    return colors
+
+
+def default_pose(robot) -> np.ndarray:
+    """The spec's first named pose, else the neutral configuration."""
+    if robot.poses:
+        return next(iter(robot.poses.values())).copy()
+    return robot.neutral()
