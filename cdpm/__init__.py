@@ -9,7 +9,7 @@ from __future__ import annotations
 import importlib
 from typing import TYPE_CHECKING
 
-__version__ = "0.1.0"
+from cdpm._version import __version__
 
 # public name -> submodule that defines it
 _EXPORTS: dict[str, str] = {
@@ -23,7 +23,7 @@ _EXPORTS: dict[str, str] = {
     # spec and robot
     "CableSpec": "cdpm.spec",
     "load_spec": "cdpm.spec",
-    "parse_number": "cdpm.spec",
+    "parse_number": "cdpm.expressions",
     "CableRobot": "cdpm.robot",
     "load_robot": "cdpm.robot",
     # equilibrium and linearisation
@@ -126,6 +126,7 @@ if TYPE_CHECKING:  # pragma: no cover - for static type checkers only
         SpecError,
         UnsupportedError,
     )
+    from cdpm.expressions import parse_number  # noqa: F401
     from cdpm.linearisation import Linearisation, linearise  # noqa: F401
     from cdpm.maps import (  # noqa: F401
         STATUS_CODES,
@@ -141,5 +142,5 @@ if TYPE_CHECKING:  # pragma: no cover - for static type checkers only
     from cdpm.plotting import plot_map, save_map_plot  # noqa: F401
     from cdpm.report import PoseReport, analyze_pose  # noqa: F401
     from cdpm.robot import CableRobot, load_robot  # noqa: F401
-    from cdpm.spec import CableSpec, load_spec, parse_number  # noqa: F401
+    from cdpm.spec import CableSpec, load_spec  # noqa: F401
     from cdpm.viewer import CableState, PoseInspector, PoseState, Viewer, pose_state  # noqa: F401

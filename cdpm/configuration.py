@@ -27,6 +27,8 @@ from typing import Any
 import numpy as np
 
 from cdpm.errors import InputError
+from cdpm.expressions import parse_number
+from cdpm.numerics import CONFIGURATION_UNIT_NORM_TOL
 
 __all__ = [
     "ConfigurationError",
@@ -188,7 +190,7 @@ def as_configuration(model, q: Any, name: str = "q") -> np.ndarray:
             }[kind]
             seg = arr[joint.idx_q : joint.idx_q + joint.nq][sl]
             norm = float(np.linalg.norm(seg))
-            if abs(norm - 1.0) > 1e-6:
+            if abs(norm - 1.0) > CONFIGURATION_UNIT_NORM_TOL:
                 what = "quaternion" if sl.stop - sl.start == 4 else "(cos, sin) pair"
                 raise ConfigurationError(
                     f"{name}: joint {jname!r} needs a unit {what}, "
@@ -213,7 +215,6 @@ def configuration_from_values(model, value: Any) -> np.ndarray:
     Raises:
         ConfigurationError: the value does not fit the model.
     """
-    from cdpm.spec import parse_number
 
     def number(x: Any, where: str) -> float:
         try:

@@ -2,7 +2,8 @@
 
 A spec lives beside its URDF and is read with ``yaml.safe_load`` only;
 nothing in it is executed. Arithmetic in numbers (``pi/6``, ``-2*pi/3``) is
-parsed by a small whitelist parser, not evaluated as Python.
+parsed by a small whitelist parser (:func:`cdpm.expressions.parse_number`,
+re-exported here), not evaluated as Python.
 
 Format (all lengths in metres, forces in newtons, angles in radians)::
 
@@ -35,10 +36,8 @@ the default ``frame`` gives it in the frame itself.
 
 from __future__ import annotations
 
-import ast
 import hashlib
 import math
-import operator
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -48,6 +47,9 @@ import numpy as np
 
 from cdpm.equilibrium import EQUILIBRIUM_METHODS
 from cdpm.errors import SpecError
+from cdpm.expressions import parse_number
+from cdpm.numerics import SPEC_COINCIDENT_POINT_ATOL
+from cdpm.yaml_loading import load_yaml
 
 __all__ = [
     "AttachmentPoint",
@@ -153,73 +155,6 @@ class CableSpec:
 
 
 # ---------------------------------------------------------------------------
-# numbers
-
-
-_BINARY_OPS = {
-    ast.Add: operator.add,
-    ast.Sub: operator.sub,
-    ast.Mult: operator.mul,
-    ast.Div: operator.truediv,
-    ast.Pow: operator.pow,
-}
-_UNARY_OPS = {ast.UAdd: operator.pos, ast.USub: operator.neg}
-_CONSTANTS = {"pi": math.pi, "inf": math.inf, "e": math.e}
-
-
-def parse_number(value: Any) -> float:
-    """Turn a YAML scalar into a float.
-
-    Accepts numbers and strings of plain arithmetic on numbers and the
-    constants ``pi``, ``e`` and ``inf`` (``"pi/6"``, ``"-2*pi/3"``, ``"1e-3"``).
-    Nothing is evaluated as Python: the string is parsed and only numeric
-    literals, those constants and ``+ - * / **`` are allowed.
-
-    Raises:
-        ValueError: the value is not a number or such an expression.
-    """
-    if isinstance(value, bool):
-        raise ValueError(f"{value!r} is a boolean, expected a number")
-    if isinstance(value, (int, float)):
-        return float(value)
-    if not isinstance(value, str):
-        raise ValueError(f"{value!r} is not a number")
-    text = value.strip()
-    if text.lower() in (".inf", "+.inf"):
-        return math.inf
-    if text.lower() == "-.inf":
-        return -math.inf
-    try:
-        tree = ast.parse(text, mode="eval")
-    except SyntaxError as exc:
-        raise ValueError(f"{value!r} is not a number or arithmetic expression") from exc
-    try:
-        return float(_eval_node(tree.body))
-    except ZeroDivisionError as exc:
-        raise ValueError(f"{value!r} divides by zero") from exc
-    except (ValueError, OverflowError) as exc:
-        raise ValueError(f"{value!r} is not a number ({exc})") from exc
-
-
-def _eval_node(node: ast.AST) -> float:
-    if isinstance(node, ast.Constant) and isinstance(node.value, (int, float)):
-        if isinstance(node.value, bool):
-            raise ValueError("booleans are not numbers")
-        return node.value
-    if isinstance(node, ast.Name) and node.id in _CONSTANTS:
-        return _CONSTANTS[node.id]
-    if isinstance(node, ast.BinOp) and type(node.op) in _BINARY_OPS:
-        # floats throughout: 9**9**9 overflows at once instead of growing an integer
-        left, right = float(_eval_node(node.left)), float(_eval_node(node.right))
-        return _BINARY_OPS[type(node.op)](left, right)
-    if isinstance(node, ast.UnaryOp) and type(node.op) in _UNARY_OPS:
-        return _UNARY_OPS[type(node.op)](_eval_node(node.operand))
-    raise ValueError(
-        f"only numbers, pi, e, inf and + - * / ** are allowed (found {ast.unparse(node)!r})"
-    )
-
-
-# ---------------------------------------------------------------------------
 # loading
 
 
@@ -292,7 +227,7 @@ def load_spec(path: str | os.PathLike) -> CableSpec:
                 hint = f"; did you mean {candidates[0]}?"
         raise SpecError(f"cable spec file not found: {spec_path}{hint}")
     try:
-        data, duplicates = _load_yaml(spec_path.read_text(encoding="utf-8"))
+        data, duplicates = load_yaml(spec_path.read_text(encoding="utf-8"))
     except yaml.YAMLError as exc:
         raise SpecError(f"not valid YAML: {exc}", path=str(spec_path)) from exc
     except UnicodeDecodeError as exc:
@@ -347,52 +282,6 @@ def load_spec(path: str | os.PathLike) -> CableSpec:
         external_wrench=external,
         sha256=_file_hash(spec_path, urdf_path),
     )
-
-
-def _load_yaml(text: str) -> tuple[Any, list[str]]:
-    """``yaml.safe_load`` that also lists keys given twice in one mapping.
-
-    YAML parsers keep the last of two equal keys without a word, so a spec
-    with ``cables:`` twice would silently lose the first list. Merge keys
-    (``<<: *anchor``) may still be overridden, as YAML intends.
-
-    Returns:
-        (data, problems): the loaded document and one line per repeated key
-        with its line numbers (1-based).
-    """
-    import yaml
-
-    problems: list[tuple[int, str]] = []
-
-    class _Loader(yaml.SafeLoader):
-        pass
-
-    def construct_mapping(loader, node, deep=False):
-        first_line: dict[Any, int] = {}
-        for key_node, _ in node.value:
-            if key_node.tag == "tag:yaml.org,2002:merge":
-                continue
-            key = loader.construct_object(key_node, deep=True)
-            try:
-                seen = first_line.get(key)
-            except TypeError:  # an unhashable key: safe_load reports it
-                continue
-            line = key_node.start_mark.line + 1
-            if seen is None:
-                first_line[key] = line
-            else:
-                problems.append(
-                    (
-                        line,
-                        f"line {line}: key {key!r} is given twice in the same mapping (first on "
-                        f"line {seen}); YAML would keep only the last one: remove or merge one",
-                    )
-                )
-        return yaml.SafeLoader.construct_mapping(loader, node, deep=deep)
-
-    _Loader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, construct_mapping)
-    data = yaml.load(text, Loader=_Loader)  # noqa: S506 - a SafeLoader subclass
-    return data, [message for _, message in sorted(problems)]
 
 
 #: pip distribution that installs a ROS-style package's files, where the
@@ -635,7 +524,9 @@ def _parse_route(
         same_frame = a.frame == b.frame or (
             a.frame in WORLD_FRAME_NAMES and b.frame in WORLD_FRAME_NAMES
         )
-        if same_frame and np.allclose(a.point_in_frame, b.point_in_frame, atol=1e-12):
+        if same_frame and np.allclose(
+            a.point_in_frame, b.point_in_frame, atol=SPEC_COINCIDENT_POINT_ATOL
+        ):
             problems.add(
                 where,
                 f"points {k} and {k + 1} coincide (both at {list(a.point_in_frame)} on "

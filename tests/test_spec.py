@@ -162,6 +162,13 @@ def test_parse_number():
         parse_number(True)
 
 
+def test_parse_number_is_one_function_under_its_public_names():
+    import cdpm.expressions
+
+    assert cdpm.parse_number is cdpm.expressions.parse_number
+    assert parse_number is cdpm.expressions.parse_number  # cdpm.spec re-exports it
+
+
 def test_outputs_are_required_and_may_be_offset_points(write_spec):
     text = GOOD.replace("outputs:\n  - {name: tip_x, frame: tip, component: x}\n", "")
     with pytest.raises(cdpm.SpecError, match=r"outputs: missing; give at least one output"):

@@ -1,0 +1,160 @@
+"""The cable spec side of a CASPR import: cable routes, the named pose, outputs.
+
+Turns CASPR attachment points into spec route points, chooses the pose to
+write (CASPR's ``q_initial`` or a sampled one) and checks the outputs on the
+robot that :func:`cdpm.load_robot` builds from the written files.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from cdpm.caspr._xml import _Attachment, _Cable, _Link
+from cdpm.errors import ModelError
+from cdpm.numerics import (
+    CASPR_LIMIT_TOL,
+    CASPR_MIN_SEGMENT,
+    CASPR_MOVING_OUTPUT_ATOL,
+    CASPR_OUTPUT_RANK_RTOL,
+)
+
+#: CASPR's gravity vector [m/s^2] (``SystemModel.GRAVITY_CONSTANT`` along -z).
+GRAVITY = (0.0, 0.0, -9.81)
+
+
+def _point_entry(links_by_num: dict[int, _Link], cable: _Cable, att: _Attachment) -> dict:
+    loc = [float(x) for x in att.location]
+    if att.link == 0:
+        return {"frame": "base", "point": loc}
+    frame = f"link{att.link}"
+    if cable.reference == "com":
+        if links_by_num[att.link].mass > 0:
+            return {"frame": frame, "point": loc, "relative_to": "com"}
+        # cdpm's relative_to: com needs a link with mass; shift by hand
+        loc = [float(x) for x in att.location + links_by_num[att.link].com]
+    return {"frame": frame, "point": loc}
+
+
+def _outside_limits(robot, natural: np.ndarray, lower, upper) -> list[str]:
+    return [
+        f"{n}={v:g} not in [{lo:g}, {hi:g}]"
+        for n, v, lo, hi in zip(robot.coordinate_names, natural, lower, upper, strict=True)
+        if not lo - CASPR_LIMIT_TOL <= v <= hi + CASPR_LIMIT_TOL
+    ]
+
+
+def _pose_problem(robot, natural: np.ndarray) -> str | None:
+    """Why a pose has degenerate cables (a zero-length segment), or None."""
+    try:
+        kin = robot.kinematics(robot.from_natural(natural))
+    except ModelError as exc:
+        return str(exc)
+    if kin.segment_lengths.size and kin.segment_lengths.min() < CASPR_MIN_SEGMENT:
+        k = int(np.argmin(kin.segment_lengths))
+        return (
+            f"cable {robot.cable_names[kin.segment_cable[k]]!r} has a segment of length "
+            f"{kin.segment_lengths[k]:.3g} m"
+        )
+    return None
+
+
+def _sample(rng, lower, upper) -> np.ndarray:
+    lo = np.where(np.isfinite(lower), lower, -1.0)
+    hi = np.where(np.isfinite(upper), upper, 1.0)
+    return rng.uniform(lo, hi)
+
+
+def _choose_pose(robot, initial, lower, upper, seed, warn) -> tuple[str, np.ndarray]:
+    """CASPR's q_initial when its cables are non-degenerate, else a sampled pose."""
+    problem = _pose_problem(robot, initial)
+    if problem is None:
+        outside = _outside_limits(robot, initial, lower, upper)
+        if outside:
+            warn(
+                f"CASPR q_initial lies outside the joint limits ({'; '.join(outside)}); "
+                "kept as pose 'initial' as CASPR uses it"
+            )
+        return "initial", initial
+    rng = np.random.default_rng(seed)
+    for _ in range(500):
+        candidate = _sample(rng, lower, upper)
+        if _pose_problem(robot, candidate) is None:
+            warn(
+                f"CASPR q_initial {initial.tolist()} is not usable ({problem}); wrote pose "
+                f"'sampled' (seed {seed}) instead"
+            )
+            return "sampled", candidate
+    raise ModelError(
+        f"CASPR q_initial is not usable ({problem}) and no pose within the joint limits "
+        "with non-degenerate cables was found in 500 samples; check the model"
+    )
+
+
+def _output_jacobians(robot, lower, upper, seed, extra=()) -> list[np.ndarray]:
+    """Output Jacobians (p, nv) at a few poses sampled within the limits
+    (and at the natural coordinates ``extra``)."""
+    rng = np.random.default_rng(seed)
+    poses = [_sample(rng, lower, upper) for _ in range(5)] + list(extra)
+    jacobians = []
+    for natural in poses:
+        try:
+            jacobians.append(robot.output_jacobian(robot.from_natural(natural)))
+        except ModelError:
+            continue
+    return jacobians
+
+
+def _moving_components(robot, lower, upper, seed) -> list[bool]:
+    """Which outputs have a nonzero Jacobian row at some of a few sampled poses."""
+    moving = np.zeros(robot.n_outputs, dtype=bool)
+    for jac in _output_jacobians(robot, lower, upper, seed):
+        moving |= np.linalg.norm(jac, axis=1) > CASPR_MOVING_OUTPUT_ATOL
+    return moving.tolist()
+
+
+def _rank(matrix: np.ndarray) -> int:
+    s = np.linalg.svd(matrix, compute_uv=False)
+    return int(
+        np.count_nonzero(s > CASPR_OUTPUT_RANK_RTOL * max(1.0, float(s[0]) if s.size else 0.0))
+    )
+
+
+#: CASPR joints that turn a link about a fixed point (three rotations).
+_SPHERICAL_JOINTS = ("S_EULER_XYZ", "S_FIXED_XYZ")
+
+
+def _output_rank_deficit(robot, natural, lower, upper, seed, links) -> str | None:
+    """Why the outputs can never be output controllable, or None.
+
+    With fewer independent output directions than outputs at every pose
+    (rank of the output Jacobian < p), rank C [B AB ...] < p everywhere, so
+    output controllability and POC are NO at every pose whatever the cables.
+    """
+    p = robot.n_outputs
+    jacobians = _output_jacobians(robot, lower, upper, seed, extra=[natural])
+    if not jacobians or p == 0:
+        return None
+    rank = max(_rank(jac) for jac in jacobians)
+    if rank >= p:
+        return None
+    # a subset of `rank` outputs that the joints do move independently
+    best = max(jacobians, key=_rank)
+    keep: list[int] = []
+    for i in range(p):
+        if _rank(best[keep + [i]]) > len(keep):
+            keep.append(i)
+    names = robot.output_names
+    why = "the joints cannot move them independently"
+    spherical = [k.name for k in links if k.joint_type in _SPHERICAL_JOINTS]
+    if spherical:
+        why += (
+            f" (link {spherical[0]!r} turns about a spherical joint: a point on it moves on a "
+            "sphere and never along its radius)"
+        )
+    return (
+        f"the {p} outputs ({', '.join(names)}) span only {rank} direction(s) at every sampled "
+        f"pose: {why}. So output controllability fails and positive output controllability "
+        f"is NO at every pose. Keep {rank} output(s) that move independently in the spec's "
+        f"outputs (e.g. {', '.join(names[i] for i in keep)}), or give an operational space "
+        f"(<name>_operational_spaces.xml) with at most {rank} independent position components"
+    )
