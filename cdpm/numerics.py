@@ -81,3 +81,143 @@ LOG_GROWTH_HIGH = math.log(1e4)
 GRID_POINTS = {1: 256, 2: 64, 3: 32}
 #: ... and for p >= 4
 GRID_POINTS_HIGH = 64
+
+# --------------------------------------------------------------------------
+# spec
+
+#: consecutive route points on one frame within this [m] (+ allclose rtol 1e-5) coincide
+SPEC_COINCIDENT_POINT_ATOL = 1e-12
+#: a quaternion or (cos, sin) pair with norm within this of 1 is normalised, else refused
+CONFIGURATION_UNIT_NORM_TOL = 1e-6
+
+# --------------------------------------------------------------------------
+# CASPR import
+
+#: a cable segment shorter than this [m] at the named pose counts as degenerate
+CASPR_MIN_SEGMENT = 1e-6
+#: CASPR prismatic joint bounds beyond this [m], or missing, are clipped to it in the URDF
+CASPR_UNBOUNDED_PRISMATIC = 1e3
+#: a CASPR q_initial at most this [rad or m] beyond a joint limit is within it
+CASPR_LIMIT_TOL = 1e-9
+#: an output Jacobian row shorter than this [m per rad or m] does not move
+CASPR_MOVING_OUTPUT_ATOL = 1e-9
+#: output Jacobian singular values <= this times max(1, largest) are zero (rank check)
+CASPR_OUTPUT_RANK_RTOL = 1e-9
+
+# --------------------------------------------------------------------------
+# analysis (inline thresholds)
+
+# linear algebra, spans and hulls
+#: null spaces: singular values at most this times the largest are zero (the
+#: default, and the floor of Brammer's eigenspace tolerance)
+NULL_SPACE_RTOL = 1e-8
+#: Krylov bases: new directions with singular values at most this times |A|_F
+#: are round-off
+KRYLOV_RTOL = 1e-9
+#: A^2 = 0 when every entry of A^2 is at most this times that of |A| |A|
+SQUARE_ZERO_RTOL = 1e-12
+#: eigenvalues with |Im| at most this times the largest |eigenvalue| are real
+#: (uncontrollable modes in Brammer's test, the stiffness eigenvalues of K)
+REAL_EIG_RTOL = 1e-9
+#: span decisions on unit columns: QR diagonals or singular values at most this
+#: times the largest are zero (rank < p; also an oscillatory mode's input rows)
+SPAN_RANK_RTOL = 1e-9
+#: an NNLS residual at most this times max(1, |target|) is zero: the target is
+#: in the cone
+NNLS_RES_RTOL = 1e-10
+#: a positive combination holds only when the smallest singular value of its
+#: unit columns exceeds this (and 10 times its relative residual)
+COMBINATION_SV_MIN = 1e-12
+#: least-distance programming: a residual component below this puts 0 in the hull
+LDP_ZERO_ATOL = 1e-14
+#: hulls and polar LPs drop vectors shorter than this times the longest
+HULL_ZERO_RTOL = 1e-14
+#: primal feasibility tolerance of the polar LPs of the margin bracket (DAQP)
+POLAR_LP_PRIMAL_TOL = 1e-9
+#: planar hulls: a cloud whose second-moment Schur complement is at most this
+#: times its y moment is degenerate (not whitened)
+WHITEN_REGULAR_RTOL = 1e-24
+
+# responses, horizons and NO proofs (scaled system, |A| ~ 1)
+#: default horizon: rates and frequencies at most this are zero
+HORIZON_RATE_MIN = 1e-6
+#: NO proofs: Taylor coefficients at most this times |v^T C| |b_j| are zero
+TAYLOR_ZERO_RTOL = 1e-11
+#: NO proofs: modal coefficients at most this times their sum are insignificant
+MODE_COEFF_RTOL = 1e-12
+#: NO proofs: modes within this of the slowest decay rate are dominant
+DOMINANT_RATE_ATOL = 1e-9
+#: NO proofs: eigenvalues with |Im| at most this are real
+REAL_EIG_ATOL = 1e-12
+#: NO proofs: round-off allowance of the sampled bound, times the modal magnitudes
+GRID_ROUNDOFF_RTOL = 1e-13
+#: sampled search: sample up to a modal dynamic range of e^this (~1e12; beyond
+#: it double precision no longer resolves the slower directions)
+LOG_DYNAMIC_RANGE = 27.0
+#: sampled search: a spread of the eigenvalues' real parts at most this is none
+SPREAD_MIN = 1e-12
+#: modal sampled search: stop where the fastest growing mode has grown by e^this
+MODAL_LOG_GROWTH = math.log(1e8)
+
+# the POC pipeline and its paths
+#: free-input samples shorter than this times the longest are round-off
+FREE_SAMPLE_ZERO_RTOL = 1e-9
+#: p free-input samples are robustly independent when the pivoted QR's |R_pp|
+#: exceeds this times |R_11| (unit columns)
+FREE_SPAN_RATIO = 1e-6
+#: quick output-rank test: rank [CB, CAB] = p (unit rows and columns) when its
+#: p-th singular value exceeds this times the largest
+OUTPUT_RANK_QUICK_RATIO = 1e-8
+#: a matrix whose condition number exceeds this is singular (the reduced C of
+#: the Brammer path; Cq and eigenvector bases in re-checks)
+INVERTIBLE_COND_MAX = 1e10
+#: modal path: A's blocks within this (relative to max|A|; absolute for the
+#: identity block) of [[0, I], [K, 0]]
+MECHANICAL_BLOCK_RTOL = 1e-12
+#: modal path: K's eigenvector matrix U needs |U|_F |U^-1|_F at most this
+MODAL_PATH_COND_MAX = 1e8
+#: modal path: stiffness eigenvalues kappa >= -this times K's scale are
+#: sign-definite (|kappa| below it: neither oscillating nor growing)
+KAPPA_ZERO_RTOL = 1e-9
+#: modal path: stiffness eigenvalues closer than this times the largest |kappa|
+#: are one cluster
+KAPPA_CLUSTER_RTOL = 1e-8
+#: modal path: the output rows span a K^T-invariant subspace when the residual
+#: is at most this times |K|_F
+INVARIANT_RTOL = 1e-9
+#: modal path: modal input rows shorter than this times their input's size are zero
+MODAL_ROW_ZERO_RTOL = 1e-10
+#: modal path: modal coordinates with singular values above this (absolute, unit
+#: scale) are seen by the outputs
+VISIBLE_ATOL = 1e-8
+
+# certificate re-checks
+#: default tolerance of the re-check of a span certificate or a Brammer witness
+RECHECK_TOL = 1e-7
+#: Brammer witness: eigen-residual round-off allowance, times |v| |A| + |lambda| |v|
+RECHECK_WITNESS_ROUNDOFF_RTOL = 1e-12
+#: default tolerance of POCCertificate.verify
+POC_RECHECK_TOL = 1e-6
+#: certificate vectors match the recomputed g_j(t) to this times |g_j(t)|
+RECHECK_VECTOR_RTOL = 1e-6
+#: nilpotent separator: A^2 = 0 when every entry is at most this times |A| |A|
+RECHECK_SQUARE_ZERO_RTOL = 1e-10
+#: dense grid: round-off allowance of e^{At}, times |e^{At}| |C| |b_j|
+RECHECK_EXPM_ROUNDOFF_RTOL = 1e-10
+#: general separator (scaled system): Taylor coefficients above this are nonzero
+RECHECK_TAYLOR_ATOL = 1e-9
+#: general separator: modal coefficients above this times their sum are significant
+RECHECK_MODE_RTOL = 1e-9
+#: general separator: modes within this of the slowest decay rate are dominant
+RECHECK_DOMINANT_ATOL = 1e-7
+#: general separator: eigenvalues with |Im| at most this are real
+RECHECK_REAL_ATOL = 1e-9
+#: modal certificates: A's blocks within this (relative to max|A|; absolute for
+#: the identity block) of [[0, I], [K, 0]]
+RECHECK_MECHANICAL_RTOL = 1e-9
+#: modal certificates: singular values of K^T - kappa I at most this times |K|_2
+#: are zero, and distinct claimed eigenvalues differ by more
+RECHECK_EIG_RTOL = 1e-7
+#: modal certificates: an oscillatory mode's unit input rows have full rank when
+#: their singular-value ratio exceeds this
+RECHECK_MODAL_RANK_RTOL = 1e-8

@@ -15,15 +15,15 @@ from scipy import linalg as sla
 from scipy.linalg import lapack as _lapack
 
 from cdpm.errors import InputError
+from cdpm.numerics import (
+    KRYLOV_RTOL,
+    NULL_SPACE_RTOL,
+    RANK_RTOL,
+    ROW_ZERO_RTOL,
+    SQUARE_ZERO_RTOL,
+)
 
 __all__ = ["Verdict"]
-
-#: relative tolerance used for numerical ranks (singular values / largest)
-RANK_RTOL = 1e-10
-#: an output row (of C) this much shorter than the longest is round-off: a
-#: zero row (e.g. the tip x row of a folded arm, computed as 1e-16 sines),
-#: never normalised into a direction
-ROW_ZERO_RTOL = 1e-12
 
 
 class Verdict(enum.Enum):
@@ -217,7 +217,7 @@ def complement(Q: np.ndarray, dim: int) -> np.ndarray:
     return U[:, Q.shape[1] :]
 
 
-def null_space(M: np.ndarray, rtol: float = 1e-8, atol: float = 0.0) -> np.ndarray:
+def null_space(M: np.ndarray, rtol: float = NULL_SPACE_RTOL, atol: float = 0.0) -> np.ndarray:
     """Orthonormal basis of the (right) null space of M.
 
     Singular values at most ``max(rtol * s_max, atol)`` count as zero: pass
@@ -295,11 +295,23 @@ def krylov_basis(A: np.ndarray, B: np.ndarray, rtol: float = RANK_RTOL) -> np.nd
         U, s, _ = svd(X)
         # X was orthogonalised against Q twice: its left singular vectors are
         # orthonormal and orthogonal to Q to round-off
-        new = U[:, : int(np.count_nonzero(s > 1e-9 * ref))]
+        new = U[:, : int(np.count_nonzero(s > KRYLOV_RTOL * ref))]
         if new.shape[1] == 0:
             break
         Q = np.hstack([Q, new])
     return Q[:, :n]
+
+
+def is_square_zero(A: np.ndarray) -> bool:
+    """A^2 = 0 up to round-off, entrywise relative to |A| @ |A| (scale-free)."""
+    return bool(square_zero(A[None])[0])
+
+
+def square_zero(A: np.ndarray) -> np.ndarray:
+    """:func:`is_square_zero` of the matrices A (k, n, n), shape (k,)."""
+    AA = A @ A
+    small = np.abs(AA) <= SQUARE_ZERO_RTOL * (np.abs(A) @ np.abs(A))
+    return ~np.any(AA, axis=(1, 2)) | np.all(small, axis=(1, 2))
 
 
 def cluster(values: np.ndarray, atol: float) -> list[np.ndarray]:

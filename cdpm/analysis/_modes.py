@@ -13,11 +13,20 @@ import math
 import numpy as np
 from scipy.linalg import expm
 
-#: condition number of the eigenvector matrix above which the modal
-#: (eigen-decomposition) evaluation is not trusted
-MODAL_COND_MAX = 1e7
-#: longest default horizon, in units of 1/|A|
-HORIZON_MAX = 2e3
+from cdpm.numerics import (
+    DOMINANT_RATE_ATOL,
+    GRID_ROUNDOFF_RTOL,
+    HORIZON_MAX,
+    HORIZON_RATE_MIN,
+    MODAL_COND_MAX,
+    MODE_COEFF_RTOL,
+    REAL_EIG_ATOL,
+    TAYLOR_ZERO_RTOL,
+)
+
+# MODAL_COND_MAX: the eigenvector matrix of A above which the modal
+# (eigen-decomposition) evaluation is not trusted; HORIZON_MAX: the longest
+# default horizon, in units of 1/|A|
 
 
 class Evaluator:
@@ -140,14 +149,14 @@ def default_horizon(eigvals: np.ndarray) -> float:
         return T
     im = np.abs(eigvals.imag)
     re = np.abs(eigvals.real)
-    osc = im[im > 1e-6]
+    osc = im[im > HORIZON_RATE_MIN]
     if osc.size:
         T = max(T, 3 * 2 * math.pi / osc.min())
-    rates = re[re > 1e-6]
+    rates = re[re > HORIZON_RATE_MIN]
     if rates.size:
         T = max(T, 5.0 / rates.min())
     growth = eigvals.real.max()
-    if growth > 1e-6:
+    if growth > HORIZON_RATE_MIN:
         # responses grow like e^{growth t}: stop before they dwarf everything
         T = min(T, max(10.0, 30.0 / growth))
     return min(T, HORIZON_MAX)
@@ -203,7 +212,7 @@ def prove_nonpositive(ev: Evaluator, v: np.ndarray, j: int, T: float):
     for k in range(K + 1):
         coeff[k] = w @ x
         x = A @ x
-    small = 1e-11 * scale
+    small = TAYLOR_ZERO_RTOL * scale
     lead = np.flatnonzero(np.abs(coeff[:n]) > small)
     if lead.size == 0:
         return True, {"input": j, "identically_zero": True}, []
@@ -229,14 +238,14 @@ def prove_nonpositive(ev: Evaluator, v: np.ndarray, j: int, T: float):
     kap = ev.coefficients(v, j)
     lam = ev.lam
     mag = np.abs(kap)
-    sig = mag > 1e-12 * max(mag.sum(), 1e-300)
+    sig = mag > MODE_COEFF_RTOL * max(mag.sum(), 1e-300)
     if not sig.any():
         return True, {**data, "identically_zero": True}, []
     # --- tail: f(t) <= e^{alpha t} (c0 + amp + sum_rest |kap| e^{(re - alpha) t})
     re = lam.real
     alpha = re[sig].max()
-    dom = sig & (re >= alpha - 1e-9)
-    is_real = np.abs(lam.imag) <= 1e-12
+    dom = sig & (re >= alpha - DOMINANT_RATE_ATOL)
+    is_real = np.abs(lam.imag) <= REAL_EIG_ATOL
     c0 = float(np.sum(kap[dom & is_real].real))
     amp = float(np.sum(mag[dom & ~is_real]))
     rest = sig & ~dom
@@ -283,7 +292,7 @@ def _grid_bound(ev, v, j, kap, lam, t0, t1, depth=0, n=None):
     mag2 = np.abs(kap) * np.abs(lam) ** 2
     ends = np.maximum(np.outer(t[:-1], lam.real), np.outer(t[1:], lam.real))
     curv = np.exp(ends) @ mag2
-    err = 1e-13 * (np.exp(ends) @ np.abs(kap))
+    err = GRID_ROUNDOFF_RTOL * (np.exp(ends) @ np.abs(kap))
     bound = np.maximum(f[:-1], f[1:]) + h * h / 8 * curv + err
     bad = np.flatnonzero(bound > 0)
     if bad.size == 0:

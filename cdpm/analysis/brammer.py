@@ -33,16 +33,23 @@ from cdpm.analysis._common import (
     to_plain,
 )
 from cdpm.analysis.rank import reachable_basis
-from cdpm.analysis.span import SPAN_TOL, span_core
+from cdpm.analysis.span import span_core
+from cdpm.numerics import (
+    EIG_ATOL,
+    NULL_SPACE_RTOL,
+    REAL_EIG_RTOL,
+    RECHECK_TOL,
+    RECHECK_WITNESS_ROUNDOFF_RTOL,
+    SPAN_TOL,
+    ZERO_ATOL,
+)
 
 __all__ = ["PositiveControllabilityResult", "positive_controllability"]
 
-#: eigenvalues of the normalised A (|A| = 1) closer than this are one cluster;
-#: imaginary parts below it count as real (a Jordan block splits by ~sqrt(eps))
-EIG_ATOL = 1e-6
-#: products v^T b_j of unit eigenvectors and unit input columns at most this
-#: are zero (an eigenvector computed to ~1e-9 sees an orthogonal input so)
-ZERO_ATOL = 1e-8
+# EIG_ATOL: eigenvalues of the normalised A (|A| = 1) closer than it are one
+# cluster, and imaginary parts below it count as real (a Jordan block splits
+# by ~sqrt(eps)); ZERO_ATOL: an eigenvector computed to ~1e-9 sees an
+# orthogonal unit input column as a product of that size
 
 
 @dataclass(frozen=True)
@@ -76,7 +83,7 @@ class PositiveControllabilityResult:
     def __bool__(self) -> bool:
         return self.verdict is Verdict.YES
 
-    def verify(self, A, B, sign_constrained=None, tol: float = 1e-7) -> bool:
+    def verify(self, A, B, sign_constrained=None, tol: float = RECHECK_TOL) -> bool:
         """Re-check a NO witness directly (eigen-residual and signs); for YES
         re-check the Kalman rank only (condition 2 is the decision itself)."""
         A, B, mask = as_system(A, B, sign_constrained=sign_constrained)
@@ -87,7 +94,8 @@ class PositiveControllabilityResult:
         v = np.asarray(self.witness, dtype=float)
         lam = float(self.witness_eigenvalue)
         scale = np.abs(v) @ np.abs(A) + abs(lam) * np.abs(v) + 1e-300
-        if np.any(np.abs(v @ A - lam * v) > tol * np.linalg.norm(scale) + 1e-12 * scale):
+        allow = tol * np.linalg.norm(scale) + RECHECK_WITNESS_ROUNDOFF_RTOL * scale
+        if np.any(np.abs(v @ A - lam * v) > allow):
             return False
         prod = v @ B
         ref = np.linalg.norm(v) * np.linalg.norm(B, axis=0) + 1e-300
@@ -205,7 +213,7 @@ def left_eigen_separator(A: np.ndarray, B: np.ndarray, mask: np.ndarray, tol: fl
     checked = []
     for group in cluster(real, EIG_ATOL):
         mu = float(np.mean(real[group]))
-        E = null_space(As.T - mu * np.eye(As.shape[0]), rtol=max(10 * EIG_ATOL, 1e-8))
+        E = null_space(As.T - mu * np.eye(As.shape[0]), rtol=max(10 * EIG_ATOL, NULL_SPACE_RTOL))
         checked.append((mu * rho, E.shape[1]))
         if E.shape[1] == 0:
             continue
@@ -236,7 +244,7 @@ def _uncontrollable_real_eigenvector(A: np.ndarray, Q: np.ndarray):
     M = P.T @ A.T @ P
     w, V = np.linalg.eig(M)
     scale = max(np.abs(w).max(), 1e-300)
-    real = np.flatnonzero(np.abs(w.imag) <= 1e-9 * scale)
+    real = np.flatnonzero(np.abs(w.imag) <= REAL_EIG_RTOL * scale)
     if real.size == 0:
         return None, None
     i = real[0]

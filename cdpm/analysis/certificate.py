@@ -20,6 +20,21 @@ from scipy.linalg import expm
 
 from cdpm.analysis._common import as_system, krylov_basis, scaled_system, to_plain
 from cdpm.analysis.span import check_positive_combination
+from cdpm.numerics import (
+    INVERTIBLE_COND_MAX,
+    KAPPA_ZERO_RTOL,
+    POC_RECHECK_TOL,
+    RECHECK_DOMINANT_ATOL,
+    RECHECK_EIG_RTOL,
+    RECHECK_EXPM_ROUNDOFF_RTOL,
+    RECHECK_MECHANICAL_RTOL,
+    RECHECK_MODAL_RANK_RTOL,
+    RECHECK_MODE_RTOL,
+    RECHECK_REAL_ATOL,
+    RECHECK_SQUARE_ZERO_RTOL,
+    RECHECK_TAYLOR_ATOL,
+    RECHECK_VECTOR_RTOL,
+)
 
 __all__ = ["POCCertificate"]
 
@@ -71,7 +86,7 @@ class POCCertificate:
             }
         )
 
-    def verify(self, A, B, C, tol: float = 1e-6) -> bool:
+    def verify(self, A, B, C, tol: float = POC_RECHECK_TOL) -> bool:
         """Re-check this certificate against (A, B, C) independently.
 
         Args:
@@ -103,7 +118,7 @@ def _verify_span(cert, A, B, C, mask, tol) -> bool:
         return False
     G = np.stack([C @ (expm(A * ti) @ B[:, ji]) for ti, ji in zip(t, j, strict=True)], axis=1)
     ref = np.linalg.norm(G, axis=0) + 1e-300
-    if np.any(np.linalg.norm(G - cert.vectors, axis=0) > 1e-6 * ref):
+    if np.any(np.linalg.norm(G - cert.vectors, axis=0) > RECHECK_VECTOR_RTOL * ref):
         return False
     return check_positive_combination(G * s, np.asarray(cert.weights, dtype=float), tol)
 
@@ -123,7 +138,7 @@ def _verify_separator(cert, A, B, C, mask, tol) -> bool:
     if path == "output-rank":
         return _krylov_orthogonal(A, B, C, v, tol)
     if path == "nilpotent":
-        AA = np.abs(A @ A) <= 1e-10 * (np.abs(A) @ np.abs(A)) + 1e-300
+        AA = np.abs(A @ A) <= RECHECK_SQUARE_ZERO_RTOL * (np.abs(A) @ np.abs(A)) + 1e-300
         w = v @ C
         c0, c1 = w @ B, w @ A @ B
         bn = np.linalg.norm(B, axis=0)
@@ -169,7 +184,8 @@ def _dense_grid_ok(A, B, C, mask, v, horizon, extra, tol) -> bool:
         vals.append(w @ Y)
         # relative to |g_j| plus the round-off of X = e^{At} itself: a slow
         # direction next to a fast-growing one is known only to eps |X| |b_j|
-        allow.append(tol * wn * np.linalg.norm(Y, axis=0) + 1e-10 * np.linalg.norm(X) * bn)
+        roundoff = RECHECK_EXPM_ROUNDOFF_RTOL * np.linalg.norm(X) * bn
+        allow.append(tol * wn * np.linalg.norm(Y, axis=0) + roundoff)
 
     for _ in range(601):
         record(X)
@@ -221,7 +237,7 @@ def _verify_general(A, B, C, mask, v, proof, tol) -> bool:
     n = A.shape[0]
     lam, V = np.linalg.eig(As)
     cond = np.linalg.cond(V)
-    if not np.isfinite(cond) or cond > 1e10:
+    if not np.isfinite(cond) or cond > INVERTIBLE_COND_MAX:
         return False
     WB = np.linalg.solve(V, Bs)
     wV = w @ V
@@ -233,17 +249,17 @@ def _verify_general(A, B, C, mask, v, proof, tol) -> bool:
             coeff.append(w @ x)
             x = As @ x
         coeff = np.array(coeff)
-        lead = np.flatnonzero(np.abs(coeff) > 1e-9)
+        lead = np.flatnonzero(np.abs(coeff) > RECHECK_TAYLOR_ATOL)
         if lead.size and coeff[lead[0]] > 0:
             return False
         kap = wV * WB[:, j]
         mag = np.abs(kap)
-        sig = mag > 1e-9 * max(mag.sum(), 1e-300)
+        sig = mag > RECHECK_MODE_RTOL * max(mag.sum(), 1e-300)
         if not sig.any():
             continue
         alpha = lam.real[sig].max()
-        dom = sig & (lam.real >= alpha - 1e-7)
-        real = np.abs(lam.imag) <= 1e-9
+        dom = sig & (lam.real >= alpha - RECHECK_DOMINANT_ATOL)
+        real = np.abs(lam.imag) <= RECHECK_REAL_ATOL
         lead_bound = np.sum(kap[dom & real].real) + np.sum(mag[dom & ~real])
         rest = sig & ~dom
         tail = lead_bound + np.sum(mag[rest] * np.exp((lam.real[rest] - alpha) * Tp * 20))
@@ -260,9 +276,10 @@ def _mechanical_blocks(A, B, C, mask):
     if n == 0 or n % 2:
         return None
     ref = np.abs(A).max() + 1e-300
-    if np.abs(A[:h, :h]).max() > 1e-9 * ref or np.abs(A[h:, h:]).max() > 1e-9 * ref:
+    zero = RECHECK_MECHANICAL_RTOL * ref
+    if np.abs(A[:h, :h]).max() > zero or np.abs(A[h:, h:]).max() > zero:
         return None
-    if np.abs(A[:h, h:] - np.eye(h)).max() > 1e-9 or np.abs(C[:, h:]).max() > 0:
+    if np.abs(A[:h, h:] - np.eye(h)).max() > RECHECK_MECHANICAL_RTOL or np.abs(C[:, h:]).max() > 0:
         return None
     if np.abs(B[:h][:, mask]).max(initial=0.0) > 0:
         return None
@@ -284,7 +301,7 @@ def _verify_modal_span(cert, A, B, C, mask, tol) -> bool:
     if blocks is None or not modes:
         return False
     h, K, Cq, Bv = blocks
-    if Cq.shape[0] != h or np.linalg.cond(Cq) > 1e10:
+    if Cq.shape[0] != h or np.linalg.cond(Cq) > INVERTIBLE_COND_MAX:
         return False
     sK = float(np.linalg.norm(K, 2)) + 1e-300
     total = 0
@@ -299,12 +316,12 @@ def _verify_modal_span(cert, A, B, C, mask, tol) -> bool:
             return False
         _, s, Vt = np.linalg.svd(K.T - kappa * np.eye(h))
         W = Vt[h - d :].T  # (h, d): the d smallest singular directions
-        if s[h - d] > 1e-7 * sK or (d < h and s[h - d - 1] <= 1e-7 * sK):
+        if s[h - d] > RECHECK_EIG_RTOL * sK or (d < h and s[h - d - 1] <= RECHECK_EIG_RTOL * sK):
             return False  # kappa is not an eigenvalue of geometric multiplicity d
         total += d
         kappas.append(kappa)
         Z = W.T @ Bv[:, inputs]
-        definite = kappa >= -1e-9 * sK
+        definite = kappa >= -KAPPA_ZERO_RTOL * sK
         if definite != bool(md["definite"]):
             return False
         if definite:
@@ -315,9 +332,9 @@ def _verify_modal_span(cert, A, B, C, mask, tol) -> bool:
             if np.any(norms == 0):
                 return False
             sz = np.linalg.svd(Z / norms, compute_uv=False)
-            if sz.size < d or sz[d - 1] <= 1e-8 * sz[0]:
+            if sz.size < d or sz[d - 1] <= RECHECK_MODAL_RANK_RTOL * sz[0]:
                 return False
     # distinct eigenvalues whose eigenspaces fill R^h: K is diagonalisable
     # and has no other eigenvalue
     ks = np.sort(kappas)
-    return bool(total == h and np.all(np.diff(ks) > 1e-7 * sK))
+    return bool(total == h and np.all(np.diff(ks) > RECHECK_EIG_RTOL * sK))

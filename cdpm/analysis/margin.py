@@ -36,20 +36,23 @@ from scipy.linalg import expm
 from scipy.spatial import ConvexHull, QhullError
 
 from cdpm.analysis.span import cross_polytope_radius, min_norm_separator
+from cdpm.numerics import (
+    GRID_POINTS,
+    GRID_POINTS_HIGH,
+    HORIZON_MAX_UNITS,
+    LOG_GROWTH,
+    LOG_GROWTH_HIGH,
+    SEE_PERIODS,
+    WHITEN_REGULAR_RTOL,
+)
 
-#: three undamped periods (6 pi / |lambda|, as the search horizon), or
-#: 6 pi time constants of a real mode
-SEE_PERIODS = 6 * math.pi
-#: longest margin horizon, in units of 1/|A|_2
-HORIZON_MAX_UNITS = 1e3
-#: largest growth e^{Re(lambda) T} of a sampled response per p (1e8 as the
-#: modal path for p <= 2; Qhull (p = 3) and the LP bracket (p >= 4) lose
-#: the hull's small features next to a larger dynamic range)
-LOG_GROWTH = {1: math.log(1e8), 2: math.log(1e8), 3: math.log(1e6)}
-LOG_GROWTH_HIGH = math.log(1e4)
-#: time samples (grid points t_0 = 0 .. t_N = T, a power of 2) per output dimension
-GRID_POINTS = {1: 256, 2: 64, 3: 32}
-GRID_POINTS_HIGH = 64
+# SEE_PERIODS: three undamped periods (6 pi / |lambda|, as the search
+# horizon), or 6 pi time constants of a real mode; HORIZON_MAX_UNITS: the
+# longest margin horizon, in units of 1/|A|_2; LOG_GROWTH: the largest growth
+# e^{Re(lambda) T} of a sampled response per p (1e8 as the modal path for
+# p <= 2; Qhull (p = 3) and the LP bracket (p >= 4) lose the hull's small
+# features next to a larger dynamic range); GRID_POINTS: time samples (grid
+# points t_0 = 0 .. t_N = T, a power of 2) per output dimension
 
 
 def margin_horizon(
@@ -377,7 +380,7 @@ def _whitened_directions(P: np.ndarray) -> np.ndarray:
         l21 = b / l11
         d2 = c - l21 * l21
         l22 = np.sqrt(d2)
-        regular = (a > 0) & (d2 > 1e-24 * c)
+        regular = (a > 0) & (d2 > WHITEN_REGULAR_RTOL * c)
         one = np.ones_like(a)
         m11 = np.where(regular, 1 / l11, one)
         m12 = np.where(regular, -l21 / (l11 * l22), 0.0)

@@ -19,6 +19,7 @@ from cdpm.analysis._common import (
     scaled_system,
     to_plain,
 )
+from cdpm.numerics import RANK_RTOL
 
 __all__ = [
     "ControllabilityResult",
@@ -102,7 +103,7 @@ def reachable_basis(A: np.ndarray, B: np.ndarray) -> np.ndarray:
         return Q
     X = Q * d[:, None]
     U, s, _ = np.linalg.svd(X / np.linalg.norm(X, axis=0), full_matrices=False)
-    return U[:, : numerical_rank(s, 1e-10)]
+    return U[:, : numerical_rank(s, RANK_RTOL)]
 
 
 def output_reachable_basis(A: np.ndarray, B: np.ndarray, C: np.ndarray) -> np.ndarray:
@@ -117,7 +118,7 @@ def output_reachable_basis(A: np.ndarray, B: np.ndarray, C: np.ndarray) -> np.nd
         return np.zeros((p, 0))
     U, s, _ = np.linalg.svd(Y, full_matrices=True)
     ref = float(np.linalg.norm(Cs, 2))
-    r = int(np.count_nonzero(s > 1e-10 * max(ref, 1e-300)))
+    r = int(np.count_nonzero(s > RANK_RTOL * max(ref, 1e-300)))
     # undo the output row scaling: range(Cs Q) = diag(row) range(C Q)
     Y0 = U[:, :r] / row[:, None]
     if r == 0:

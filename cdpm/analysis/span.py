@@ -41,13 +41,19 @@ from cdpm.analysis._common import (
     svdvals,
     to_plain,
 )
+from cdpm.numerics import (
+    COMBINATION_SV_MIN,
+    HULL_ZERO_RTOL,
+    LDP_ZERO_ATOL,
+    NNLS_RES_RTOL,
+    POLAR_LP_PRIMAL_TOL,
+    RECHECK_TOL,
+    SPAN_RANK_RTOL,
+    SPAN_TOL,
+    ZERO_RTOL,
+)
 
 __all__ = ["SpanCertificate", "SpanResult", "positively_spans", "wrench_closure"]
-
-#: default angle-like tolerance of span decisions
-SPAN_TOL = 1e-9
-#: columns shorter than this times the longest count as zero vectors
-ZERO_RTOL = 1e-11
 
 
 @dataclass(frozen=True)
@@ -67,7 +73,7 @@ class SpanCertificate:
     weights: np.ndarray | None = None
     separator: np.ndarray | None = None
 
-    def verify(self, vectors, tol: float = 1e-7) -> bool:
+    def verify(self, vectors, tol: float = RECHECK_TOL) -> bool:
         """Re-check against ``vectors`` (p, k) by direct linear algebra."""
         S = np.asarray(vectors, dtype=float)
         p = S.shape[0]
@@ -112,7 +118,7 @@ def check_positive_combination(S: np.ndarray, w: np.ndarray, tol: float) -> bool
     if residual > tol:
         return False
     s = np.linalg.svd(S / norms, compute_uv=False)
-    return bool(s.size >= p and s[p - 1] > max(10 * residual, 1e-12))
+    return bool(s.size >= p and s[p - 1] > max(10 * residual, COMBINATION_SV_MIN))
 
 
 @dataclass(frozen=True)
@@ -298,11 +304,11 @@ def _span_general(U: np.ndarray, nz: np.ndarray, tol: float):
     # Gram eigen-decomposition (rank and separator) only if QR sees a defect
     piv, rdiag = qr_pivots(U)
     rank = p
-    if rdiag.size < p or not rdiag[p - 1] > 1e-9 * rdiag[0]:
+    if rdiag.size < p or not rdiag[p - 1] > SPAN_RANK_RTOL * rdiag[0]:
         # left singular vectors from the p x p Gram matrix: k may be large
         evals, evecs = eigh(U @ U.T)
         s = np.sqrt(np.clip(evals[::-1], 0.0, None))
-        rank = numerical_rank(s, 1e-9)
+        rank = numerical_rank(s, SPAN_RANK_RTOL)
         if rank < p:
             v = evecs[:, 0]
             return False, "rank", rank, None, None, v
@@ -315,12 +321,12 @@ def _span_general(U: np.ndarray, nz: np.ndarray, tol: float):
     basis = np.arange(k) if k <= 2 * p else piv[:p]
     b = -U[:, basis].sum(axis=1)
     mu, res = nnls(U, b, maxiter=50 * k + 100)
-    if res <= 1e-10 * max(1.0, float(np.linalg.norm(b))):
+    if res <= NNLS_RES_RTOL * max(1.0, float(np.linalg.norm(b))):
         w = mu.copy()
         w[basis] += 1.0
         idx = np.flatnonzero(w > 0)
         sv = svdvals(U[:, idx])
-        if sv.size >= p and sv[p - 1] > 1e-9 * sv[0]:
+        if sv.size >= p and sv[p - 1] > SPAN_RANK_RTOL * sv[0]:
             return True, "nnls", p, nz[idx], w[idx], None
         return _span_lp(U, nz, tol, rank)  # pragma: no cover - the basis has rank p
     # KKT: U^T (U mu - b) >= 0, so v = -(U mu - b) separates
@@ -380,7 +386,7 @@ def min_norm_separator(S: np.ndarray):
     f[p] = 1.0
     u, _ = nnls(E, f, maxiter=50 * k + 100)
     r = E @ u - f
-    if abs(r[p]) < 1e-14 or np.linalg.norm(r[:p]) < 1e-14:
+    if abs(r[p]) < LDP_ZERO_ATOL or np.linalg.norm(r[:p]) < LDP_ZERO_ATOL:
         return None
     x = -r[:p] / r[p]
     nx = float(np.linalg.norm(x))
@@ -427,7 +433,7 @@ def span_margin_bracket(
     if p <= 3:
         norms = np.linalg.norm(full, axis=0)
         try:
-            hull = ConvexHull(full[:, norms > 1e-14 * norms.max()].T)
+            hull = ConvexHull(full[:, norms > HULL_ZERO_RTOL * norms.max()].T)
             mu = float(max(np.min(-hull.equations[:, -1]), 0.0))
             return mu, mu
         except QhullError:  # degenerate input: the LP bracket below
@@ -462,7 +468,7 @@ def cross_polytope_radius(S: np.ndarray, S_sym: np.ndarray | None = None) -> tup
     if scale == 0:
         return 0.0, 0.0
     # zero vectors add only 0 <= 1 constraints
-    keep = norms > 1e-14 * scale
+    keep = norms > HULL_ZERO_RTOL * scale
     G = np.ascontiguousarray(both[:, keep].T / scale)  # (k, p)
     lower = np.where(np.arange(both.shape[1]) >= S.shape[1], -1.0, -1e30)[keep]
     vmax, hi = 0.0, math.inf
@@ -500,7 +506,7 @@ def _polar_lp(G: np.ndarray, lower: np.ndarray, i: int, sign: float):
         # (duplicate or near-parallel constraints) makes it cycle
         for eps in (-1e-6, 1e-3):
             x, _, flag, _ = daqp.solve(
-                H, f, G, up, lo, primal_tol=1e-9, fval_bound=1e12, eps_prox=eps
+                H, f, G, up, lo, primal_tol=POLAR_LP_PRIMAL_TOL, fval_bound=1e12, eps_prox=eps
             )
             if flag >= 1 and np.all(np.isfinite(x)):
                 return np.asarray(x, dtype=float)
