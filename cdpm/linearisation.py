@@ -11,7 +11,7 @@ is (paper eqs 21-23)::
     A = [[0, I], [K, K_v]],   B = [[0], [-M^-1 L^T]],   C = [[dh/dq, 0]]
 
 with the stiffness block ``K = dq''/dq = -M^-1 (dG/dq + d(L^T f*)/dq)``
-(gravity stiffness from Pinocchio's ABA derivatives, cable stiffness
+(gravity stiffness from Pinocchio's generalised gravity derivatives, cable stiffness
 ``sum_i f_i Hess(l_i)`` from :meth:`cdpm.robot.CableRobot.cable_stiffness`,
 both analytic, in Pinocchio's local tangent convention) and the rate block
 ``K_v = dq''/dq' = -M^-1 D`` (Coriolis terms are quadratic in q' and vanish
@@ -21,12 +21,16 @@ paper's case) K = 0 and A is nilpotent.
 The equilibrium tension comes from :func:`cdpm.equilibrium.equilibrium_tension`
 (by default the spec's method, ``min_norm`` when it names none: zero
 tension for the paper's model) or is given by the caller and checked.
+
+:func:`linearise_batch` builds the systems of many poses at once from their
+batch kinematics and equilibria; :func:`linearise` is that function on one
+pose, so a map and the per-pose API get the same matrices.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -37,12 +41,21 @@ from cdpm.equilibrium import (
     equilibrium_tension,
 )
 from cdpm.errors import InputError, ModelError
+from cdpm.numerics import BOUND_TOLERANCE, MASS_COND_MAX
 
-__all__ = ["Linearisation", "linearise", "state_names"]
+if TYPE_CHECKING:  # pragma: no cover
+    from cdpm.kinematics import BatchKinematics
+    from cdpm.robot import CableRobot
 
-#: A cable whose equilibrium tension is within this of a bound [N]
-#: (relative to max(1, |f|)) is treated as sitting on it.
-BOUND_TOLERANCE = 1e-9
+__all__ = [
+    "Linearisation",
+    "LinearisationBatch",
+    "linearise",
+    "linearise_batch",
+    "mass_inverse",
+    "input_cone_scale",
+    "state_names",
+]
 
 
 @dataclass(frozen=True)
@@ -111,11 +124,12 @@ class Linearisation:
         at its maximum tension."""
         if self.input_sign is None:
             return self.B.copy()
-        scale = np.where(self.input_sign < 0, -1.0, 1.0)
         eq = self.equilibrium
-        if eq is not None and eq.tension_min.shape == scale.shape:
-            scale = np.where(eq.tension_min == eq.tension_max, 0.0, scale)
-        return self.B * scale[None, :]
+        if eq is not None and eq.tension_min.shape == self.input_sign.shape:
+            pinned = eq.tension_min == eq.tension_max
+        else:
+            pinned = np.zeros(self.input_sign.shape, dtype=bool)
+        return self.B * input_cone_scale(self.input_sign, pinned)
 
     def as_dict(self) -> dict:
         """JSON-serialisable content."""
@@ -145,6 +159,148 @@ class Linearisation:
                 f"tension f* = {self.tension} N\n"
                 f"sign-constrained inputs: {self.sign_constrained}"
             )
+
+
+@dataclass(frozen=True)
+class LinearisationBatch:
+    """The linear systems of N poses (pose axis first); each pose's system
+    is the :class:`Linearisation` of :func:`linearise` at it.
+
+    Attributes:
+        A: state matrices, shape (N, 2 nv, 2 nv).
+        B: input matrices, shape (N, 2 nv, m) [per N of tension change].
+        B_cone: B with the columns of cables at their upper bound negated
+            and of pinned cables zeroed (every sign-constrained input u >= 0),
+            shape (N, 2 nv, m).
+        C: output matrices, shape (N, p, 2 nv).
+        tension: equilibrium tensions f* [N], shape (N, m).
+        input_sign: +1 at the lower bound, -1 at the upper one, 0 free, (N, m).
+        stiffness: K = dq''/dq [1/s^2], shape (N, nv, nv).
+        rate_stiffness: K_v = -M^-1 D [1/s], shape (N, nv, nv).
+        gravity_stiffness: dG/dq (tangent space), shape (N, nv, nv).
+        cable_stiffness: d(L^T f*)/dq = sum_i f_i Hess(l_i), shape (N, nv, nv).
+    """
+
+    A: np.ndarray
+    B: np.ndarray
+    B_cone: np.ndarray
+    C: np.ndarray
+    tension: np.ndarray
+    input_sign: np.ndarray
+    stiffness: np.ndarray
+    rate_stiffness: np.ndarray
+    gravity_stiffness: np.ndarray
+    cable_stiffness: np.ndarray
+
+    @property
+    def sign_constrained(self) -> np.ndarray:
+        """Cables on a bound (one-signed input), shape (N, m)."""
+        return self.input_sign != 0
+
+
+def input_cone_scale(input_sign: np.ndarray, pinned: np.ndarray) -> np.ndarray:
+    """Column scales turning B into B_cone: -1 for cables at their upper
+    bound (so their input u <= 0 becomes u >= 0), 0 for pinned cables
+    (f_min = f_max: no input), else 1; shaped like ``input_sign`` (..., m)."""
+    return np.where(input_sign < 0, -1.0, 1.0) * np.where(pinned, 0.0, 1.0)
+
+
+def mass_inverse(M: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Inverses of symmetric positive semi-definite mass matrices.
+
+    Args:
+        M: mass matrices, shape (N, d, d).
+
+    Returns:
+        (M^-1 (N, d, d), regular (N,)): ``regular`` is False where the
+        condition number reaches MASS_COND_MAX (inverse then meaningless);
+        closed forms for d <= 2.
+    """
+    k, d, _ = M.shape
+    if d == 1:
+        regular = M[:, 0, 0] > 0
+        with np.errstate(divide="ignore"):
+            return 1.0 / M, regular
+    if d == 2:
+        a, b, c = M[:, 0, 0], M[:, 0, 1], M[:, 1, 1]
+        half = 0.5 * (a + c)
+        det = a * c - b * b
+        root = np.sqrt(np.maximum(half * half - det, 0.0))
+        regular = half - root > (half + root) / MASS_COND_MAX
+        with np.errstate(divide="ignore", invalid="ignore"):
+            inv = np.moveaxis(np.array([[c, -b], [-b, a]]) / det, -1, 0)
+        return inv, regular
+    eig = np.linalg.eigvalsh(M) if k else np.zeros((0, d))
+    regular = eig[:, 0] > eig[:, -1] / MASS_COND_MAX
+    inv = np.full_like(M, np.nan)
+    if regular.any():
+        inv[regular] = np.linalg.inv(M[regular])
+    return inv, regular
+
+
+def linearise_batch(
+    robot: CableRobot,
+    kin: BatchKinematics,
+    Minv: np.ndarray,
+    tension: np.ndarray,
+    input_sign: np.ndarray,
+) -> LinearisationBatch:
+    """Linearisations at N equilibria (module docstring: A, B, C).
+
+    Args:
+        robot: the robot.
+        kin: batch kinematics with dynamics at the N poses (none with a
+            zero-length segment).
+        Minv: inverse mass matrices, shape (N, nv, nv) (:func:`mass_inverse`).
+        tension: equilibrium tensions f* [N], shape (N, m).
+        input_sign: +1 (cable at its lower bound), -1 (upper), 0 (free), (N, m).
+
+    Returns:
+        :class:`LinearisationBatch`.
+    """
+    import pinocchio as pin
+
+    nv, m, p, k = robot.nv, robot.n_cables, robot.n_outputs, len(kin)
+    X = Minv @ np.swapaxes(kin.jacobian, 1, 2)  # M^-1 L^T, (k, nv, m)
+    gravity_stiffness = np.zeros((k, nv, nv))
+    if np.any(robot.gravity):
+        model = robot.model
+        data = model.createData()
+        derivative = pin.computeGeneralizedGravityDerivatives
+        for j in range(k):
+            gravity_stiffness[j] = derivative(model, data, kin.qs[j])
+    cable_stiffness = np.zeros((k, nv, nv))
+    loaded = np.flatnonzero(np.any(tension != 0, axis=1))
+    if loaded.size:
+        cable_stiffness[loaded] = robot.cable_stiffness_batch(kin.take(loaded), tension[loaded])
+    stiffness = -(Minv @ (gravity_stiffness + cable_stiffness))
+    damping = robot.joint_damping
+    rate = -(Minv * damping[None, None, :]) if np.any(damping) else np.zeros((k, nv, nv))
+    A = np.zeros((k, 2 * nv, 2 * nv))
+    A[:, :nv, nv:] = np.eye(nv)
+    A[:, nv:, :nv] = stiffness
+    A[:, nv:, nv:] = rate
+    B = np.zeros((k, 2 * nv, m))
+    B[:, nv:] = -X
+    # input cone: cables on a bound are sign-constrained (u >= 0 at the
+    # lower bound, u <= 0 at the upper one: B_cone negates those columns;
+    # pinned cables, f_min = f_max, have no input)
+    pinned = robot.tension_min == robot.tension_max
+    B_cone = B * input_cone_scale(input_sign, pinned)[:, None, :]
+    C = np.zeros((k, p, 2 * nv))
+    C[:, :, :nv] = kin.output_jacobian
+    return LinearisationBatch(
+        A=A,
+        B=B,
+        B_cone=B_cone,
+        C=C,
+        tension=tension,
+        input_sign=input_sign,
+        stiffness=stiffness,
+        rate_stiffness=rate,
+        gravity_stiffness=gravity_stiffness,
+        cable_stiffness=cable_stiffness,
+    )
 
 
 def state_names(robot) -> tuple[str, ...]:
@@ -209,67 +365,39 @@ def linearise(robot, q: Any, tension: Any = None, pretension: float | None = Non
             bounds or not an equilibrium (the message gives the residual).
         ModelError: the mass matrix is singular or a cable has zero length.
     """
-    import pinocchio as pin
-
-    kin = robot.kinematics(q)
+    kin = robot.kinematics(q)  # raises on a zero-length segment
     q = kin.q
-    nv, m = robot.nv, robot.n_cables
     eq = _equilibrium(robot, q, tension, pretension)
-    f = eq.tension
-
-    M = robot.mass_matrix(q)
-    L = kin.jacobian
-    try:
-        chol = np.linalg.cholesky(M)
-    except np.linalg.LinAlgError as exc:
+    batch = robot.kinematics_batch(q[None], dynamics=True)
+    M = batch.mass_matrix[0]
+    Minv, regular = mass_inverse(batch.mass_matrix)
+    if not regular[0]:
         raise ModelError(
             f"mass matrix is singular or not positive definite at q={q.tolist()}: "
             "check the URDF inertias (every moving joint needs mass or inertia beyond it)"
-        ) from exc
-
-    def solve_m(rhs: np.ndarray) -> np.ndarray:
-        return np.linalg.solve(chol.T, np.linalg.solve(chol, rhs))
-
-    Minv_LT = solve_m(L.T)
-    # Rigid-body part: ABA derivative at rest with the equilibrium forces
-    # held fixed; at an equilibrium (q'' = 0) it equals -M^-1 dG/dq.
-    model = robot.model
-    data = model.createData()
-    tau = -L.T @ f - robot.external_wrench
-    ddq_dq = np.array(pin.computeABADerivatives(model, data, q, np.zeros(nv), tau)[0])
-    gravity_stiffness = -M @ ddq_dq
-    cable_stiffness = robot.cable_stiffness(q, f) if np.any(f) else np.zeros((nv, nv))
-    stiffness = ddq_dq - solve_m(cable_stiffness) if np.any(f) else ddq_dq + 0.0
-    damping = robot.joint_damping
-    rate_stiffness = -solve_m(np.diag(damping)) if np.any(damping) else np.zeros((nv, nv))
-
-    A = np.zeros((2 * nv, 2 * nv))
-    A[:nv, nv:] = np.eye(nv)
-    A[nv:, :nv] = stiffness
-    A[nv:, nv:] = rate_stiffness
-    B = np.zeros((2 * nv, m))
-    B[nv:] = -Minv_LT
-    C = np.zeros((robot.n_outputs, 2 * nv))
-    C[:, :nv] = kin.output_jacobian
+        )
     input_sign = np.where(eq.at_lower_bound, 1, np.where(eq.at_upper_bound, -1, 0))
+    lin = linearise_batch(robot, batch, Minv, eq.tension[None], input_sign[None])
+    f = eq.tension
+    L = kin.jacobian
     return Linearisation(
-        A=A,
-        B=B,
-        C=C,
+        A=lin.A[0],
+        B=lin.B[0],
+        C=lin.C[0],
         tension=f.copy(),
         sign_constrained=input_sign != 0,
         q=q.copy(),
         mass_matrix=M,
         cable_jacobian=L.copy(),
         output_jacobian=kin.output_jacobian.copy(),
-        stiffness=stiffness,
+        stiffness=lin.stiffness[0],
         output=kin.output.copy(),
         cable_names=robot.cable_names,
         output_names=robot.output_names,
         state_names=state_names(robot),
-        rate_stiffness=rate_stiffness,
+        rate_stiffness=lin.rate_stiffness[0],
         input_sign=input_sign.astype(int),
         equilibrium=eq,
-        gravity_stiffness=gravity_stiffness,
-        cable_stiffness=cable_stiffness,
+        gravity_stiffness=lin.gravity_stiffness[0],
+        cable_stiffness=lin.cable_stiffness[0],
     )

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import html
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -37,6 +37,9 @@ class PoseReport:
         wrench_closure: whether the columns of -L^T positively span R^nv.
         equilibrium: the :class:`~cdpm.equilibrium.EquilibriumResult` the
             linearisation is taken at (tensions, taut/slack cables, residual).
+        criteria: every registered map criterion at this pose
+            (:data:`cdpm.maps.criteria.CRITERIA`: name -> value), computed by
+            the map pipeline on a batch of one, so a map shows the same.
     """
 
     model_name: str
@@ -51,6 +54,7 @@ class PoseReport:
     controllability: Any
     wrench_closure: Any
     equilibrium: Any = None
+    criteria: dict[str, Any] = field(default_factory=dict)
 
     def as_dict(self) -> dict:
         """JSON-serialisable content of the report."""
@@ -83,6 +87,7 @@ class PoseReport:
             "output_controllability": self.output_controllability.as_dict(),
             "controllability": self.controllability.as_dict(),
             "wrench_closure": self.wrench_closure.as_dict(),
+            "criteria": {name: _plain(v) for name, v in self.criteria.items()},
         }
 
     def __str__(self) -> str:
@@ -118,6 +123,9 @@ class PoseReport:
             _indent(f"Controllability (Kalman): {self.controllability}"),
             _indent(f"Wrench closure: {self.wrench_closure}"),
         ]
+        if self.criteria:
+            lines += ["", "Map criteria (as a workspace map stores them)"]
+            lines += [_indent(line) for line in _criteria_lines(self.criteria)]
         return _without_negative_zeros("\n".join(lines))
 
     def _equilibrium_lines(self) -> list[str]:
@@ -170,6 +178,32 @@ def _without_negative_zeros(text: str) -> str:
     return _NEGATIVE_ZERO.sub(positive, text)
 
 
+def _plain(value: Any) -> Any:
+    """A criterion value as JSON data."""
+    value = np.asarray(value)
+    return value.tolist() if value.ndim else value.item()
+
+
+def _criteria_lines(criteria: dict[str, Any]) -> list[str]:
+    """One line per criterion: verdict and status codes by name, quantities
+    with their units."""
+    from cdpm.maps.criteria import CRITERIA
+
+    lines = []
+    for name, value in criteria.items():
+        c = CRITERIA.get(name)
+        if c is not None and c.flags is not None:
+            names = {code: key for key, code in c.flags.items()}
+            text = f"{names.get(int(value), str(value))} ({int(value)})"
+        else:
+            arr = np.asarray(value, dtype=float)
+            text = np.array2string(arr, precision=6) if arr.ndim else f"{float(arr):.6g}"
+            if c is not None and c.units not in (None, "1"):
+                text += f" {c.units}"
+        lines.append(f"{name + ':':<24}{text}")
+    return lines
+
+
 def _labelled(label: str, result: Any) -> str:
     """A result's text under ``label`` (without the result's own name)."""
     text = str(result)
@@ -199,15 +233,22 @@ def analyze_pose(robot, q: Any, tension: Any = None, pretension: float | None = 
             pose; its ``result`` (and message) give the residual.
     """
     from cdpm import analysis
+    from cdpm.maps._evaluate import evaluate_batch
+    from cdpm.maps.criteria import CRITERIA
 
     pose_name = q if isinstance(q, str) else None
     lin = linearise(robot, q, tension=tension, pretension=pretension)
     B_cone = lin.B_cone
     kin = robot.kinematics(lin.q)
+    natural = robot.to_natural(lin.q)
+    eq = lin.equilibrium
+    setting = lin.tension if eq is None or eq.method == "given" else eq.method
+    batch = evaluate_batch(robot, natural[None], setting, pretension=pretension)
+    criteria = {name: c.compute(batch)[0] for name, c in CRITERIA.items()}
     return PoseReport(
         model_name=robot.spec.path.name,
         pose_name=pose_name,
-        natural=robot.to_natural(lin.q),
+        natural=natural,
         coordinate_names=robot.coordinate_names,
         cable_lengths=kin.lengths.copy(),
         linearisation=lin,
@@ -221,4 +262,5 @@ def analyze_pose(robot, q: Any, tension: Any = None, pretension: float | None = 
         controllability=analysis.controllability(lin.A, lin.B),
         wrench_closure=analysis.wrench_closure(lin.cable_jacobian),
         equilibrium=lin.equilibrium,
+        criteria=criteria,
     )

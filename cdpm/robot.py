@@ -16,7 +16,6 @@ all cables is ``-L^T f``.
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -30,44 +29,11 @@ from cdpm.configuration import (
     natural_from_configuration,
 )
 from cdpm.errors import ModelError
+from cdpm.kinematics import BatchKinematics, CableKinematics
+from cdpm.numerics import MIN_SEGMENT_LENGTH
 from cdpm.spec import OUTPUT_COMPONENTS, WORLD_FRAME_NAMES, CableSpec, load_spec
 
-__all__ = ["CableRobot", "CableKinematics", "load_robot"]
-
-#: A segment shorter than this [m] has no direction: its L row is undefined.
-MIN_SEGMENT_LENGTH = 1e-9
-
-
-@dataclass(frozen=True)
-class CableKinematics:
-    """Cable and output kinematics at one configuration (world frame).
-
-    Attributes:
-        q: configuration vector, shape (nq,).
-        lengths: cable lengths l [m], shape (m,).
-        jacobian: cable-joint Jacobian L, shape (m, nv); maps joint velocity
-            [rad/s or m/s] to cable length rate [m/s].
-        point_positions: world positions of the route points [m], shape (n_points, 3).
-        point_jacobians: their translational Jacobians, shape (n_points, 3, nv).
-        segment_lengths: length of each straight segment [m], shape (n_segments,).
-        segment_units: unit vectors A -> B of each segment, shape (n_segments, 3).
-        segment_points: indices (A, B) of each segment's end points, shape (n_segments, 2).
-        segment_cable: index of the cable each segment belongs to, shape (n_segments,).
-        output: outputs y, shape (p,).
-        output_jacobian: dy/dv, shape (p, nv).
-    """
-
-    q: np.ndarray
-    lengths: np.ndarray
-    jacobian: np.ndarray
-    point_positions: np.ndarray
-    point_jacobians: np.ndarray
-    segment_lengths: np.ndarray
-    segment_units: np.ndarray
-    segment_points: np.ndarray
-    segment_cable: np.ndarray
-    output: np.ndarray
-    output_jacobian: np.ndarray
+__all__ = ["CableRobot", "CableKinematics", "BatchKinematics", "load_robot"]
 
 
 class CableRobot:
@@ -152,7 +118,7 @@ class CableRobot:
         self._pin = pin
         self._last_q: np.ndarray | None = None
         self._last_kin: CableKinematics | None = None
-        self._last_batch: dict[str, np.ndarray] | None = None  # its batch-of-one arrays
+        self._last_batch: BatchKinematics | None = None  # its batch-of-one arrays
 
     # ------------------------------------------------------------------ setup
 
@@ -228,9 +194,9 @@ class CableRobot:
         self._last_q, self._last_kin, self._last_batch = q.copy(), kin, batch
         return kin
 
-    def _kinematics(self, q: np.ndarray) -> tuple[CableKinematics, dict[str, np.ndarray]]:
+    def _kinematics(self, q: np.ndarray) -> tuple[CableKinematics, BatchKinematics]:
         batch = self._kinematics_batch(q[None, :])
-        seg_len = batch["segment_lengths"][0]
+        seg_len = batch.segment_lengths[0]
         if seg_len.size and seg_len.min() < MIN_SEGMENT_LENGTH:
             k = int(np.argmin(seg_len))
             ci = int(self._segment_cable[k])
@@ -244,20 +210,20 @@ class CableRobot:
         n_route = self._n_route_points
         kin = CableKinematics(
             q=q,
-            lengths=batch["lengths"][0],
-            jacobian=batch["jacobian"][0],
-            point_positions=batch["point_positions"][0, :n_route],
-            point_jacobians=batch["point_jacobians"][0, :n_route],
+            lengths=batch.lengths[0],
+            jacobian=batch.jacobian[0],
+            point_positions=batch.point_positions[0, :n_route],
+            point_jacobians=batch.point_jacobians[0, :n_route],
             segment_lengths=seg_len,
-            segment_units=batch["segment_units"][0],
+            segment_units=batch.segment_units[0],
             segment_points=self._segment_points,
             segment_cable=self._segment_cable,
-            output=batch["output"][0],
-            output_jacobian=batch["output_jacobian"][0],
+            output=batch.output[0],
+            output_jacobian=batch.output_jacobian[0],
         )
         return kin, batch
 
-    def kinematics_batch(self, qs: Any, dynamics: bool = False) -> dict[str, np.ndarray]:
+    def kinematics_batch(self, qs: Any, dynamics: bool = False) -> BatchKinematics:
         """Cable and output kinematics (and optionally M, G) at many configurations.
 
         One Pinocchio call per configuration, ``crba`` with the WORLD
@@ -274,18 +240,12 @@ class CableRobot:
             dynamics: also return ``mass_matrix`` and ``gravity``.
 
         Returns:
-            Arrays with a leading batch axis N: ``lengths`` (N, m),
-            ``jacobian`` (N, m, nv), ``output`` (N, p), ``output_jacobian``
-            (N, p, nv), ``spatial_jacobian`` (N, 6, nv) (column k: the world
-            spatial velocity [v; w] of tangent direction k),
-            ``segment_lengths`` (N, n_segments), ``segment_units``
-            (N, n_segments, 3), ``point_positions`` (N, n_points, 3) and
-            ``point_jacobians`` (N, n_points, 3, nv) (route points first,
-            then output frame origins; world frame); with ``dynamics``:
-            ``mass_matrix`` M(q) (N, nv, nv) and ``gravity`` G(q) (N, nv).
-            The arrays are computed with the batch axis last and returned
-            as views with it first: ``np.moveaxis(a, 0, -1)`` gives the
-            contiguous batch-last array back without a copy.
+            :class:`~cdpm.kinematics.BatchKinematics` with a leading pose
+            axis N on every array (route points first, then output points;
+            world frame); ``mass_matrix`` and ``gravity`` only with
+            ``dynamics``. The arrays are computed with the batch axis last
+            and returned as views with it first: ``np.moveaxis(a, 0, -1)``
+            gives the contiguous batch-last array back without a copy.
         """
         qs = np.asarray(qs, dtype=float)
         return self._kinematics_batch(qs.reshape(-1, self.nq), dynamics)
@@ -338,7 +298,7 @@ class CableRobot:
         self._batch_views_cache = views
         return views
 
-    def _kinematics_batch(self, qs: np.ndarray, dynamics: bool = False) -> dict[str, np.ndarray]:
+    def _kinematics_batch(self, qs: np.ndarray, dynamics: bool = False) -> BatchKinematics:
         pin, model = self._pin, self.model
         data, J, M, placements, moving = self._batch_views()
         n, nv, nj = qs.shape[0], self.nv, model.njoints
@@ -420,24 +380,23 @@ class CableRobot:
             rows_l = np.einsum("cs,svn->cvn", to_cable, seg_rows)
         out_pts = self._output_rows_arr // 3
         out_comp = self._output_rows_arr % 3
-        out = {
-            "lengths": lengths.T,
-            "jacobian": rows_l.transpose(2, 0, 1),
-            "segment_lengths": seg_len.T,
-            "segment_units": units.transpose(2, 1, 0),
-            "point_positions": pos.transpose(2, 1, 0),
-            "point_jacobians": pjac.transpose(3, 1, 0, 2),
-            "output": pos[out_comp, out_pts].T,
-            "output_jacobian": pjac[out_comp, out_pts].transpose(2, 0, 1),
-            "spatial_jacobian": jac,
-        }
-        if dynamics:
-            if nv > 1:  # crba fills the upper triangle
-                iu, ju = np.triu_indices(nv, 1)
-                mass[:, ju, iu] = mass[:, iu, ju]
-            out["mass_matrix"] = mass
-            out["gravity"] = gravity
-        return out
+        if dynamics and nv > 1:  # crba fills the upper triangle
+            iu, ju = np.triu_indices(nv, 1)
+            mass[:, ju, iu] = mass[:, iu, ju]
+        return BatchKinematics(
+            qs=qs,
+            lengths=lengths.T,
+            jacobian=rows_l.transpose(2, 0, 1),
+            segment_lengths=seg_len.T,
+            segment_units=units.transpose(2, 1, 0),
+            point_positions=pos.transpose(2, 1, 0),
+            point_jacobians=pjac.transpose(3, 1, 0, 2),
+            output=pos[out_comp, out_pts].T,
+            output_jacobian=pjac[out_comp, out_pts].transpose(2, 0, 1),
+            spatial_jacobian=jac,
+            mass_matrix=mass,
+            gravity=gravity,
+        )
 
     def mass_matrix_batch(self, qs: Any) -> np.ndarray:
         """Mass matrices at many configurations, shape (N, nv, nv)."""
@@ -547,7 +506,7 @@ class CableRobot:
         self.kinematics(q)  # raises on a zero-length segment; keeps its batch arrays
         return self.cable_stiffness_batch(self._last_batch, f[None, :])[0]
 
-    def cable_stiffness_batch(self, kin: dict[str, np.ndarray], tension: np.ndarray) -> np.ndarray:
+    def cable_stiffness_batch(self, kin: BatchKinematics, tension: np.ndarray) -> np.ndarray:
         """:meth:`cable_stiffness` at many poses from their batch kinematics.
 
         Args:
@@ -560,15 +519,15 @@ class CableRobot:
         """
         support = self._dof_support()
         a, b = self._segment_points[:, 0], self._segment_points[:, 1]
-        jac = kin["point_jacobians"]  # (N, P, 3, nv), masked
-        units = kin["segment_units"]  # (N, S, 3)
-        omega = kin["spatial_jacobian"][:, 3:]  # (N, 3, nv) world angular Jacobian
+        jac = kin.point_jacobians  # (N, P, 3, nv), masked
+        units = kin.segment_units  # (N, S, 3)
+        omega = kin.spatial_jacobian[:, 3:]  # (N, 3, nv) world angular Jacobian
         weight = tension[:, self._segment_cable]  # (N, S): each segment's tension
         jac_d = jac[:, b] - jac[:, a]  # (N, S, 3, nv)
         # J_d^T (I - u u^T) J_d / l = (J_d^T J_d - (J_d^T u)(u^T J_d)) / l
         u_jac = (units[:, :, None, :] @ jac_d)[:, :, 0]  # (N, S, nv)
         gram = np.swapaxes(jac_d, -1, -2) @ jac_d - u_jac[..., :, None] * u_jac[..., None, :]
-        hess = np.einsum("ns,nsjk->njk", weight / kin["segment_lengths"], gram)
+        hess = np.einsum("ns,nsjk->njk", weight / kin.segment_lengths, gram)
         # u x w_k for every segment and tangent direction: (N, S, 3, nv)
         u_cross_w = np.cross(units[:, :, :, None], omega[:, None], axis=2)
         for ends, sign in ((b, 1.0), (a, -1.0)):

@@ -66,7 +66,9 @@ STATUS_CODES: dict[str, int] = {
 }
 
 #: status code -> label for legends and text
-STATUS_LABELS: dict[int, str] = {code: name.replace("_", " ") for name, code in STATUS_CODES.items()}
+STATUS_LABELS: dict[int, str] = {
+    code: name.replace("_", " ") for name, code in STATUS_CODES.items()
+}
 
 
 def hex_to_rgb(color: str) -> tuple[float, float, float]:

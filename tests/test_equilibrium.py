@@ -223,7 +223,7 @@ def test_infeasible_error_names_python_arguments_and_plain_reasons(vertical):
 
 
 def test_solver_failures_in_words():
-    from cdpm.equilibrium import _solver_failure
+    from cdpm.equilibrium.qp import _solver_failure
 
     assert "reached its iteration limit (DAQP exit flag -4)" in _solver_failure(-4)
     assert "cycled" in _solver_failure(-2) and "failed (DAQP exit flag -9)" in _solver_failure(-9)

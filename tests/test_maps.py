@@ -3,6 +3,7 @@ API, degenerate poses, storage and resumption, local and Dask execution."""
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import shutil
 import signal
@@ -179,18 +180,18 @@ def test_batch_kinematics_equal_pinocchio_per_pose(model, mixed_robot, paper_rob
             robot.to_natural(qs[i]), robot.to_natural(q), atol=1e-12, err_msg="configuration"
         )
         lengths, rows, y, cq = _reference_kinematics(robot, q)
-        np.testing.assert_allclose(res["lengths"][i], lengths, atol=1e-12)
-        np.testing.assert_allclose(res["jacobian"][i], rows, atol=1e-12)
-        np.testing.assert_allclose(res["output"][i], y, atol=1e-12)
-        np.testing.assert_allclose(res["output_jacobian"][i], cq, atol=1e-12)
-        np.testing.assert_allclose(res["mass_matrix"][i], robot.mass_matrix(q), atol=1e-12)
-        np.testing.assert_allclose(res["gravity"][i], robot.gravity_torque(q), atol=1e-11)
-    np.testing.assert_array_equal(robot.mass_matrix_batch(qs), res["mass_matrix"])
-    assert np.array_equal(res["mass_matrix"], np.swapaxes(res["mass_matrix"], 1, 2))
+        np.testing.assert_allclose(res.lengths[i], lengths, atol=1e-12)
+        np.testing.assert_allclose(res.jacobian[i], rows, atol=1e-12)
+        np.testing.assert_allclose(res.output[i], y, atol=1e-12)
+        np.testing.assert_allclose(res.output_jacobian[i], cq, atol=1e-12)
+        np.testing.assert_allclose(res.mass_matrix[i], robot.mass_matrix(q), atol=1e-12)
+        np.testing.assert_allclose(res.gravity[i], robot.gravity_torque(q), atol=1e-11)
+    np.testing.assert_array_equal(robot.mass_matrix_batch(qs), res.mass_matrix)
+    assert np.array_equal(res.mass_matrix, np.swapaxes(res.mass_matrix, 1, 2))
     # without dynamics: the same kinematics, no M or G
     plain = robot.kinematics_batch(qs)
-    assert "mass_matrix" not in plain
-    np.testing.assert_array_equal(plain["jacobian"], res["jacobian"])
+    assert plain.mass_matrix is None and plain.gravity is None
+    np.testing.assert_array_equal(plain.jacobian, res.jacobian)
 
 
 def test_batch_without_the_flat_placement_view(mixed_robot):
@@ -205,8 +206,9 @@ def test_batch_without_the_flat_placement_view(mixed_robot):
     pairs = [(data.oMi[j].rotation, data.oMi[j].translation) for j in range(robot.model.njoints)]
     robot._batch_views_cache = (data, jac, mass, pairs, moving)
     per_joint = robot.kinematics_batch(qs, dynamics=True)
-    for name, value in flat.items():
-        np.testing.assert_array_equal(per_joint[name], value, err_msg=name)
+    for field in dataclasses.fields(flat):
+        value = getattr(flat, field.name)
+        np.testing.assert_array_equal(getattr(per_joint, field.name), value, err_msg=field.name)
 
 
 def test_one_crba_fills_jacobians_placements_and_mass(mixed_robot):
@@ -443,7 +445,8 @@ def test_batched_equilibria_equal_the_solver():
     """min_norm_tensions: solved poses are the QP's optimum, 'infeasible'
     ones have no equilibrium (Farkas), on models with 2 to 8 cables."""
     from cdpm.equilibrium import equilibrium_tension
-    from cdpm.maps._batch import configurations, min_norm_tensions
+    from cdpm.equilibrium.newton import min_norm_tensions
+    from cdpm.maps._batch import configurations
 
     decided = 0
     for name, spread in (("two_link_vertical", 3.0), ("spatial_8cable", 0.3)):
@@ -451,8 +454,8 @@ def test_batched_equilibria_equal_the_solver():
         natural = np.random.default_rng(1).uniform(-spread, spread, (60, robot.nv))
         qs = configurations(robot, natural)
         kin = robot.kinematics_batch(qs, dynamics=True)
-        LT = np.swapaxes(kin["jacobian"], 1, 2)
-        load = -kin["gravity"] - robot.external_wrench
+        LT = np.swapaxes(kin.jacobian, 1, 2)
+        load = -kin.gravity - robot.external_wrench
         for method, lower in (("min_norm", robot.tension_min), ("pretension", None)):
             if lower is None:
                 lower = np.maximum(robot.tension_min, robot.spec.pretension or 10.0)

@@ -116,8 +116,8 @@ def _check_pretension(robot, tension, pretension: float | None) -> None:
 
 def _tension_argument(values: list[str] | None):
     """None, a method name, or a list of tensions from ``--tension``."""
-    from cdpm.errors import InputError
     from cdpm.equilibrium import EQUILIBRIUM_METHODS
+    from cdpm.errors import InputError
     from cdpm.spec import parse_number
 
     if not values:

@@ -58,11 +58,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=argument_type(_image),
         help="image to write; the extension picks the format (.png, .pdf, .svg, ...)",
     )
+    from cdpm.maps.criteria import verdict_criteria
+
     parser.add_argument(
         "--variable",
         default="poc",
-        help="verdict to colour by: poc (default), output_controllable, "
-        "positive_controllable, wrench_closure, static_feasible",
+        help=f"verdict to colour by: {', '.join(verdict_criteria())} (default poc)",
     )
     parser.add_argument("--no-margin", action="store_true", help="leave out the margin panel")
     parser.add_argument(

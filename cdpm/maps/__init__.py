@@ -110,8 +110,8 @@ def workspace_map(
         StoreSettingsError: ``store`` holds a map made with other settings
             (an InputError; the message names each difference).
     """
-    from cdpm import __version__
-    from cdpm.maps._evaluate import _zero_equilibrium
+    from cdpm._version import __version__
+    from cdpm.maps._evaluate import zero_equilibrium
     from cdpm.maps._plan import make_plan
     from cdpm.maps._runner import ProgressPrinter, prestart_workers, run_chunks
     from cdpm.maps._store import MemorySink, ZarrSink
@@ -126,7 +126,7 @@ def workspace_map(
         axes = sample_axes(axes, samples, seed)
     setting = resolve_tension(robot, tension)
     if chunk_size is None:
-        if _zero_equilibrium(robot, setting):
+        if zero_equilibrium(robot, setting):
             chunk_size = DEFAULT_CHUNK_SIZE
         else:
             chunk_size = _per_pose_chunk_size(_n_poses(axes))
@@ -186,7 +186,9 @@ def _check_in_memory_size(robot, plan) -> None:
     import numpy as np
 
     n = int(np.prod(plan.shape))
-    per_pose = 6 + 8 * (6 + robot.n_outputs)  # int8 codes and status; floats
+    from cdpm.maps.criteria import CRITERIA
+
+    per_pose = sum(c.itemsize(robot) for c in CRITERIA.values())
     if n * per_pose > IN_MEMORY_MAX:
         raise InputError(
             f"a map of {n:,} poses needs about {n * per_pose / 1024**3:.1f} GiB in memory; "

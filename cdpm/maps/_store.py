@@ -23,65 +23,18 @@ from pathlib import Path
 import numpy as np
 
 from cdpm.errors import InputError
-from cdpm.maps._evaluate import CODE_FIELDS, STATUS_CODES, VERDICT_CODES
 from cdpm.maps._plan import MapPlan, coordinate_units, settings_difference
+from cdpm.maps.criteria import CRITERIA
 
 __all__ = ["ZarrSink", "MemorySink", "ChunkWriter", "open_map", "variable_specs"]
 
 _META = ".cdpm"
-_VERDICT_DOC = {
-    "poc": "positive output controllability of the linearisation (seed paper Theorem 1)",
-    "output_controllable": "output controllability: rank [CB CAB ...] = p",
-    "positive_controllable": "positive (state) controllability, Brammer's test",
-    "wrench_closure": "wrench closure: the columns of -L^T positively span R^nv",
-    "static_feasible": "static feasibility: a tension within the bounds holds the pose",
-}
-
-
-def _flag_attrs(codes: dict[str, int]) -> dict:
-    return {
-        "flag_values": [int(v) for v in codes.values()],
-        "flag_meanings": " ".join(codes),
-    }
 
 
 def variable_specs(robot, plan: MapPlan) -> dict[str, tuple]:
-    """name -> (extra dims, dtype, fill value, attrs) of every data variable."""
-    specs: dict[str, tuple] = {}
-    for name in CODE_FIELDS:
-        attrs = {"long_name": _VERDICT_DOC[name], **_flag_attrs(VERDICT_CODES)}
-        specs[name] = ((), "int8", -1, attrs)
-    specs["poc_margin"] = (
-        (),
-        "float64",
-        np.nan,
-        {
-            "long_name": "POC margin mu_T (positive iff POC; 0 when not)",
-            "description": "inradius about 0 of the outputs reachable at the horizon with unit "
-            "input impulses (cdpm.analysis POCResult.margin)",
-        },
-    )
-    for name, word in (("tension_min", "smallest"), ("tension_max", "largest")):
-        specs[name] = (
-            (),
-            "float64",
-            np.nan,
-            {"long_name": f"{word} equilibrium cable tension", "units": "N"},
-        )
-    frame = robot.spec.outputs[0].frame if robot.spec.outputs else ""
-    specs["y"] = (("output",), "float64", np.nan, {"long_name": "outputs y = h(q)", "units": "m"})
-    specs["output_frame_position"] = (
-        ("xyz",),
-        "float64",
-        np.nan,
-        {
-            "long_name": f"world position of frame {frame!r} (first output)",
-            "units": "m",
-            "frame": frame,
-        },
-    )
-    specs["status"] = ((), "int8", -1, {"long_name": "pose status", **_flag_attrs(STATUS_CODES)})
-    return specs
+    """name -> (extra dims, dtype, fill value, attrs) of every data variable
+    (one per registered criterion, :data:`cdpm.maps.criteria.CRITERIA`)."""
+    return {name: (c.dims, c.dtype, c.fill, c.attrs(robot)) for name, c in CRITERIA.items()}
 
 
 def _attrs(robot, plan: MapPlan) -> dict:

@@ -1,0 +1,172 @@
+"""Equilibrium results and their errors and warnings."""
+
+from __future__ import annotations
+
+import html
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from cdpm.errors import ModelError
+
+__all__ = ["EquilibriumResult", "EquilibriumWarning", "InfeasibleEquilibriumError"]
+
+
+class EquilibriumWarning(UserWarning):
+    """An equilibrium request that is valid but probably not what was meant
+    (e.g. the ``pretension`` method with a pretension of 0 N)."""
+
+
+class InfeasibleEquilibriumError(ModelError):
+    """No tension within the cable bounds holds the robot at the pose.
+
+    The message says what to change, naming the Python arguments by
+    default; a command line passes its own spelling of the options.
+
+    Args:
+        result: the infeasible :class:`EquilibriumResult`.
+        method_option: how to spell "use this tension method", a format
+            string taking the method name (default ``"tension={!r}"``, the
+            argument of :func:`cdpm.linearise` and :func:`cdpm.analyze_pose`).
+        pretension_option: how to spell "use this pretension", a format
+            string taking a placeholder (default ``"pretension={}"``).
+
+    Attributes:
+        result: the :class:`EquilibriumResult` (``feasible`` False, with the
+            smallest statics residual reachable within the bounds).
+    """
+
+    def __init__(
+        self,
+        result: EquilibriumResult,
+        *,
+        method_option: str = "tension={!r}",
+        pretension_option: str = "pretension={}",
+    ):
+        self.result = result
+        min_norm = method_option.format("min_norm")
+        bounds = "wider tension bounds for the cables in the spec"
+        if result.method == "zero":
+            fix = f"let the cables take the load ({min_norm}), or try another pose"
+        elif result.method == "pretension":
+            fix = (
+                f"try a lower pretension ({pretension_option.format('N')}, now "
+                f"{result.pretension:g} N), {min_norm}, another pose or {bounds}"
+            )
+        else:
+            fix = f"try another pose or {bounds}"
+        super().__init__(
+            f"no equilibrium at this pose with method {result.method!r}: {result.message}. "
+            f"To fix: {fix}"
+        )
+
+
+@dataclass(frozen=True)
+class EquilibriumResult:
+    """Equilibrium tensions at one pose.
+
+    Attributes:
+        q: configuration vector, shape (nq,).
+        tension: cable tensions f [N], shape (m,). When infeasible: the
+            tensions within bounds that come closest to holding the pose.
+        feasible: True when the tensions hold the pose within the bounds.
+        residual: statics residual ``|L^T f + G + w_ext|`` [N or N m].
+        method: ``zero``, ``min_norm``, ``pretension`` or ``given``.
+        pretension: lower tension the ``pretension`` method enforced [N].
+        at_lower_bound: cables at their minimum tension f_min (slack when
+            f_min = 0): their tension can only increase, shape (m,).
+        at_upper_bound: cables at their maximum tension: their tension can
+            only decrease, shape (m,).
+        taut: cables with strictly positive tension, shape (m,).
+        load: the generalised force the cables must balance,
+            ``-G(q) - w_ext``, shape (nv,).
+        message: one line on how the tensions were found or why none exist.
+        cable_names: the cable names, length m.
+        tension_min, tension_max: the cable bounds used [N], each (m,).
+    """
+
+    q: np.ndarray
+    tension: np.ndarray
+    feasible: bool
+    residual: float
+    method: str
+    pretension: float
+    at_lower_bound: np.ndarray
+    at_upper_bound: np.ndarray
+    taut: np.ndarray
+    load: np.ndarray
+    message: str
+    cable_names: tuple[str, ...] = ()
+    tension_min: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    tension_max: np.ndarray = field(default_factory=lambda: np.zeros(0))
+
+    def __bool__(self) -> bool:
+        return bool(self.feasible)
+
+    @property
+    def free(self) -> np.ndarray:
+        """Cables strictly inside their bounds: their tension can move both
+        ways, so their input is free, shape (m,)."""
+        return ~(self.at_lower_bound | self.at_upper_bound)
+
+    def cable_states(self) -> list[str]:
+        """One word per cable: ``slack`` (at f_min = 0), ``at min``, ``at max``
+        or ``taut`` (strictly inside its bounds)."""
+        states = []
+        for i in range(self.tension.shape[0]):
+            if self.at_upper_bound[i]:
+                states.append("at max")
+            elif self.at_lower_bound[i]:
+                states.append("slack" if self.tension[i] == 0 else "at min")
+            else:
+                states.append("taut")
+        return states
+
+    def as_dict(self) -> dict:
+        """JSON-serialisable content."""
+        return {
+            "method": self.method,
+            "feasible": bool(self.feasible),
+            "residual": float(self.residual),
+            "pretension": float(self.pretension),
+            "message": self.message,
+            "q": self.q.tolist(),
+            "load": self.load.tolist(),
+            "cables": [
+                {
+                    "name": name,
+                    "tension": float(f),
+                    "state": state,
+                    "at_lower_bound": bool(lo),
+                    "at_upper_bound": bool(hi),
+                    "taut": bool(t),
+                }
+                for name, f, state, lo, hi, t in zip(
+                    self._names(),
+                    self.tension,
+                    self.cable_states(),
+                    self.at_lower_bound,
+                    self.at_upper_bound,
+                    self.taut,
+                    strict=True,
+                )
+            ],
+        }
+
+    def _names(self) -> tuple[str, ...]:
+        if len(self.cable_names) == self.tension.shape[0]:
+            return self.cable_names
+        return tuple(f"cable{i + 1}" for i in range(self.tension.shape[0]))
+
+    def __str__(self) -> str:
+        verdict = "feasible" if self.feasible else "INFEASIBLE"
+        lines = [
+            f"Equilibrium ({self.method}): {verdict}, statics residual {self.residual:.3g}",
+            f"  {self.message}",
+        ]
+        for name, f, state in zip(self._names(), self.tension, self.cable_states(), strict=True):
+            lines.append(f"  {name:<12} {f:>12.6g} N  {state}")
+        return "\n".join(lines)
+
+    def _repr_html_(self) -> str:
+        return f"<pre>{html.escape(str(self))}</pre>"

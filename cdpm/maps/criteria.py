@@ -1,0 +1,312 @@
+"""Per-pose criteria: every quantity a map stores, registered once.
+
+A :class:`Criterion` names a map variable, its dtype and fill value, its
+meaning (a flag table for verdict codes, or units), the batched function
+that computes it from a :class:`PoseBatch` and hints for plots. The map
+store's schema, :func:`cdpm.evaluate_poses`, :func:`cdpm.analyze_pose`'s
+report, ``cdpm plot``'s variable choices and the viewer's map overlay all
+read :data:`CRITERIA`.
+
+Adding a criterion: write its function (``PoseBatch -> (N, ...) array``),
+add its entry with :func:`register` (here or in your own module) and a
+test. Nothing else changes: stores, reports, plots and help pick it up.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from cdpm.verdicts import NOT_ANALYSED, STATUS_CODES, VERDICT_CODES
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cdpm.analysis.batch import SystemVerdicts
+    from cdpm.equilibrium.methods import EquilibriumBatch
+    from cdpm.kinematics import BatchKinematics
+    from cdpm.linearisation import LinearisationBatch
+    from cdpm.robot import CableRobot
+
+__all__ = ["Criterion", "PoseBatch", "CRITERIA", "register", "verdict_criteria"]
+
+
+@dataclass
+class PoseBatch:
+    """Everything the pipeline computed for N poses, for criteria to read.
+
+    Attributes:
+        robot: the robot.
+        kin: batch kinematics with dynamics at the N poses.
+        status: pose status codes (:data:`cdpm.verdicts.STATUS_CODES`), (N,).
+        wrench_closure: verdict codes of wrench closure at the poses with
+            well-defined cables (else NOT_ANALYSED), (N,).
+        static_feasible: verdict codes of static feasibility, (N,).
+        analysed: indices of the poses that were linearised and analysed, (k,).
+        equilibrium: equilibria of the ``analysed`` poses (k of them), or None.
+        linearisation: their linearisations, or None.
+        verdicts: their analysis, or None.
+    """
+
+    robot: CableRobot
+    kin: BatchKinematics
+    status: np.ndarray
+    wrench_closure: np.ndarray
+    static_feasible: np.ndarray
+    analysed: np.ndarray
+    equilibrium: EquilibriumBatch | None = None
+    linearisation: LinearisationBatch | None = None
+    verdicts: SystemVerdicts | None = None
+
+    def __len__(self) -> int:
+        return int(self.status.shape[0])
+
+    def scatter(self, values: np.ndarray, fill, dtype=None) -> np.ndarray:
+        """An (N, ...) array with ``values`` (k, ...) at the analysed poses
+        and ``fill`` elsewhere."""
+        values = np.asarray(values)
+        out = np.full((len(self),) + values.shape[1:], fill, dtype=dtype or values.dtype)
+        out[self.analysed] = values
+        return out
+
+
+@dataclass(frozen=True)
+class Criterion:
+    """One per-pose quantity of a map.
+
+    Attributes:
+        name: the map variable's name.
+        dtype: numpy dtype of the stored values (``int8`` codes, ``float64``...).
+        fill: the value of poses not yet computed or not analysed.
+        long_name: one line on what it is.
+        compute: ``PoseBatch -> array`` of shape (N, *extra dims).
+        flags: code name -> code for categorical values (verdicts, status),
+            or None.
+        units: units of a quantity (``"N"``, ``"m"``, ``"1"``), or None.
+        dims: names of extra dimensions after the pose dimensions
+            (``"output"``: one per output, ``"xyz"``: 3).
+        description: longer explanation for the store's attributes.
+        plot: ``"verdict"`` (categorical verdict colours), ``"diverging"``
+            (centred at 0), ``"sequential"``, or None (not offered by plots).
+        robot_attrs: ``robot -> dict`` of store attributes that depend on
+            the robot (e.g. a frame name), or None.
+    """
+
+    name: str
+    dtype: str
+    fill: float | int
+    long_name: str
+    compute: Callable[[PoseBatch], np.ndarray]
+    flags: dict[str, int] | None = None
+    units: str | None = None
+    dims: tuple[str, ...] = ()
+    description: str = ""
+    plot: str | None = None
+    robot_attrs: Callable[[CableRobot], dict] | None = None
+
+    @property
+    def is_verdict(self) -> bool:
+        """Values are verdict codes (:data:`cdpm.verdicts.VERDICT_CODES`)."""
+        return self.flags is VERDICT_CODES
+
+    def attrs(self, robot: CableRobot | None = None) -> dict:
+        """The store attributes of its variable (for ``robot``)."""
+        out: dict = {"long_name": self.long_name}
+        if self.flags is not None:
+            out["flag_values"] = [int(v) for v in self.flags.values()]
+            out["flag_meanings"] = " ".join(self.flags)
+        if self.units is not None:
+            out["units"] = self.units
+        if self.description:
+            out["description"] = self.description
+        if self.robot_attrs is not None and robot is not None:
+            out.update(self.robot_attrs(robot))
+        return out
+
+    def itemsize(self, robot: CableRobot) -> int:
+        """Bytes per pose."""
+        size = np.dtype(self.dtype).itemsize
+        for dim in self.dims:
+            size *= robot.n_outputs if dim == "output" else 3
+        return size
+
+
+#: name -> criterion, in store order
+CRITERIA: dict[str, Criterion] = {}
+
+
+def register(criterion: Criterion) -> Criterion:
+    """Add a criterion to :data:`CRITERIA` (a name may be registered once)."""
+    if criterion.name in CRITERIA:
+        raise ValueError(f"criterion {criterion.name!r} is already registered")
+    CRITERIA[criterion.name] = criterion
+    return criterion
+
+
+def verdict_criteria() -> list[str]:
+    """Names of the criteria whose values are verdict codes."""
+    return [c.name for c in CRITERIA.values() if c.is_verdict]
+
+
+# --------------------------------------------------------------------------
+# the built-in criteria
+
+
+def _verdict(field: str) -> Callable[[PoseBatch], np.ndarray]:
+    def compute(batch: PoseBatch) -> np.ndarray:
+        if batch.verdicts is None:
+            return np.full(len(batch), NOT_ANALYSED, dtype=np.int8)
+        return batch.scatter(getattr(batch.verdicts, field), NOT_ANALYSED, np.int8)
+
+    return compute
+
+
+def _poc_margin(batch: PoseBatch) -> np.ndarray:
+    if batch.verdicts is None:
+        return np.full(len(batch), np.nan)
+    return batch.scatter(batch.verdicts.poc_margin, np.nan, float)
+
+
+def _tension_extreme(reduce) -> Callable[[PoseBatch], np.ndarray]:
+    def compute(batch: PoseBatch) -> np.ndarray:
+        if batch.equilibrium is None:
+            return np.full(len(batch), np.nan)
+        f = batch.equilibrium.tension
+        values = reduce(f, axis=1) if f.shape[1] else np.zeros(f.shape[0])
+        return batch.scatter(values, np.nan, float)
+
+    return compute
+
+
+def _output_frame_position(batch: PoseBatch) -> np.ndarray:
+    robot = batch.robot
+    if not robot.n_outputs:
+        return np.full((len(batch), 3), np.nan)
+    # tracked points: every route point, then the outputs
+    first = robot.route_point_slices[-1].stop if robot.route_point_slices else 0
+    return np.array(batch.kin.point_positions[:, first])
+
+
+def _frame_attrs(robot: CableRobot) -> dict:
+    frame = robot.spec.outputs[0].frame if robot.spec.outputs else ""
+    return {"long_name": f"world position of frame {frame!r} (first output)", "frame": frame}
+
+
+def _n_taut(batch: PoseBatch) -> np.ndarray:
+    if batch.linearisation is None:
+        return np.full(len(batch), -1, dtype=np.int16)
+    free = ~batch.linearisation.sign_constrained
+    return batch.scatter(np.count_nonzero(free, axis=1), -1, np.int16)
+
+
+for _name, _long, _field in (
+    ("poc", "positive output controllability of the linearisation (seed paper Theorem 1)", "poc"),
+    ("output_controllable", "output controllability: rank [CB CAB ...] = p", "output_controllable"),
+    (
+        "positive_controllable",
+        "positive (state) controllability, Brammer's test",
+        "positive_controllable",
+    ),
+):
+    register(
+        Criterion(
+            _name, "int8", NOT_ANALYSED, _long, _verdict(_field), VERDICT_CODES, plot="verdict"
+        )
+    )
+register(
+    Criterion(
+        "wrench_closure",
+        "int8",
+        NOT_ANALYSED,
+        "wrench closure: the columns of -L^T positively span R^nv",
+        lambda b: b.wrench_closure,
+        VERDICT_CODES,
+        plot="verdict",
+    )
+)
+register(
+    Criterion(
+        "static_feasible",
+        "int8",
+        NOT_ANALYSED,
+        "static feasibility: a tension within the bounds holds the pose",
+        lambda b: b.static_feasible,
+        VERDICT_CODES,
+        plot="verdict",
+    )
+)
+register(
+    Criterion(
+        "poc_margin",
+        "float64",
+        np.nan,
+        "POC margin mu_T (positive iff POC; 0 when not)",
+        _poc_margin,
+        description="inradius about 0 of the outputs reachable at the horizon with unit "
+        "input impulses (cdpm.analysis POCResult.margin)",
+        plot="diverging",
+    )
+)
+register(
+    Criterion(
+        "tension_min",
+        "float64",
+        np.nan,
+        "smallest equilibrium cable tension",
+        _tension_extreme(np.min),
+        units="N",
+        plot="sequential",
+    )
+)
+register(
+    Criterion(
+        "tension_max",
+        "float64",
+        np.nan,
+        "largest equilibrium cable tension",
+        _tension_extreme(np.max),
+        units="N",
+        plot="sequential",
+    )
+)
+register(
+    Criterion(
+        "n_taut",
+        "int16",
+        -1,
+        "number of cables strictly inside their tension bounds (free inputs)",
+        _n_taut,
+        units="1",
+        description="-1 where the pose was not analysed",
+        plot="sequential",
+    )
+)
+register(
+    Criterion(
+        "y",
+        "float64",
+        np.nan,
+        "outputs y = h(q)",
+        lambda b: np.array(b.kin.output),
+        units="m",
+        dims=("output",),
+    )
+)
+register(
+    Criterion(
+        "output_frame_position",
+        "float64",
+        np.nan,
+        "world position of the first output's point",
+        _output_frame_position,
+        units="m",
+        dims=("xyz",),
+        robot_attrs=_frame_attrs,
+    )
+)
+register(
+    Criterion(
+        "status", "int8", STATUS_CODES["pending"], "pose status", lambda b: b.status, STATUS_CODES
+    )
+)
