@@ -6,7 +6,8 @@ Prints, on the same random poses:
   for the gravity model also without the POC margin, ``margin=False``);
 - baseline: a straightforward Theorem 1 check written here: linearise, then
   C e^{At} B at 50 times with scipy.linalg.expm, then one HiGHS LP deciding
-  whether the 50 m output vectors positively span R^p;
+  whether the 50 m output vectors, scaled to unit length, positively span
+  R^p; and how often its verdicts agree with cdpm's on the poses it timed;
 - floor: the bare Pinocchio work per pose (computeJointJacobians, the frame
   Jacobians of the frames carrying cable points and outputs, crba);
 
@@ -82,7 +83,12 @@ def floor_cost(robot, natural: np.ndarray) -> callable:
 
 
 def baseline_verdicts(robot, natural: np.ndarray, tension=None) -> list[bool | None]:
-    """Theorem 1 sampled at 50 times (expm) + one HiGHS LP per pose."""
+    """Theorem 1 sampled at 50 times (expm) + one HiGHS LP per pose.
+
+    Written independently of cdpm's analyser (cdpm only linearises): True
+    when the sampled output vectors C e^{At} b positively span R^p, False
+    when not, None when the pose has no equilibrium (or another CdpmError).
+    """
     from scipy.linalg import expm
     from scipy.optimize import linprog
 
@@ -98,15 +104,23 @@ def baseline_verdicts(robot, natural: np.ndarray, tension=None) -> list[bool | N
             out.append(None)
             continue
         A, B, C = lin.A, getattr(lin, "B_cone", lin.B), lin.C
+        mask = lin.sign_constrained
         cols = []
         for t in times:
             G = C @ expm(A * t) @ B
-            cols.append(G[:, lin.sign_constrained])
-            free = G[:, ~lin.sign_constrained]
-            cols += [free, -free]
+            G = np.hstack([G[:, mask], G[:, ~mask], -G[:, ~mask]])
+            norms = np.linalg.norm(G, axis=0)
+            # Unit columns: positive scaling keeps the positive span, and
+            # without it fast modes (large t) drown the other samples. A
+            # column is dropped when it is zero or round-off next to the
+            # longest one of the same sample.
+            keep = norms > 1e-10 * norms.max(initial=0.0)
+            cols.append(G[:, keep] / norms[keep])
         S = np.hstack(cols)
-        S = S[:, np.linalg.norm(S, axis=0) > 1e-12]
         p, k = S.shape
+        if k == 0 or np.linalg.matrix_rank(S) < p:
+            out.append(False)
+            continue
         # max s  s.t.  S w = 0, w >= s, sum w = 1: s > 0 iff positive span
         c = np.zeros(k + 1)
         c[-1] = -1.0
@@ -125,7 +139,7 @@ def baseline_verdicts(robot, natural: np.ndarray, tension=None) -> list[bool | N
             bounds=[(0, None)] * k + [(None, 1.0)],
             method="highs",
         )
-        out.append(bool(res.status == 0 and -res.fun > 1e-9 and np.linalg.matrix_rank(S) == p))
+        out.append(bool(res.status == 0 and -res.fun > 1e-9))
     return out
 
 
@@ -145,13 +159,50 @@ def per_pose_costs(
         floor_t.append(best_of(floor, 1))
     base_poses = natural[:n_base]
     baseline_verdicts(robot, base_poses[:2], tension)  # imports
-    base_t = best_of(lambda: baseline_verdicts(robot, base_poses, tension), 1)
+    base: list[bool | None] = []
+    base_t = best_of(lambda: base.extend(baseline_verdicts(robot, base_poses, tension)), 1)
     ours = min(ours_t) / n_ours
     return {
         "ours": ours,
         "floor": min(floor_t) / n_ours,
         "baseline": base_t / n_base,
+        "agreement": agreement(
+            base_poses, evaluate_poses(robot, base_poses, tension, margin=False)["poc"], base
+        ),
     }
+
+
+def agreement(natural: np.ndarray, poc: np.ndarray, baseline: list[bool | None]) -> str:
+    """One line: how often the baseline's verdicts match cdpm's map verdicts
+    (``poc`` codes) on the same poses. The baseline's True / False / None
+    (no equilibrium) match yes / no / not analysed; cdpm's marginal poses
+    are left out (the baseline has no such verdict)."""
+    from cdpm.maps import VERDICT_CODES
+
+    names = {code: name for name, code in VERDICT_CODES.items()}
+    expected = {VERDICT_CODES["yes"]: True, VERDICT_CODES["no"]: False}
+    expected[VERDICT_CODES["not_analysed"]] = None
+    marginal = VERDICT_CODES["marginal"]
+    compared, agree, disagreements = 0, 0, []
+    for i, (code, verdict) in enumerate(zip(poc.tolist(), baseline, strict=True)):
+        if code == marginal:
+            continue
+        compared += 1
+        if code in expected and expected[code] is verdict:
+            agree += 1
+        else:
+            pose = ", ".join(f"{v:.3f}" for v in natural[i])
+            disagreements.append(
+                f"pose {i} [{pose}] cdpm {names.get(code, code)}, baseline {verdict}"
+            )
+    line = f"baseline agrees with cdpm on {agree}/{compared} poses"
+    if compared < len(baseline):
+        line += f" ({len(baseline) - compared} marginal for cdpm, not compared)"
+    if disagreements:
+        shown = "; ".join(disagreements[:5])
+        more = f"; ... {len(disagreements) - 5} more" if len(disagreements) > 5 else ""
+        line += f"; disagreements: {shown}{more}"
+    return line
 
 
 _THROUGHPUT_CHILD = """
@@ -244,6 +295,7 @@ def main(argv=None) -> int:
         rows.append(("two_link_vertical, margin=False", VERTICAL, n_grav, 20, 2, False))
     from cdpm.maps._runner import single_threaded_blas
 
+    agreements = []
     for label, path, n1, n2, reps, margin in rows:
         with single_threaded_blas():  # as maps run (baseline and floor alike)
             r = per_pose_costs(path, n1, n2, reps, margin=margin)
@@ -252,6 +304,9 @@ def main(argv=None) -> int:
             f"{r['baseline'] * 1e6:10.1f} {r['baseline'] / r['ours']:8.0f}x "
             f"{r['ours'] / r['floor']:8.2f}x"
         )
+        agreements.append(f"  {label}: {r['agreement']}")
+    print("verdicts of the baseline against cdpm's (poc) on the poses the baseline timed")
+    print("\n".join(agreements))
     print(
         "targets: paper >= 100x cheaper than the baseline and <= 2x the floor; "
         "two_link_vertical >= 20x cheaper than the baseline\n"
