@@ -39,6 +39,10 @@ BATCH_NEWTON_STOP_RTOL = 1e-13
 #: the batched solver's Farkas gap (relative to max(1, |load|)) that proves
 #: a pose has no equilibrium
 FARKAS_RTOL = 1e-6
+#: the batched solver's ridge on L^T L (relative to its trace) and its
+#: Levenberg-Marquardt damping far from the solution (relative to the trace)
+NEWTON_RIDGE_RTOL = 1e-12
+NEWTON_DAMPING = 1e-3
 
 # --------------------------------------------------------------------------
 # ranks and spans (pure LTI analysis)
@@ -57,6 +61,14 @@ ZERO_RTOL = 1e-11
 RANK_RATIO = 1e-6
 #: ... and a ratio at most this is rank deficient beyond doubt
 RANK_DEFICIENT_RATIO = 1e-14
+#: batched rank exits: Krylov columns shorter than this times the longest are dropped
+KRYLOV_COLUMN_NEGLIGIBLE = 1e-12
+#: batched span exits leave to the analyser the systems whose angular deficit
+#: is within this [rad] of ``tol`` (wrench closure: the same vectors, round-off apart)
+WRENCH_DEFER_BAND = 1e-11
+#: ... and, for Brammer's test on a linear image of -M^-1 L^T (which scales
+#: small deficits by up to its condition number squared), deficits in this range [rad]
+BRAMMER_DEFER = (1e-12, 1e-5)
 #: Brammer: eigenvalues this close (absolute, after balancing) are one
 EIG_ATOL = 1e-6
 #: Brammer: |v^T b| at most this (for unit v and unit b) is zero
@@ -65,7 +77,8 @@ ZERO_ATOL = 1e-8
 # --------------------------------------------------------------------------
 # POC: modal path and margins
 
-#: the modal path needs eigenvector matrices of K conditioned below this
+#: the closed-form evaluator of e^{At} needs eigenvector matrices (of the
+#: scaled A) conditioned below this (the modal path: MODAL_PATH_COND_MAX)
 MODAL_COND_MAX = 1e7
 #: longest horizon of the modal path, in units of the slowest mode's period
 HORIZON_MAX = 2e3

@@ -13,6 +13,7 @@ import numpy as np
 from cdpm.analysis._common import Verdict, is_square_zero
 from cdpm.analysis._reduced import Reduced, marginal
 from cdpm.analysis.certificate import POCCertificate
+from cdpm.analysis.exits import nilpotent_sign
 from cdpm.analysis.span import span_core
 from cdpm.numerics import NNLS_RES_RTOL, ZERO_RTOL
 
@@ -49,7 +50,9 @@ def scalar_nilpotent(A, B, C, mask, horizon):
                 pos = (u, t, j)
             elif u < 0 and (neg is None or u < neg[0]):
                 neg = (u, t, j)
-    if pos is None or neg is None:
+    # the decision is the batched exit's sign test (one rule for maps and
+    # the analyser); the loop above only picks the certificate's points
+    if not nilpotent_sign(np.array([x0]), np.array([y1]))[0]:
         v = np.array([1.0 if pos is None else -1.0])
         proof = {
             "path": "nilpotent",

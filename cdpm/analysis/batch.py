@@ -30,36 +30,28 @@ band of a few round-off units keeps the two from deciding differently.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
-from cdpm.errors import CdpmError
-from cdpm.numerics import (
-    RANK_DEFICIENT_RATIO,
-    RANK_RATIO,
-    SPAN_TOL,
-    ZERO_RTOL,
+from cdpm.analysis.exits import (
+    free_controllable,
+    nilpotent_mechanical,
+    nilpotent_poc,
+    output_controllable,
+    output_rank_full,
+    span_codes,
+    times,
 )
+from cdpm.errors import CdpmError
+from cdpm.numerics import BRAMMER_DEFER, SPAN_TOL, WRENCH_DEFER_BAND
 from cdpm.verdicts import NO, NOT_ANALYSED, YES, verdict_code
 
 __all__ = [
     "SystemVerdicts",
     "analyse_systems",
-    "span_codes",
     "positively_spanning",
-    "nilpotent_sign",
-    "WRENCH_DEFER",
-    "BRAMMER_DEFER",
 ]
-
-#: defer bands of :func:`span_codes`: wrench closure tests the analyser's
-#: own vectors (differences are round-off, ~1e-16), Brammer's test sees a
-#: linear image of -M^-1 L^T that scales small angular deficits by up to the
-#: square of its condition number (exact opposites stay exact)
-WRENCH_DEFER = (SPAN_TOL - 1e-11, SPAN_TOL + 1e-11)
-BRAMMER_DEFER = (1e-12, 1e-5)
 
 
 @dataclass(frozen=True)
@@ -82,167 +74,6 @@ class SystemVerdicts:
     failed: np.ndarray
 
 
-def nilpotent_sign(x0: np.ndarray, y1: np.ndarray) -> np.ndarray:
-    """POC of p = 1 systems with A^2 = 0 and every input sign-constrained.
-
-    ``g_j(t) = x0_j + t x1_j``; a point is positive (negative) when
-    ``x0_j`` or ``y1_j = tau x1_j`` exceeds ``ZERO_RTOL`` times the largest
-    of them (a late point has the sign of x1_j). POC iff both signs occur.
-
-    Args:
-        x0: CB, shape (k, m); y1: tau CAB, shape (k, m).
-
-    Returns:
-        bool (k,): YES.
-    """
-    big = np.maximum(np.abs(x0).max(axis=1, initial=0.0), np.abs(y1).max(axis=1, initial=0.0))
-    thr = (ZERO_RTOL * big)[:, None]
-    pos = np.any(x0 > thr, axis=1) | np.any(y1 > thr, axis=1)
-    neg = np.any(x0 < -thr, axis=1) | np.any(y1 < -thr, axis=1)
-    return pos & neg
-
-
-# --------------------------------------------------------------------------
-# arrays with the system axis last (contiguous element-wise work)
-
-
-def _times(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Batched product a b of (r, s, k) and (s, t, k) arrays, system axis last."""
-    out = a[:, 0, None] * b[0]
-    for j in range(1, a.shape[1]):
-        out += a[:, j, None] * b[j]
-    return out
-
-
-def _max_angular_gap(S: np.ndarray):
-    """Largest angular gap between the nonzero columns of S (2, m, k), as the
-    analyser's angular test computes it (sorted angles), and a mask of
-    systems with a column near its zero threshold.
-
-    The gap after each direction is the smallest positive angle to another
-    one (2 pi for itself or an exact duplicate); their maximum equals the
-    largest gap between sorted angles, without sorting m angles per system.
-    """
-    norms = np.sqrt(S[0] ** 2 + S[1] ** 2)  # (m, k)
-    m = norms.shape[0]
-    big = norms.max(axis=0)
-    zero = ZERO_RTOL * big
-    keep = norms > zero
-    near = np.any(np.abs(norms - zero) <= 0.5 * zero, axis=0)
-    theta = np.arctan2(S[1], S[0])
-    two_pi = 2 * math.pi
-    gap = np.full(norms.shape[1], -np.inf)
-    for i in range(m):
-        after = np.full(norms.shape[1], two_pi)
-        for j in range(m):
-            if j != i:
-                d = np.mod(theta[j] - theta[i], two_pi)
-                d = np.where(keep[j] & (d > 0), d, two_pi)
-                np.minimum(after, d, out=after)
-        gap = np.where(keep[i], np.maximum(gap, after), gap)
-    gap[~keep.any(axis=0)] = two_pi
-    return gap, near
-
-
-def _inradius_2d(S: np.ndarray) -> np.ndarray:
-    """min_{|v|=1} max_j v.s_j for S (2, m, k) whose columns positively span
-    R^2: the minimum of the support function sits at a normal of a pair of
-    columns, so evaluating it at every pair's normals is exact."""
-    _, m, k = S.shape
-    if k == 0:
-        return np.zeros(0)
-    i, j = np.triu_indices(m, 1)
-    d = S[:, j] - S[:, i]  # (2, pairs, k)
-    length = np.sqrt(d[0] ** 2 + d[1] ** 2)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        normal = np.array([d[1], -d[0]]) / length
-    cand = np.concatenate([normal, -normal], axis=1)  # (2, candidates, k)
-    support = (cand[0][:, None] * S[0][None] + cand[1][:, None] * S[1][None]).max(axis=1)
-    support = np.where(np.isfinite(support), support, np.inf)
-    return np.maximum(support.min(axis=0), 0.0)
-
-
-def _nilpotent_poc(CAB: np.ndarray, tol: float):
-    """POC codes, margins and a 'leave open' mask from CAB (p, m, k) of
-    nilpotent systems (CB = 0, tau = 1), as the analyser's nilpotent path
-    and margin decide them."""
-    p, m, k = CAB.shape
-    codes = np.full(k, NO, dtype=np.int8)
-    margin = np.zeros(k)
-    todo = np.zeros(k, dtype=bool)
-    if p == 1:
-        x = CAB[0]  # (m, k)
-        big = np.abs(x).max(axis=0)
-        thr = ZERO_RTOL * big
-        yes = nilpotent_sign(np.zeros((k, m)), x.T) & (big > 0)
-        codes[yes] = YES
-        margin[yes] = np.minimum(x.max(axis=0), -x.min(axis=0))[yes]
-        # the analyser's CAB differs by round-off (~1e-16 |x|): only values
-        # close to the threshold could be decided differently
-        todo |= np.any(np.abs(np.abs(x) - thr) <= 0.5 * thr, axis=0) & (big > 0)
-        return codes, margin, todo
-    if p == 2:
-        gap, near = _max_angular_gap(CAB)
-        yes = gap < math.pi - tol
-        codes[yes] = YES
-        todo |= near | (np.abs(gap - (math.pi - tol)) <= ZERO_RTOL)
-        margin[yes] = _inradius_2d(CAB[..., yes])
-        return codes, margin, todo
-    todo[:] = True
-    return codes, margin, todo
-
-
-def _output_rank_full(CAB: np.ndarray, Cq: np.ndarray, X: np.ndarray):
-    """Output controllability codes of nilpotent systems (rank CAB = p, as
-    CB = 0) and a 'leave open' mask for nearly rank-deficient ones."""
-    p, m, k = CAB.shape
-    rows = np.sqrt((CAB**2).sum(axis=1))  # (p, k)
-    scale = np.sqrt((Cq**2).sum(axis=1)) * np.sqrt((X**2).sum(axis=(0, 1)))
-    rel = rows / np.where(scale > 0, scale, 1.0)
-    if p == 1:
-        ratio = rel[0]
-    elif p == 2:
-        with np.errstate(invalid="ignore", divide="ignore"):
-            unit = CAB / rows[:, None, :]
-        cos = np.abs((unit[0] * unit[1]).sum(axis=0))
-        ratio = np.sqrt(np.maximum(1.0 - cos, 0.0) / (1.0 + cos))
-        ratio = np.where(np.isfinite(ratio), np.minimum(ratio, rel.min(axis=0)), 0.0)
-    else:
-        s = np.linalg.svd(
-            np.moveaxis(CAB / np.maximum(rows, 1e-300)[:, None], -1, 0), compute_uv=False
-        )
-        ratio = np.minimum(s[:, -1] / np.maximum(s[:, 0], 1e-300), rel.min(axis=0))
-    full = ratio > RANK_RATIO
-    defer = ~full & (ratio > RANK_DEFICIENT_RATIO)
-    return np.where(full, YES, NO).astype(np.int8), defer
-
-
-def span_codes(S: np.ndarray, defer: tuple[float, float], tol: float = SPAN_TOL):
-    """Do the columns of S (d, m, k) positively span R^d (the analyser's
-    angular test)? Returns codes and a mask of systems to leave open: those
-    whose angular deficit ``pi - gap`` (d = 2), or smallest nonzero relative
-    entry (d = 1), lies in ``defer = (lo, hi)``. d >= 3 is always left open."""
-    d, m, k = S.shape
-    codes = np.full(k, NO, dtype=np.int8)
-    todo = np.zeros(k, dtype=bool)
-    lo, hi = defer
-    if d == 1:
-        x = S[0]  # (m, k)
-        scale = np.abs(x).max(axis=0)
-        yes = np.any(x > tol * scale, axis=0) & np.any(x < -tol * scale, axis=0)
-        codes[yes] = YES
-        rel = np.abs(x) / np.where(scale > 0, scale, 1.0)
-        todo |= np.any((rel > 0) & (rel >= lo) & (rel <= hi), axis=0)
-    elif d == 2:
-        gap, near = _max_angular_gap(S)
-        codes[gap < math.pi - tol] = YES
-        deficit = math.pi - gap
-        todo |= near | ((deficit >= lo) & (deficit <= hi))
-    else:
-        todo[:] = True
-    return codes, todo
-
-
 def positively_spanning(vectors: np.ndarray, tol: float = SPAN_TOL) -> np.ndarray:
     """Wrench-closure-like test of many vector sets: do the columns of each
     (d, m) matrix of ``vectors`` (k, d, m) positively span R^d? Exits for
@@ -251,85 +82,11 @@ def positively_spanning(vectors: np.ndarray, tol: float = SPAN_TOL) -> np.ndarra
     from cdpm.analysis.span import span_result
 
     S = np.moveaxis(vectors, 0, -1)
-    codes, todo = span_codes(S, (tol - WRENCH_BAND, tol + WRENCH_BAND), tol)
+    band = (tol - WRENCH_DEFER_BAND, tol + WRENCH_DEFER_BAND)
+    codes, todo = span_codes(S, band, tol)
     for i in np.flatnonzero(todo):
         codes[i] = verdict_code(span_result(vectors[i], tol).verdict)
     return codes
-
-
-#: half-width of the band around ``tol`` left to the analyser by
-#: :func:`positively_spanning` (its vectors differ only by round-off)
-WRENCH_BAND = 1e-11
-
-
-# --------------------------------------------------------------------------
-# general systems, system axis first
-
-
-def _full_rank(S: np.ndarray) -> np.ndarray:
-    """Rows of each (r, c) matrix of S (k, r, c) independent beyond doubt:
-    columns scaled to unit length (negligible ones dropped), singular-value
-    ratio above RANK_RATIO."""
-    norms = np.linalg.norm(S, axis=1)
-    keep = norms > ROW_NEGLIGIBLE * norms.max(axis=1, keepdims=True)
-    S = np.where(keep[:, None, :], S / np.where(keep, norms, 1.0)[:, None, :], 0.0)
-    sv = np.linalg.svd(S, compute_uv=False)
-    return sv[:, -1] > RANK_RATIO * sv[:, 0]
-
-
-#: Krylov columns shorter than this times the longest are dropped
-ROW_NEGLIGIBLE = 1e-12
-
-
-def _free_controllable(A, B, mask):
-    """YES where the free (taut) inputs alone make (A, B) controllable beyond
-    doubt, else NOT_ANALYSED. Then no real left eigenvector v of A has
-    v^T B_free = 0, so Brammer's obstruction cannot exist."""
-    k, n, _ = A.shape
-    codes = np.full(k, NOT_ANALYSED, dtype=np.int8)
-    if k == 0:
-        return codes
-    blocks, W = [], B * ~mask[:, None, :]
-    for _ in range(n):
-        blocks.append(W)
-        W = A @ W
-    codes[_full_rank(np.concatenate(blocks, axis=2))] = YES
-    return codes
-
-
-def _output_controllable(A, B, C):
-    """YES where rank [CB, CAB, ..., CA^{n-1}B] = p beyond doubt, else
-    NOT_ANALYSED. With B restricted to the free inputs this is the
-    analyser's mixed-cone exit: those inputs alone reach every output
-    direction, so POC holds."""
-    k, p, n = C.shape
-    codes = np.full(k, NOT_ANALYSED, dtype=np.int8)
-    if p == 0 or k == 0:
-        codes[:] = YES
-        return codes
-    blocks, W = [], B
-    for _ in range(n):
-        blocks.append(C @ W)
-        W = A @ W
-    codes[_full_rank(np.concatenate(blocks, axis=2))] = YES  # (k, p, n m)
-    return codes
-
-
-def _nilpotent_mechanical(A, B, C, mask) -> np.ndarray:
-    """Systems of the nilpotent exit: A = [[0, I], [0, 0]], B = [0; Bv],
-    C = [Cq, 0] exactly, every input sign-constrained; bool (k,)."""
-    k, n, _ = A.shape
-    if n % 2 or n == 0:
-        return np.zeros(k, dtype=bool)
-    nv = n // 2
-    pattern = np.zeros((n, n))
-    pattern[:nv, nv:] = np.eye(nv)
-    return (
-        np.all(A == pattern, axis=(1, 2))
-        & ~np.any(B[:, :nv], axis=(1, 2))
-        & ~np.any(C[:, :, nv:], axis=(1, 2))
-        & np.all(mask, axis=1)
-    )
 
 
 def analyse_systems(
@@ -362,15 +119,15 @@ def analyse_systems(
     mg = np.full(k, np.nan)
     failed = np.zeros(k, dtype=bool)
     open_poc = np.zeros(k, dtype=bool)
-    nil = _nilpotent_mechanical(A, B, C, mask) if k else np.zeros(0, dtype=bool)
+    nil = nilpotent_mechanical(A, B, C, mask) if k else np.zeros(0, dtype=bool)
     if nil.any():
         idx = np.flatnonzero(nil)
         nv = n // 2
         Cq = np.moveaxis(C[idx, :, :nv], 0, -1)  # (p, nv, k)
         Bv = np.moveaxis(B[idx, nv:], 0, -1)  # (nv, m, k)
-        CAB = _times(Cq, Bv)
-        codes, values, todo = _nilpotent_poc(CAB, tol)
-        oc_codes, todo_oc = _output_rank_full(CAB, Cq, Bv)
+        CAB = times(Cq, Bv)
+        codes, values, todo = nilpotent_poc(CAB, tol)
+        oc_codes, todo_oc = output_rank_full(CAB, Cq, Bv)
         # Brammer: the left eigenvectors of A are (0, w), so the obstruction
         # is a w with w.Bv <= 0 for every column
         pc_codes, todo_pc = span_codes(Bv, BRAMMER_DEFER, tol)
@@ -382,11 +139,11 @@ def analyse_systems(
     gen = np.flatnonzero(~nil)
     if gen.size:
         Ag, Bg, Cg, mk = A[gen], B[gen], C[gen], mask[gen]
-        pc[gen] = _free_controllable(Ag, Bg, mk)
-        mixed = _output_controllable(Ag, Bg * ~mk[:, None, :], Cg) == YES
+        pc[gen] = free_controllable(Ag, Bg, mk)
+        mixed = output_controllable(Ag, Bg * ~mk[:, None, :], Cg) == YES
         poc[gen[mixed]] = YES
         oc_g = np.full(gen.size, YES, dtype=np.int8)
-        oc_g[~mixed] = _output_controllable(Ag[~mixed], Bg[~mixed], Cg[~mixed])
+        oc_g[~mixed] = output_controllable(Ag[~mixed], Bg[~mixed], Cg[~mixed])
         oc[gen] = oc_g
         if margin and C.shape[1] and mixed.any():
             from cdpm.analysis.poc import poc_margins

@@ -5,7 +5,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from cdpm.numerics import BATCH_NEWTON_STOP_RTOL, BATCH_STATICS_RTOL, FARKAS_RTOL
+from cdpm.numerics import (
+    BATCH_NEWTON_STOP_RTOL,
+    BATCH_STATICS_RTOL,
+    FARKAS_RTOL,
+    NEWTON_DAMPING,
+    NEWTON_RIDGE_RTOL,
+)
 
 __all__ = ["min_norm_tensions"]
 
@@ -49,7 +55,7 @@ def min_norm_tensions(
     scale = np.maximum(1.0, np.abs(load).max(axis=1))
     eye = np.eye(nv)
     gram = LT @ L
-    ridge = 1e-12 * np.maximum(np.trace(gram, axis1=1, axis2=2), 1e-300)
+    ridge = NEWTON_RIDGE_RTOL * np.maximum(np.trace(gram, axis1=1, axis2=2), 1e-300)
     lam = np.linalg.solve(gram + ridge[:, None, None] * eye, load[..., None])[..., 0]
     lam = np.ascontiguousarray(lam)
     steps = 0.5 ** np.arange(16)
@@ -71,7 +77,11 @@ def min_norm_tensions(
         # steps (safe for a dual with gradient Lipschitz |L|^2) far from
         # the solution, Newton steps near it
         free = ((z > lower) & (z < upper)).astype(float)
-        mu = 1e-3 * trace[active] * np.minimum(1.0, np.linalg.norm(r, axis=1) / load_norm[active])
+        mu = (
+            NEWTON_DAMPING
+            * trace[active]
+            * np.minimum(1.0, np.linalg.norm(r, axis=1) / load_norm[active])
+        )
         hess = LTa @ (free[..., None] * La) + (mu + ridge[active])[:, None, None] * eye
         step = np.linalg.solve(hess, r[..., None])[..., 0]
         # backtracking: the largest of 1, 1/2, ... that raises the dual

@@ -15,9 +15,16 @@ from collections.abc import Callable, Mapping
 from typing import Any
 
 from cdpm.errors import InputError
-from cdpm.maps._evaluate import STATUS_CODES, VERDICT_CODES, evaluate_poses, resolve_tension
+from cdpm.maps._evaluate import (
+    STATUS_CODES,
+    VERDICT_CODES,
+    MapJob,
+    evaluate_poses,
+    resolve_tension,
+)
 from cdpm.maps._plan import DEFAULT_CHUNK_SIZE, SampledAxes, sample_axes
 from cdpm.maps._store import StoreSettingsError, open_map
+from cdpm.numerics import SPAN_TOL
 
 __all__ = [
     "workspace_map",
@@ -61,6 +68,7 @@ def workspace_map(
     chunk_size: int | None = None,
     progress: bool | Callable[[int, int, int], None] = False,
     margin: bool = True,
+    tol: float = SPAN_TOL,
 ):
     """Map positive output controllability and classic criteria over poses.
 
@@ -94,6 +102,8 @@ def workspace_map(
             as ``progress(done_poses, total_poses, chunk_index)``.
         margin: compute the POC margin (``poc_margin``); ``False`` leaves
             it NaN (same verdicts; under load about 2x faster).
+        tol: angle-like tolerance of the span decisions, as in
+            :func:`cdpm.positive_output_controllability` (stored with the map).
 
     Returns:
         ``xarray.Dataset`` with dims the axis names (grid) or ``sample``, and
@@ -130,7 +140,8 @@ def workspace_map(
             chunk_size = DEFAULT_CHUNK_SIZE
         else:
             chunk_size = _per_pose_chunk_size(_n_poses(axes))
-    plan = make_plan(robot, axes, base, setting, chunk_size, __version__, margin)
+    tol = _check_tol(tol)
+    plan = make_plan(robot, axes, base, setting, chunk_size, __version__, margin, tol)
     if store is None:
         _check_in_memory_size(robot, plan)
     if workers is None:
@@ -146,7 +157,7 @@ def workspace_map(
         progress = ProgressPrinter(sum(plan.chunk_size(k) for k in todo))
     elif progress is False:
         progress = None
-    job = (setting, bool(margin))
+    job = MapJob(setting, bool(margin), float(tol))
     run_chunks(robot, plan, job, todo, sink, workers, scheduler, progress)
     return sink.dataset()
 
@@ -179,6 +190,19 @@ def _n_poses(axes) -> int:
         return int(np.prod([np.size(v) for v in axes.values()]))
     except (AttributeError, TypeError):
         return 1  # make_plan explains what is wrong with the axes
+
+
+def _check_tol(tol) -> float:
+    """The span tolerance as a float in (0, 1) [rad], or an InputError."""
+    import math
+
+    try:
+        value = float(tol)
+    except (TypeError, ValueError):
+        value = math.nan
+    if not (0 < value < 1):
+        raise InputError(f"tol must be an angle in (0, 1) rad, got {tol!r} (default {SPAN_TOL})")
+    return value
 
 
 def _check_in_memory_size(robot, plan) -> None:

@@ -21,6 +21,7 @@ Degenerate poses never raise: they get a ``status`` code and the verdicts
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -33,6 +34,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from cdpm.robot import CableRobot
 
 __all__ = [
+    "MapJob",
     "VERDICT_CODES",
     "STATUS_CODES",
     "evaluate_poses",
@@ -94,6 +96,25 @@ def zero_equilibrium(robot: CableRobot, setting) -> bool:
     if isinstance(setting, str):
         return setting in ("zero", "min_norm")
     return not any(setting)
+
+
+@dataclass(frozen=True)
+class MapJob:
+    """What every chunk of a map computes (plain, picklable data).
+
+    Attributes:
+        tension: the tension setting (:func:`resolve_tension`).
+        margin: compute ``poc_margin``.
+        tol: angle-like tolerance of the span decisions.
+    """
+
+    tension: str | list[float]
+    margin: bool = True
+    tol: float = SPAN_TOL
+
+    def evaluate(self, robot: CableRobot, natural: np.ndarray) -> dict[str, np.ndarray]:
+        """:func:`evaluate_poses` of ``natural`` (N, nv) with these settings."""
+        return evaluate_poses(robot, natural, self.tension, margin=self.margin, tol=self.tol)
 
 
 def evaluate_poses(

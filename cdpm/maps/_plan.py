@@ -18,6 +18,8 @@ from typing import Any
 import numpy as np
 
 from cdpm.errors import InputError
+from cdpm.maps.criteria import CRITERIA
+from cdpm.numerics import SPAN_TOL
 
 __all__ = ["SampledAxes", "MapPlan", "sample_axes", "make_plan", "coordinate_units"]
 
@@ -225,6 +227,7 @@ def make_plan(
     chunk_size: int,
     version: str,
     margin: bool = True,
+    tol: float | None = None,
 ) -> MapPlan:
     """Validate the axes and the base pose and lay out the chunks."""
     if not isinstance(chunk_size, (int, np.integer)) or chunk_size < 1:
@@ -286,7 +289,10 @@ def make_plan(
         "tension": tension_setting,
         "chunk_size": int(chunk_size),
         "margin": bool(margin),
+        "variables": list(CRITERIA),
     }
+    if tol is not None and tol != SPAN_TOL:
+        settings["tol"] = float(tol)
     if mode == "sample":
         settings["seed"] = axes.seed
     return MapPlan(

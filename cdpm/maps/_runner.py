@@ -28,6 +28,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from cdpm.errors import CdpmError, InputError, MissingExtraError
+from cdpm.maps._evaluate import MapJob
 
 __all__ = ["RobotSource", "run_chunks", "ProgressPrinter"]
 
@@ -87,13 +88,10 @@ def _state(source: RobotSource):
     return cache[source.sha256]
 
 
-def compute_chunk(source: RobotSource, job, index: int, natural) -> tuple[int, dict]:
-    """Evaluate one chunk in a worker; ``job`` is (tension setting, margin);
-    returns (index, arrays)."""
-    from cdpm.maps._evaluate import evaluate_poses
-
+def compute_chunk(source: RobotSource, job: MapJob, index: int, natural) -> tuple[int, dict]:
+    """Evaluate one chunk in a worker; returns (index, arrays)."""
     with single_threaded_blas():
-        return index, evaluate_poses(_state(source), natural, job[0], margin=job[1])
+        return index, job.evaluate(_state(source), natural)
 
 
 #: what a local worker process computes: set once by :func:`_init_process`
@@ -133,11 +131,8 @@ def _init_process(source: RobotSource | None = None, plan=None, job=None, writer
 def _process_chunk(index: int) -> tuple[int, dict | None]:
     """Compute chunk ``index`` in a local worker process; with a writer the
     worker stores it itself (data and done marker) and returns no data."""
-    from cdpm.maps._evaluate import evaluate_poses
-
     plan, writer = _WORKER["plan"], _WORKER["writer"]
-    tension, margin = _WORKER["job"]
-    data = evaluate_poses(_WORKER["robot"], plan.natural(index), tension, margin=margin)
+    data = _WORKER["job"].evaluate(_WORKER["robot"], plan.natural(index))
     if writer is None:
         return index, data
     writer.write(index, data)
@@ -214,7 +209,7 @@ def run_chunks(
     progress: Callable[[int, int, int], None] | None,
 ) -> None:
     """Compute the chunks ``todo`` and write each to ``sink`` as it finishes;
-    ``job`` is (tension setting, margin) (see :func:`evaluate_poses`)."""
+    ``job`` is the :class:`~cdpm.maps._evaluate.MapJob` every chunk runs."""
     total = sum(plan.chunk_size(k) for k in todo)
     state = {"done": 0}
 
@@ -237,17 +232,24 @@ def _run(robot, plan, job, todo, sink, workers, scheduler, finished) -> None:
     if scheduler is not None:
         _run_dask(robot, plan, job, todo, finished, scheduler)
     elif workers <= 1 or len(todo) == 1:
-        from cdpm.maps._evaluate import evaluate_poses
-
         for index in todo:
-            finished(index, evaluate_poses(robot, plan.natural(index), job[0], margin=job[1]))
+            finished(index, job.evaluate(robot, plan.natural(index)))
     else:
         writer = getattr(sink, "writer", None)
         _run_processes(robot, plan, job, todo, finished, workers, writer)
 
 
 #: modules the fork server imports once, so that workers start warm
-_PRELOAD = ["cdpm.maps._evaluate", "cdpm.maps._store", "cdpm.analysis", "pinocchio", "zarr"]
+_PRELOAD = [
+    "cdpm.maps._evaluate",
+    "cdpm.maps._store",
+    "cdpm.analysis",
+    "cdpm.analysis.batch",
+    "cdpm.equilibrium",
+    "cdpm.linearisation",
+    "pinocchio",
+    "zarr",
+]
 
 
 def _context():
@@ -296,8 +298,6 @@ def _run_processes(robot, plan, job, todo, finished, workers: int, writer=None) 
     from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
     from concurrent.futures.process import BrokenProcessPool
 
-    from cdpm.maps._evaluate import evaluate_poses
-
     source = RobotSource.from_robot(robot)
     pending = list(reversed(todo))
     n_proc = min(workers - 1, len(todo) - 1)
@@ -321,7 +321,7 @@ def _run_processes(robot, plan, job, todo, finished, workers: int, writer=None) 
             done, running = wait(running, timeout=0, return_when=FIRST_COMPLETED)
             if not done and pending:  # nothing ready: compute one here
                 index = pending.pop()
-                data = evaluate_poses(robot, plan.natural(index), job[0], margin=job[1])
+                data = job.evaluate(robot, plan.natural(index))
                 finished(index, data)
                 continue
             if not done:
