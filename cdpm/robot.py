@@ -527,7 +527,7 @@ class CableRobot:
         # J_d^T (I - u u^T) J_d / l = (J_d^T J_d - (J_d^T u)(u^T J_d)) / l
         u_jac = (units[:, :, None, :] @ jac_d)[:, :, 0]  # (N, S, nv)
         gram = np.swapaxes(jac_d, -1, -2) @ jac_d - u_jac[..., :, None] * u_jac[..., None, :]
-        hess = np.einsum("ns,nsjk->njk", weight / kin.segment_lengths, gram)
+        hess = _weighted_sum(weight / kin.segment_lengths, gram)
         # u x w_k for every segment and tangent direction: (N, S, 3, nv)
         u_cross_w = np.cross(units[:, :, :, None], omega[:, None], axis=2)
         for ends, sign in ((b, 1.0), (a, -1.0)):
@@ -536,8 +536,18 @@ class CableRobot:
             first = np.swapaxes(jac[:, ends], -1, -2) @ u_cross_w  # (N, S, nv, nv)
             mask = self._point_mask[ends][None, :, :, None]
             term = np.where(support, first, np.swapaxes(first, -1, -2) * mask)
-            hess += sign * np.einsum("ns,nsjk->njk", weight, term)
+            hess += sign * _weighted_sum(weight, term)
         return hess
+
+
+def _weighted_sum(weight: np.ndarray, terms: np.ndarray) -> np.ndarray:
+    """sum_s weight[n, s] terms[n, s] of (N, S) weights and (N, S, a, b) terms,
+    shape (N, a, b); a loop over s, so every pose sums in the same order
+    whatever the batch size (a pose's result does not depend on its batch)."""
+    out = np.zeros((terms.shape[0],) + terms.shape[2:])
+    for s in range(terms.shape[1]):
+        out += weight[:, s, None, None] * terms[:, s]
+    return out
 
 
 def load_robot(path: str | os.PathLike) -> CableRobot:

@@ -59,6 +59,7 @@ from cdpm.errors import InputError
 from cdpm.numerics import STATICS_RTOL
 
 if TYPE_CHECKING:  # pragma: no cover
+    from cdpm.kinematics import BatchKinematics
     from cdpm.robot import CableRobot
 
 __all__ = [
@@ -75,6 +76,7 @@ __all__ = [
     "check_equilibrium",
     "solve_equilibria",
     "resolve_method",
+    "statics",
 ]
 
 
@@ -103,12 +105,17 @@ def resolve_method(robot: CableRobot, method: str | None, pretension: float | No
     return method, pretension
 
 
+def statics(robot: CableRobot, kin: BatchKinematics) -> tuple[np.ndarray, np.ndarray]:
+    """(L^T (N, nv, m), load = -G - w_ext (N, nv)) of batch kinematics with
+    dynamics: what every equilibrium of cdpm balances, in one layout."""
+    return np.swapaxes(kin.jacobian, 1, 2), -kin.gravity - robot.external_wrench
+
+
 def _statics(robot: CableRobot, q: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(q, L^T (nv, m), load = -G - w_ext (nv,)) at q."""
-    kin = robot.kinematics(q)
-    q = kin.q
-    load = -robot.gravity_torque(q) - robot.external_wrench
-    return q, kin.jacobian.T.copy(), load
+    """(q, L^T (1, nv, m), load (1, nv)) at q, as :func:`statics` on a batch of one."""
+    q = robot.kinematics(q).q  # validates q; raises on a zero-length segment
+    LT, load = statics(robot, robot.kinematics_batch(q[None], dynamics=True))
+    return q, LT, load
 
 
 def equilibrium_tensions(
@@ -172,15 +179,15 @@ def check_equilibrium(robot: CableRobot, q: Any, tension: Any) -> EquilibriumRes
         )
     if not np.all(np.isfinite(f)):
         raise InputError(f"tension has non-finite entries: {f}")
-    q, lt, load = _statics(robot, q)
-    batch = solve_equilibria(lt[None], load[None], robot.tension_min, robot.tension_max, f)
+    q, LT, load = _statics(robot, q)
+    batch = solve_equilibria(LT, load, robot.tension_min, robot.tension_max, f)
     if batch.feasible[0]:
         message = "the given tensions hold the pose"
     elif not np.all((f >= robot.tension_min) & (f <= robot.tension_max)):
         message = "the given tensions leave the cable bounds"
     else:
         message = f"the given tensions do not hold the pose (residual {batch.residual[0]:.3g})"
-    return _result(robot, q, load, batch, message)
+    return _result(robot, q, load[0], batch, message)
 
 
 def equilibrium_tension(
@@ -223,9 +230,9 @@ def equilibrium_tension(
             EquilibriumWarning,
             stacklevel=2,
         )
-    q, lt, load = _statics(robot, q)
+    q, LT, load = _statics(robot, q)
     fmin, fmax = robot.tension_min, robot.tension_max
-    batch = solve_equilibria(lt[None], load[None], fmin, fmax, method, pretension)
+    batch = solve_equilibria(LT, load, fmin, fmax, method, pretension)
     how = int(batch.how[0])
     if batch.feasible[0]:
         if how == HOW["zero"]:
@@ -238,8 +245,8 @@ def equilibrium_tension(
             n_free = int(np.count_nonzero(~batch.sign_constrained[0]))
             m = robot.n_cables
             message = f"least-norm tension in bounds; {n_free} of {m} cables inside their bounds"
-        return _result(robot, q, load, batch, message)
-    return _infeasible(robot, q, lt, load, batch, method, pretension)
+        return _result(robot, q, load[0], batch, message)
+    return _infeasible(robot, q, LT[0], load[0], batch, method, pretension)
 
 
 def _infeasible(robot, q, lt, load, batch, method, pretension) -> EquilibriumResult:

@@ -156,7 +156,7 @@ def evaluate_batch(
     """The pipeline's stages at N poses (module docstring), as a
     :class:`~cdpm.maps.criteria.PoseBatch` for the criteria to read."""
     from cdpm.analysis.batch import analyse_systems, positively_spanning
-    from cdpm.equilibrium import equilibrium_tensions
+    from cdpm.equilibrium import equilibrium_tensions, statics
     from cdpm.linearisation import linearise_batch, mass_inverse
     from cdpm.maps._batch import configurations
 
@@ -173,12 +173,11 @@ def evaluate_batch(
     batch = PoseBatch(robot, kin, status, wrench, static, np.zeros(0, dtype=int))
     if ok.size == 0:
         return batch
-    LT = np.swapaxes(kin.jacobian[ok], 1, 2)  # (k, nv, m)
+    LT, load = statics(robot, kin.take(ok))  # (k, nv, m), (k, nv)
     wrench[ok] = positively_spanning(-LT, tol)
-    load = -kin.gravity[ok] - robot.external_wrench
     method = setting if isinstance(setting, str) else np.asarray(setting)
     eq = equilibrium_tensions(robot, LT, load, method, pretension)
-    if method is not None and isinstance(method, str) and method == "min_norm":
+    if isinstance(method, str) and method == "min_norm":
         feasible_any = eq.feasible
     else:
         feasible_any = equilibrium_tensions(robot, LT, load, "min_norm").feasible

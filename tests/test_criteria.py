@@ -1,0 +1,124 @@
+"""The criteria registry: every map variable comes from it, and a new
+criterion is a function plus an entry (here: n_taut, and one registered by
+the test itself)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import cdpm
+from cdpm.maps.criteria import CRITERIA, Criterion, PoseBatch, register, verdict_criteria
+from tests.conftest import MODELS
+
+VERTICAL = MODELS / "two_link_vertical" / "two_link_vertical.yaml"
+SPATIAL = MODELS / "spatial_8cable" / "spatial_8cable.yaml"
+
+
+def _poses(robot, n, seed, spread=0.3):
+    base = robot.to_natural(next(iter(robot.poses.values())))
+    return base + np.random.default_rng(seed).uniform(-spread, spread, (n, robot.nv))
+
+
+@pytest.mark.parametrize("spec", [VERTICAL, SPATIAL], ids=["vertical", "spatial"])
+def test_n_taut_counts_the_free_inputs_of_linearise(spec):
+    """n_taut equals the number of cables cdpm.linearise leaves free (not on
+    a bound) at each pose, and -1 where there is no equilibrium."""
+    robot = cdpm.load_robot(spec)
+    natural = _poses(robot, 12, seed=3)
+    out = cdpm.evaluate_poses(robot, natural)
+    assert out["n_taut"].dtype == np.int16
+    checked = 0
+    for x, n_taut, status in zip(natural, out["n_taut"], out["status"], strict=True):
+        if status != cdpm.STATUS_CODES["ok"]:
+            assert n_taut == -1
+            continue
+        lin = cdpm.linearise(robot, robot.from_natural(x))
+        assert n_taut == np.count_nonzero(~lin.sign_constrained)
+        checked += 1
+    assert checked >= 4
+    # gravity needs taut cables: every analysed pose has some
+    assert np.all(out["n_taut"][out["status"] == 0] >= 1)
+
+
+def test_n_taut_is_zero_at_zero_tension(paper_robot):
+    natural = np.random.default_rng(0).uniform(-np.pi, np.pi, (50, 2))
+    out = cdpm.evaluate_poses(paper_robot, natural)
+    np.testing.assert_array_equal(out["n_taut"], 0)
+
+
+def test_map_variables_and_attributes_come_from_the_registry(paper_robot):
+    ds = cdpm.workspace_map(paper_robot, {"q1": [0.1, 0.5], "q2": [1.0, 2.0, 3.0]}, workers=1)
+    assert set(ds.data_vars) == set(CRITERIA)
+    for name, criterion in CRITERIA.items():
+        attrs = ds[name].attrs
+        assert attrs["long_name"] == criterion.attrs(paper_robot)["long_name"]
+        if criterion.flags is not None:
+            assert attrs["flag_values"] == list(criterion.flags.values())
+        if criterion.units is not None:
+            assert attrs["units"] == criterion.units
+        assert ds[name].dtype == np.dtype(criterion.dtype)
+    assert ds["output_frame_position"].attrs["frame"] == "tip"
+    assert "n_taut" in ds.attrs["cdpm_settings"]
+
+
+def test_report_shows_every_criterion_as_a_map_would(paper_robot):
+    report = cdpm.analyze_pose(paper_robot, "nominal")
+    assert set(report.criteria) == set(CRITERIA)
+    assert report.criteria["poc"] == cdpm.VERDICT_CODES[report.poc.verdict.value]
+    assert report.criteria["n_taut"] == 0
+    assert report.criteria["poc_margin"] == pytest.approx(report.poc.margin, rel=1e-9)
+    text = str(report)
+    assert (
+        "Map criteria" in text and "n_taut:" in text and "poc:                    yes (1)" in text
+    )
+    assert report.as_dict()["criteria"]["n_taut"] == 0
+
+
+def test_plot_help_lists_the_verdict_criteria(capsys):
+    from cdpm.cli import main
+
+    with pytest.raises(SystemExit):
+        main(["plot", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert ", ".join(verdict_criteria()) in text
+
+
+def test_a_new_criterion_is_a_function_and_an_entry(paper_robot):
+    """Register the smallest singular value of the output Jacobian: maps
+    and reports carry it with no other change."""
+
+    def output_sigma_min(batch: PoseBatch) -> np.ndarray:
+        jac = batch.kin.output_jacobian  # (N, p, nv)
+        return np.linalg.svd(jac, compute_uv=False)[:, -1]
+
+    register(
+        Criterion(
+            "output_sigma_min",
+            "float64",
+            np.nan,
+            "smallest singular value of the output Jacobian",
+            output_sigma_min,
+            units="m",
+        )
+    )
+    try:
+        with pytest.raises(ValueError, match="already registered"):
+            register(CRITERIA["output_sigma_min"])
+        q1, q2 = 0.3, 1.1
+        ds = cdpm.workspace_map(paper_robot, {"q1": [q1], "q2": [q2]}, workers=1)
+        # tip x = cos q1 + cos(q1 + q2): its gradient's norm
+        expected = np.hypot(np.sin(q1) + np.sin(q1 + q2), np.sin(q1 + q2))
+        assert float(ds["output_sigma_min"].values.squeeze()) == pytest.approx(expected, rel=1e-12)
+        assert ds["output_sigma_min"].attrs["units"] == "m"
+        report = cdpm.analyze_pose(paper_robot, [q1, q2])
+        assert report.criteria["output_sigma_min"] == pytest.approx(expected, rel=1e-12)
+    finally:
+        CRITERIA.pop("output_sigma_min", None)
+
+
+def test_tol_reaches_maps_and_is_checked(paper_robot):
+    ds = cdpm.workspace_map(paper_robot, {"q1": [0.2]}, workers=1, tol=1e-6)
+    assert '"tol": 1e-06' in ds.attrs["cdpm_settings"]
+    with pytest.raises(cdpm.InputError, match=r"tol must be an angle in \(0, 1\) rad"):
+        cdpm.workspace_map(paper_robot, {"q1": [0.2]}, workers=1, tol=-1)
