@@ -303,13 +303,13 @@ def linearise_batch(
     )
 
 
-def state_names(robot) -> tuple[str, ...]:
+def state_names(robot: CableRobot) -> tuple[str, ...]:
     """Names of the 2 nv states: each coordinate, then its rate (``name_dot``)."""
     coords = list(robot.coordinate_names)
     return tuple(coords + [f"{c}_dot" for c in coords])
 
 
-def _equilibrium(robot, q, tension, pretension) -> EquilibriumResult:
+def _equilibrium(robot: CableRobot, q, tension, pretension) -> EquilibriumResult:
     """The equilibrium to linearise at: solved for (None or a method name)
     or checked (an array)."""
     if tension is None or isinstance(tension, str):
@@ -341,7 +341,9 @@ def _equilibrium(robot, q, tension, pretension) -> EquilibriumResult:
     return eq
 
 
-def linearise(robot, q: Any, tension: Any = None, pretension: float | None = None) -> Linearisation:
+def linearise(
+    robot: CableRobot, q: Any, tension: Any = None, pretension: float | None = None
+) -> Linearisation:
     """Linearise the robot at the equilibrium (q, q' = 0, f*).
 
     Args:

@@ -10,11 +10,14 @@ from __future__ import annotations
 import html
 import re
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from cdpm.linearisation import Linearisation, linearise
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cdpm.robot import CableRobot
 
 __all__ = ["PoseReport", "analyze_pose"]
 
@@ -217,7 +220,9 @@ def _indent(text: str, prefix: str = "  ") -> str:
     return "\n".join(prefix + line for line in text.splitlines())
 
 
-def analyze_pose(robot, q: Any, tension: Any = None, pretension: float | None = None) -> PoseReport:
+def analyze_pose(
+    robot: CableRobot, q: Any, tension: Any = None, pretension: float | None = None
+) -> PoseReport:
     """Linearise ``robot`` at ``q`` and decide every property at that pose.
 
     Args:

@@ -7,6 +7,8 @@ robot that :func:`cdpm.load_robot` builds from the written files.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from cdpm.caspr._xml import _Attachment, _Cable, _Link
@@ -17,6 +19,9 @@ from cdpm.numerics import (
     CASPR_MOVING_OUTPUT_ATOL,
     CASPR_OUTPUT_RANK_RTOL,
 )
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cdpm.robot import CableRobot
 
 #: CASPR's gravity vector [m/s^2] (``SystemModel.GRAVITY_CONSTANT`` along -z).
 GRAVITY = (0.0, 0.0, -9.81)
@@ -35,7 +40,7 @@ def _point_entry(links_by_num: dict[int, _Link], cable: _Cable, att: _Attachment
     return {"frame": frame, "point": loc}
 
 
-def _outside_limits(robot, natural: np.ndarray, lower, upper) -> list[str]:
+def _outside_limits(robot: CableRobot, natural: np.ndarray, lower, upper) -> list[str]:
     return [
         f"{n}={v:g} not in [{lo:g}, {hi:g}]"
         for n, v, lo, hi in zip(robot.coordinate_names, natural, lower, upper, strict=True)
@@ -43,7 +48,7 @@ def _outside_limits(robot, natural: np.ndarray, lower, upper) -> list[str]:
     ]
 
 
-def _pose_problem(robot, natural: np.ndarray) -> str | None:
+def _pose_problem(robot: CableRobot, natural: np.ndarray) -> str | None:
     """Why a pose has degenerate cables (a zero-length segment), or None."""
     try:
         kin = robot.kinematics(robot.from_natural(natural))
@@ -64,7 +69,7 @@ def _sample(rng, lower, upper) -> np.ndarray:
     return rng.uniform(lo, hi)
 
 
-def _choose_pose(robot, initial, lower, upper, seed, warn) -> tuple[str, np.ndarray]:
+def _choose_pose(robot: CableRobot, initial, lower, upper, seed, warn) -> tuple[str, np.ndarray]:
     """CASPR's q_initial when its cables are non-degenerate, else a sampled pose."""
     problem = _pose_problem(robot, initial)
     if problem is None:
@@ -90,7 +95,7 @@ def _choose_pose(robot, initial, lower, upper, seed, warn) -> tuple[str, np.ndar
     )
 
 
-def _output_jacobians(robot, lower, upper, seed, extra=()) -> list[np.ndarray]:
+def _output_jacobians(robot: CableRobot, lower, upper, seed, extra=()) -> list[np.ndarray]:
     """Output Jacobians (p, nv) at a few poses sampled within the limits
     (and at the natural coordinates ``extra``)."""
     rng = np.random.default_rng(seed)
@@ -104,7 +109,7 @@ def _output_jacobians(robot, lower, upper, seed, extra=()) -> list[np.ndarray]:
     return jacobians
 
 
-def _moving_components(robot, lower, upper, seed) -> list[bool]:
+def _moving_components(robot: CableRobot, lower, upper, seed) -> list[bool]:
     """Which outputs have a nonzero Jacobian row at some of a few sampled poses."""
     moving = np.zeros(robot.n_outputs, dtype=bool)
     for jac in _output_jacobians(robot, lower, upper, seed):
@@ -123,7 +128,7 @@ def _rank(matrix: np.ndarray) -> int:
 _SPHERICAL_JOINTS = ("S_EULER_XYZ", "S_FIXED_XYZ")
 
 
-def _output_rank_deficit(robot, natural, lower, upper, seed, links) -> str | None:
+def _output_rank_deficit(robot: CableRobot, natural, lower, upper, seed, links) -> str | None:
     """Why the outputs can never be output controllable, or None.
 
     With fewer independent output directions than outputs at every pose

@@ -3,6 +3,10 @@
 from __future__ import annotations
 
 import argparse
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cdpm.robot import CableRobot
 
 Q_HELP = """\
 Q values are a configuration vector (nq numbers) or natural coordinates (one
@@ -20,7 +24,7 @@ def add_pose_arguments(parser: argparse.ArgumentParser) -> None:
     where.add_argument("--pose", metavar="NAME", help="a named pose from the spec")
 
 
-def pose_from_args(robot, args: argparse.Namespace):
+def pose_from_args(robot: CableRobot, args: argparse.Namespace):
     """The pose asked for: the configuration from --q, the pose name from
     --pose (validated), else the spec's first named pose, else neutral.
 
@@ -37,7 +41,7 @@ def pose_from_args(robot, args: argparse.Namespace):
     return robot.neutral()
 
 
-def _configuration_from_q(robot, tokens: list[str]):
+def _configuration_from_q(robot: CableRobot, tokens: list[str]):
     """The configuration from the --q values, with errors that name --q."""
     from cdpm.errors import InputError
     from cdpm.spec import parse_number

@@ -4,8 +4,12 @@ from __future__ import annotations
 
 import argparse
 import json
+from typing import TYPE_CHECKING
 
 from cdpm.commands._pose import Q_HELP, add_pose_arguments, pose_from_args
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cdpm.robot import CableRobot
 
 NAME = "analyze"
 HELP = "linearise at one pose and print POC, positive controllability and more"
@@ -92,7 +96,7 @@ def _cli_words(message: str) -> str:
     return message.replace("pretension=N", "--pretension N")
 
 
-def _check_pretension(robot, tension, pretension: float | None) -> None:
+def _check_pretension(robot: CableRobot, tension, pretension: float | None) -> None:
     """--pretension only means something for the pretension method, and that
     method needs one (from the flag or the spec)."""
     from cdpm.errors import InputError

@@ -4,6 +4,10 @@ from __future__ import annotations
 
 import argparse
 import sys
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cdpm.robot import CableRobot
 
 NAME = "map"
 HELP = "map positive output controllability over a grid or random poses (zarr store)"
@@ -207,7 +211,7 @@ def _check_plot_path(path: str) -> None:
         raise InputError(f"--plot {path}: {exc}") from None
 
 
-def _check_tension(robot, method: str | None) -> None:
+def _check_tension(robot: CableRobot, method: str | None) -> None:
     """The pretension method needs a pretension, which `cdpm map` takes
     from the spec only."""
     from cdpm.errors import InputError

@@ -138,7 +138,7 @@ def equilibrium_tensions(
     return solve_equilibria(LT, load, robot.tension_min, robot.tension_max, method, pretension)
 
 
-def _result(robot, q, load, batch: EquilibriumBatch, message: str) -> EquilibriumResult:
+def _result(robot: CableRobot, q, load, batch: EquilibriumBatch, message: str) -> EquilibriumResult:
     return EquilibriumResult(
         q=q.copy(),
         tension=batch.tension[0],
@@ -249,7 +249,7 @@ def equilibrium_tension(
     return _infeasible(robot, q, LT[0], load[0], batch, method, pretension)
 
 
-def _infeasible(robot, q, lt, load, batch, method, pretension) -> EquilibriumResult:
+def _infeasible(robot: CableRobot, q, lt, load, batch, method, pretension) -> EquilibriumResult:
     """The infeasible result: why, and the closest tensions in bounds."""
     fmin, fmax = robot.tension_min, robot.tension_max
     how = int(batch.how[0])

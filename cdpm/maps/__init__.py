@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Callable, Mapping
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from cdpm.errors import InputError
 from cdpm.maps._evaluate import (
@@ -25,6 +25,9 @@ from cdpm.maps._evaluate import (
 from cdpm.maps._plan import DEFAULT_CHUNK_SIZE, SampledAxes, sample_axes
 from cdpm.maps._store import StoreSettingsError, open_map
 from cdpm.numerics import SPAN_TOL
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cdpm.robot import CableRobot
 
 __all__ = [
     "workspace_map",
@@ -54,7 +57,7 @@ def _per_pose_chunk_size(n_poses: int) -> int:
 
 
 def workspace_map(
-    robot,
+    robot: CableRobot | str | os.PathLike,
     axes: Mapping[str, Any] | SampledAxes,
     base: Any = None,
     tension: Any = None,
@@ -205,7 +208,7 @@ def _check_tol(tol) -> float:
     return value
 
 
-def _check_in_memory_size(robot, plan) -> None:
+def _check_in_memory_size(robot: CableRobot, plan) -> None:
     """Refuse an in-memory map larger than IN_MEMORY_MAX before any work."""
     import numpy as np
 

@@ -7,9 +7,14 @@ through :meth:`cdpm.robot.CableRobot.kinematics_batch`.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from cdpm.configuration import _kind
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cdpm.robot import CableRobot
 
 __all__ = ["configurations"]
 
@@ -33,7 +38,7 @@ def _rpy_quaternions(rpy: np.ndarray) -> np.ndarray:
     )
 
 
-def configurations(robot, natural: np.ndarray) -> np.ndarray:
+def configurations(robot: CableRobot, natural: np.ndarray) -> np.ndarray:
     """Configuration vectors (N, nq) of natural coordinates (N, nv), the
     batched :meth:`cdpm.robot.CableRobot.from_natural` (quaternions may
     differ in sign, which is the same rotation)."""

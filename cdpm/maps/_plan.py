@@ -13,13 +13,16 @@ import json
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from cdpm.errors import InputError
 from cdpm.maps.criteria import CRITERIA
 from cdpm.numerics import SPAN_TOL
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cdpm.robot import CableRobot
 
 __all__ = ["SampledAxes", "MapPlan", "sample_axes", "make_plan", "coordinate_units"]
 
@@ -207,7 +210,7 @@ def _as_axis(name: str, values: Any) -> np.ndarray:
     return arr
 
 
-def _base_natural(robot, base: Any) -> np.ndarray:
+def _base_natural(robot: CableRobot, base: Any) -> np.ndarray:
     if base is None:
         if robot.poses:
             return robot.to_natural(next(iter(robot.poses.values())))

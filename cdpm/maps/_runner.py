@@ -26,9 +26,13 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from cdpm.errors import CdpmError, InputError, MissingExtraError
 from cdpm.maps._evaluate import MapJob
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cdpm.robot import CableRobot
 
 __all__ = ["RobotSource", "run_chunks", "ProgressPrinter"]
 
@@ -228,7 +232,7 @@ def run_chunks(
         _run(robot, plan, job, todo, sink, workers, scheduler, finished)
 
 
-def _run(robot, plan, job, todo, sink, workers, scheduler, finished) -> None:
+def _run(robot: CableRobot, plan, job, todo, sink, workers, scheduler, finished) -> None:
     if scheduler is not None:
         _run_dask(robot, plan, job, todo, finished, scheduler)
     elif workers <= 1 or len(todo) == 1:
@@ -286,7 +290,7 @@ def prestart_workers() -> None:
     _start_fork_server(_context())
 
 
-def _run_processes(robot, plan, job, todo, finished, workers: int, writer=None) -> None:
+def _run_processes(robot: CableRobot, plan, job, todo, finished, workers: int, writer=None) -> None:
     """Chunks on ``workers - 1`` local worker processes plus this process.
 
     Each worker builds the robot once (initializer) and then gets only
@@ -347,7 +351,7 @@ def _run_processes(robot, plan, job, todo, finished, workers: int, writer=None) 
     executor.shutdown(wait=True)
 
 
-def _run_dask(robot, plan, job, todo, finished, scheduler) -> None:
+def _run_dask(robot: CableRobot, plan, job, todo, finished, scheduler) -> None:
     try:
         import distributed
     except ImportError as exc:

@@ -19,6 +19,7 @@ import os
 import shutil
 import warnings
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -26,18 +27,21 @@ from cdpm.errors import InputError
 from cdpm.maps._plan import MapPlan, coordinate_units, settings_difference
 from cdpm.maps.criteria import CRITERIA
 
+if TYPE_CHECKING:  # pragma: no cover
+    from cdpm.robot import CableRobot
+
 __all__ = ["ZarrSink", "MemorySink", "ChunkWriter", "open_map", "variable_specs"]
 
 _META = ".cdpm"
 
 
-def variable_specs(robot, plan: MapPlan) -> dict[str, tuple]:
+def variable_specs(robot: CableRobot, plan: MapPlan) -> dict[str, tuple]:
     """name -> (extra dims, dtype, fill value, attrs) of every data variable
     (one per registered criterion, :data:`cdpm.maps.criteria.CRITERIA`)."""
     return {name: (c.dims, c.dtype, c.fill, c.attrs(robot)) for name, c in CRITERIA.items()}
 
 
-def _attrs(robot, plan: MapPlan) -> dict:
+def _attrs(robot: CableRobot, plan: MapPlan) -> dict:
     s = plan.settings
     return {
         "title": f"cdpm workspace map of {robot.spec.path.name}",
@@ -54,7 +58,7 @@ def _attrs(robot, plan: MapPlan) -> dict:
     }
 
 
-def _coords(robot, plan: MapPlan) -> dict:
+def _coords(robot: CableRobot, plan: MapPlan) -> dict:
     units = dict(zip(robot.coordinate_names, coordinate_units(robot.model), strict=True))
     coords: dict = {}
     if plan.mode == "grid":
@@ -69,14 +73,14 @@ def _coords(robot, plan: MapPlan) -> dict:
     return coords
 
 
-def _extra_size(robot, dim: str) -> int:
+def _extra_size(robot: CableRobot, dim: str) -> int:
     return robot.n_outputs if dim == "output" else 3
 
 
 class MemorySink:
     """Chunks written into numpy arrays; :meth:`dataset` wraps them."""
 
-    def __init__(self, robot, plan: MapPlan):
+    def __init__(self, robot: CableRobot, plan: MapPlan):
         self.robot, self.plan = robot, plan
         self.specs = variable_specs(robot, plan)
         self.arrays = {

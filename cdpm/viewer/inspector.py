@@ -17,12 +17,13 @@ from cdpm.errors import InputError, MissingExtraError
 from cdpm.viewer.state import PoseState, default_pose, pose_state
 
 if TYPE_CHECKING:  # pragma: no cover - for static type checkers only
+    from cdpm.robot import CableRobot
     from cdpm.viewer.scene import Viewer
 
 __all__ = ["PoseInspector", "coordinate_ranges"]
 
 
-def coordinate_ranges(robot, natural: Any = None) -> dict[str, tuple[float, float]]:
+def coordinate_ranges(robot: CableRobot, natural: Any = None) -> dict[str, tuple[float, float]]:
     """Slider range of each natural coordinate, from the URDF joint limits.
 
     Finite limits (``robot.model.lowerPositionLimit``/``upperPositionLimit``)
@@ -87,7 +88,7 @@ class PoseInspector:
         update_seconds: wall time of each update since creation [s].
     """
 
-    def __init__(self, robot, q: Any = None, *, viewer: Viewer | None = None) -> None:
+    def __init__(self, robot: CableRobot, q: Any = None, *, viewer: Viewer | None = None) -> None:
         self.robot = robot
         self.viewer = viewer
         q0 = robot.as_q(default_pose(robot) if q is None else q)

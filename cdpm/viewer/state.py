@@ -16,13 +16,16 @@ from __future__ import annotations
 import enum
 import html
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from cdpm.errors import CdpmError
 from cdpm.linearisation import linearise
 from cdpm.verdicts import VERDICT_CODES, VERDICT_RGB, verdict_code
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cdpm.robot import CableRobot
 
 __all__ = [
     "CableState",
@@ -198,7 +201,7 @@ class PoseGeometry:
         output_frame_ids: their frame ids (-1: the world).
     """
 
-    def __init__(self, robot) -> None:
+    def __init__(self, robot: CableRobot) -> None:
         import pinocchio as pin
 
         self._pin = pin
@@ -314,7 +317,7 @@ def centres_of_mass(model) -> list[tuple[int, np.ndarray]]:
     ]
 
 
-def _analyse(robot, q: np.ndarray):
+def _analyse(robot: CableRobot, q: np.ndarray):
     """Equilibrium tension, cable states and POC verdict at q.
 
     :func:`cdpm.linearise` finds the equilibrium tension (the
@@ -343,7 +346,7 @@ def _analyse(robot, q: np.ndarray):
     return lin.tension, slack, poc.verdict, float(poc.margin), None
 
 
-def pose_state(robot, q: Any, geometry: PoseGeometry | None = None) -> PoseState:
+def pose_state(robot: CableRobot, q: Any, geometry: PoseGeometry | None = None) -> PoseState:
     """What the viewer shows at q: positions, tensions, cable states, verdict.
 
     Args:
@@ -383,7 +386,9 @@ def pose_state(robot, q: Any, geometry: PoseGeometry | None = None) -> PoseState
     )
 
 
-def _outputs_from_frames(robot, geometry: PoseGeometry, positions: np.ndarray) -> np.ndarray:
+def _outputs_from_frames(
+    robot: CableRobot, geometry: PoseGeometry, positions: np.ndarray
+) -> np.ndarray:
     from cdpm.spec import OUTPUT_COMPONENTS
 
     return np.array(
@@ -395,7 +400,7 @@ def _outputs_from_frames(robot, geometry: PoseGeometry, positions: np.ndarray) -
     )
 
 
-def tension_scale(robot, tension: np.ndarray | None) -> float:
+def tension_scale(robot: CableRobot, tension: np.ndarray | None) -> float:
     """Tension [N] drawn in the darkest taut colour: the largest finite upper
     bound of the cables, else the largest tension at the pose (at least 1e-9)."""
     upper = robot.tension_max[np.isfinite(robot.tension_max)]
@@ -424,7 +429,7 @@ def cable_colors(
     return colors
 
 
-def default_pose(robot) -> np.ndarray:
+def default_pose(robot: CableRobot) -> np.ndarray:
     """The spec's first named pose, else the neutral configuration."""
     if robot.poses:
         return next(iter(robot.poses.values())).copy()
