@@ -171,7 +171,7 @@ class LinearisationBatch:
         B: input matrices, shape (N, 2 nv, m) [per N of tension change].
         B_cone: B with the columns of cables at their upper bound negated
             and of pinned cables zeroed (every sign-constrained input u >= 0),
-            shape (N, 2 nv, m).
+            shape (N, 2 nv, m) (the array B itself when no column changes).
         C: output matrices, shape (N, p, 2 nv).
         tension: equilibrium tensions f* [N], shape (N, m).
         input_sign: +1 at the lower bound, -1 at the upper one, 0 free, (N, m).
@@ -273,7 +273,10 @@ def linearise_batch(
     loaded = np.flatnonzero(np.any(tension != 0, axis=1))
     if loaded.size:
         cable_stiffness[loaded] = robot.cable_stiffness_batch(kin.take(loaded), tension[loaded])
-    stiffness = -(Minv @ (gravity_stiffness + cable_stiffness))
+    if gravity_stiffness.any() or loaded.size:
+        stiffness = -(Minv @ (gravity_stiffness + cable_stiffness))
+    else:
+        stiffness = np.zeros((k, nv, nv))
     damping = robot.joint_damping
     rate = -(Minv * damping[None, None, :]) if np.any(damping) else np.zeros((k, nv, nv))
     A = np.zeros((k, 2 * nv, 2 * nv))
@@ -286,7 +289,8 @@ def linearise_batch(
     # lower bound, u <= 0 at the upper one: B_cone negates those columns;
     # pinned cables, f_min = f_max, have no input)
     pinned = robot.tension_min == robot.tension_max
-    B_cone = B * input_cone_scale(input_sign, pinned)[:, None, :]
+    scale = input_cone_scale(input_sign, pinned)
+    B_cone = B if np.all(scale == 1.0) else B * scale[:, None, :]
     C = np.zeros((k, p, 2 * nv))
     C[:, :, :nv] = kin.output_jacobian
     return LinearisationBatch(

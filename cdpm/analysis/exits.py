@@ -34,7 +34,7 @@ __all__ = [
 ]
 
 
-def nilpotent_sign(x0: np.ndarray, y1: np.ndarray) -> np.ndarray:
+def nilpotent_sign(x0: np.ndarray | None, y1: np.ndarray, axis: int = 1) -> np.ndarray:
     """POC of p = 1 systems with A^2 = 0 and every input sign-constrained.
 
     ``g_j(t) = x0_j + t x1_j``; a point is positive (negative) when
@@ -42,15 +42,22 @@ def nilpotent_sign(x0: np.ndarray, y1: np.ndarray) -> np.ndarray:
     of them (a late point has the sign of x1_j). POC iff both signs occur.
 
     Args:
-        x0: CB, shape (k, m); y1: tau CAB, shape (k, m).
+        x0: CB, shape (k, m), or None when CB = 0.
+        y1: tau CAB, shape (k, m).
+        axis: the input axis (1; 0 for (m, k) arrays, system axis last).
 
     Returns:
         bool (k,): YES.
     """
-    big = np.maximum(np.abs(x0).max(axis=1, initial=0.0), np.abs(y1).max(axis=1, initial=0.0))
-    thr = (ZERO_RTOL * big)[:, None]
-    pos = np.any(x0 > thr, axis=1) | np.any(y1 > thr, axis=1)
-    neg = np.any(x0 < -thr, axis=1) | np.any(y1 < -thr, axis=1)
+    big = np.abs(y1).max(axis=axis, initial=0.0)
+    if x0 is not None:
+        big = np.maximum(np.abs(x0).max(axis=axis, initial=0.0), big)
+    thr = np.expand_dims(ZERO_RTOL * big, axis)
+    pos = np.any(y1 > thr, axis=axis)
+    neg = np.any(y1 < -thr, axis=axis)
+    if x0 is not None:
+        pos |= np.any(x0 > thr, axis=axis)
+        neg |= np.any(x0 < -thr, axis=axis)
     return pos & neg
 
 
@@ -126,7 +133,7 @@ def nilpotent_poc(CAB: np.ndarray, tol: float):
         x = CAB[0]  # (m, k)
         big = np.abs(x).max(axis=0)
         thr = ZERO_RTOL * big
-        yes = nilpotent_sign(np.zeros((k, m)), x.T) & (big > 0)
+        yes = nilpotent_sign(None, x, axis=0) & (big > 0)
         codes[yes] = YES
         margin[yes] = np.minimum(x.max(axis=0), -x.min(axis=0))[yes]
         # the analyser's CAB differs by round-off (~1e-16 |x|): only values
