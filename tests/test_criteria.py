@@ -122,3 +122,18 @@ def test_tol_reaches_maps_and_is_checked(paper_robot):
     assert '"tol": 1e-06' in ds.attrs["cdpm_settings"]
     with pytest.raises(cdpm.InputError, match=r"tol must be an angle in \(0, 1\) rad"):
         cdpm.workspace_map(paper_robot, {"q1": [0.2]}, workers=1, tol=-1)
+
+
+def test_viewer_overlay_colours_any_plotted_criterion(paper_robot):
+    from cdpm.verdicts import VERDICT_RGB
+    from cdpm.viewer.overlay import color_choices, map_points
+
+    assert {"verdict", "margin", "n_taut", "wrench_closure"} <= set(color_choices())
+    ds = cdpm.workspace_map(paper_robot, {"q1": [0.1, 0.5], "q2": [0.5, 2.0]}, workers=1)
+    _, colors = map_points(ds, color_by="wrench_closure")
+    codes = ds["wrench_closure"].transpose("q1", "q2").values.reshape(-1)
+    np.testing.assert_allclose(colors, [VERDICT_RGB[int(c)] for c in codes])
+    _, blue = map_points(ds, color_by="tension_max")  # all 0 N: one colour
+    assert np.allclose(blue, blue[0])
+    with pytest.raises(cdpm.InputError, match="use one of verdict, margin, poc"):
+        map_points(ds, color_by="y")

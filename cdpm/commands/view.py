@@ -56,11 +56,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         action="store_true",
         help="overlay a map made from another spec file (default: refuse it)",
     )
+    from cdpm.viewer.overlay import color_choices
+
     parser.add_argument(
         "--color-by",
-        choices=("verdict", "margin"),
+        choices=color_choices(),
         default="verdict",
-        help="colour of the map points (default: verdict)",
+        help="colour of the map points: the POC verdict, its margin or another map "
+        "criterion (default: verdict)",
     )
     parser.add_argument(
         "--geometry",

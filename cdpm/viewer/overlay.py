@@ -1,4 +1,4 @@
-"""A workspace map over the 3-D view: points coloured by verdict or margin.
+"""A workspace map over the 3-D view: points coloured by a map criterion.
 
 :func:`map_points` turns a map (``xarray.Dataset``) into positions and RGB
 colours (verdict colours from :mod:`cdpm.verdicts`, the same as the plots'),
@@ -14,7 +14,19 @@ from cdpm import verdicts
 from cdpm.errors import InputError
 from cdpm.verdicts import NO, NOT_ANALYSED, VERDICT_RGB, YES
 
-__all__ = ["map_points", "check_map_spec", "VERDICT_CODES"]
+__all__ = ["map_points", "check_map_spec", "color_choices", "VERDICT_CODES"]
+
+#: short names of ``color_by``: the POC verdict and the POC margin
+_ALIASES = {"verdict": "poc", "margin": "poc_margin"}
+
+
+def color_choices() -> tuple[str, ...]:
+    """Values ``color_by`` accepts: ``verdict``, ``margin`` and every map
+    criterion with a plot hint (:data:`cdpm.maps.criteria.CRITERIA`)."""
+    from cdpm.maps.criteria import CRITERIA
+
+    return (*_ALIASES, *(name for name, c in CRITERIA.items() if c.plot is not None))
+
 
 #: Codes of the ``poc`` variable of a workspace map (``flag_values``): code ->
 #: name, the inverse of :data:`cdpm.verdicts.VERDICT_CODES` (name -> code).
@@ -60,9 +72,13 @@ def map_points(dataset, *, color_by: str = "verdict", position: str = "output_fr
     See :meth:`cdpm.viewer.Viewer.show_map` for the dataset contract. Poses whose
     position is not finite are left out.
     """
-    if color_by not in ("verdict", "margin"):
-        raise InputError(f"color_by={color_by!r}; use 'verdict' or 'margin'")
-    needed = {"verdict": "poc", "margin": "poc_margin"}[color_by]
+    from cdpm.maps.criteria import CRITERIA
+
+    choices = color_choices()
+    if color_by not in choices:
+        raise InputError(f"color_by={color_by!r}; use one of {', '.join(choices)}")
+    needed = _ALIASES.get(color_by, color_by)
+    hint = CRITERIA[needed].plot
     for var in (position, needed):
         if var not in getattr(dataset, "data_vars", {}):
             have = ", ".join(getattr(dataset, "data_vars", {})) or "none"
@@ -80,16 +96,31 @@ def map_points(dataset, *, color_by: str = "verdict", position: str = "output_fr
         raise InputError(
             f"{needed} has dims {dataset[needed].dims}, expected the pose dims {tuple(pose_dims)}"
         )
-    if color_by == "verdict":
+    if hint == "verdict":
         codes = values.astype(int)
         unknown = VERDICT_RGB[NOT_ANALYSED]
         colors = np.array([VERDICT_RGB.get(int(c), unknown) for c in codes], dtype=float).reshape(
             -1, 3
         )
-    else:
+    elif hint == "diverging":
         colors = _margin_colors(values.astype(float))
+    else:
+        colors = _sequential_colors(values.astype(float), fill=CRITERIA[needed].fill)
     keep = np.all(np.isfinite(positions), axis=1)
     return positions[keep], colors[keep]
+
+
+def _sequential_colors(values: np.ndarray, fill) -> np.ndarray:
+    """Light (smallest) to dark (largest) blue; the criterion's fill value
+    (not computed) and non-finite values grey."""
+    valid = np.isfinite(values) & (values != fill)
+    lo = float(values[valid].min()) if valid.any() else 0.0
+    hi = float(values[valid].max()) if valid.any() else 1.0
+    t = np.clip((np.where(valid, values, lo) - lo) / ((hi - lo) or 1.0), 0.0, 1.0)[:, None]
+    light, dark = np.array([0.78, 0.86, 0.94]), np.array([0.03, 0.19, 0.42])
+    out = light + t * (dark - light)
+    out[~valid] = VERDICT_RGB[NOT_ANALYSED]
+    return out
 
 
 def _margin_colors(margin: np.ndarray) -> np.ndarray:

@@ -444,8 +444,10 @@ class Viewer:
                 ``poc_margin`` and ``output_frame_position`` (dims
                 ``(..., "xyz")``, world position [m] of the first output's frame).
             color_by: ``"verdict"`` (green YES, red NO, amber MARGINAL, grey not
-                analysed) or ``"margin"`` (red negative through white to green
-                positive, scaled by the largest |margin|; NaN grey).
+                analysed), ``"margin"`` (red negative through white to green
+                positive, scaled by the largest |margin|; NaN grey), or any map
+                criterion with a plot hint (:func:`cdpm.viewer.overlay.color_choices`:
+                verdicts in verdict colours, quantities light to dark blue).
             position: the position variable to plot (dims ``(..., "xyz")``).
             point_size: size of the points [m] (default: 1.5 % of the scene).
             check_spec: refuse a map made from another spec file (see
