@@ -49,6 +49,14 @@ _EXPORTS: dict[str, str] = {
     "OutputControllabilityResult": "cdpm.analysis",
     "SpanResult": "cdpm.analysis",
     "SpanCertificate": "cdpm.analysis",
+    # the nonlinear robot: simulation, steering, verification
+    "simulate": "cdpm.simulation",
+    "Trajectory": "cdpm.simulation",
+    "TensionProfile": "cdpm.simulation",
+    "steer": "cdpm.steering",
+    "SteerResult": "cdpm.steering",
+    "verify_pose": "cdpm.verification",
+    "VerifyReport": "cdpm.verification",
     # pose report
     "PoseReport": "cdpm.report",
     "analyze_pose": "cdpm.report",
@@ -142,5 +150,8 @@ if TYPE_CHECKING:  # pragma: no cover - for static type checkers only
     from cdpm.plotting import plot_map, save_map_plot  # noqa: F401
     from cdpm.report import PoseReport, analyze_pose  # noqa: F401
     from cdpm.robot import CableRobot, load_robot  # noqa: F401
+    from cdpm.simulation import TensionProfile, Trajectory, simulate  # noqa: F401
     from cdpm.spec import CableSpec, load_spec  # noqa: F401
+    from cdpm.steering import SteerResult, steer  # noqa: F401
+    from cdpm.verification import VerifyReport, verify_pose  # noqa: F401
     from cdpm.viewer import CableState, PoseInspector, PoseState, Viewer, pose_state  # noqa: F401

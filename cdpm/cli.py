@@ -20,6 +20,8 @@ __all__ = ["main", "build_parser"]
 #: command modules, in the order ``cdpm --help`` lists them
 COMMAND_MODULES = (
     "cdpm.commands.analyze",
+    "cdpm.commands.verify",
+    "cdpm.commands.steer",
     "cdpm.commands.view",
     "cdpm.commands.picture",
     "cdpm.commands.map",

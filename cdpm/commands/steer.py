@@ -1,0 +1,118 @@
+"""``cdpm steer``: steer the nonlinear robot's output to a target."""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+from cdpm.commands._pose import add_pose_arguments, pose_from_args
+from cdpm.commands.plot import argument_type
+from cdpm.commands.verify import _image, _radius
+
+NAME = "steer"
+HELP = "find pull-only tensions that move the output to a target, and simulate them"
+DESCRIPTION = """\
+Start at rest at the equilibrium of a pose, plan piecewise-constant tension
+changes on the linearisation (an LP: slack cables only pull harder, taut ones
+stay inside their bounds) and correct them on the nonlinear simulation until
+the output reaches the target. Prints the outcome and the tension profile;
+--plot draws y(t) and f(t), --view plays the motion in the 3-D viewer."""
+EPILOG = """\
+examples:
+  cdpm steer models/two_link_planar/two_link_planar.yaml --pose nominal --to 0.876
+  cdpm steer models/two_link_vertical/two_link_vertical.yaml --by 0.005 0 --plot s.png
+  cdpm steer models/two_link_planar/two_link_planar.yaml --by -0.01 --view"""
+
+
+def _number(text: str) -> float:
+    from cdpm.expressions import parse_number
+
+    return parse_number(text)
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    add_pose_arguments(parser)
+    goal = parser.add_mutually_exclusive_group(required=True)
+    goal.add_argument(
+        "--to",
+        nargs="+",
+        type=argument_type(_number),
+        metavar="Y",
+        help="the output target, one value per output [m]",
+    )
+    goal.add_argument(
+        "--by",
+        nargs="+",
+        type=argument_type(_number),
+        metavar="DY",
+        help="the target as a change of the outputs from the pose's [m]",
+    )
+    parser.add_argument(
+        "--duration", type=argument_type(_radius), metavar="T", help="steering time [s]"
+    )
+    parser.add_argument(
+        "--intervals", type=int, default=20, metavar="K", help="piecewise-constant intervals"
+    )
+    parser.add_argument("--json", action="store_true", help="print the result as JSON")
+    parser.add_argument(
+        "--plot", type=argument_type(_image), metavar="IMAGE", help="draw y(t) and f(t) to IMAGE"
+    )
+    parser.add_argument(
+        "--view", action="store_true", help="play the motion in the 3-D viewer (127.0.0.1)"
+    )
+    parser.add_argument(
+        "--port", type=int, default=None, help="viewer port (default: meshcat picks one)"
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from cdpm.errors import InputError
+    from cdpm.robot import load_robot
+    from cdpm.steering import steer
+
+    robot = load_robot(args.spec)
+    pose = pose_from_args(robot, args)
+    values = np.array(args.to if args.to is not None else args.by, dtype=float)
+    if values.shape != (robot.n_outputs,):
+        option = "--to" if args.to is not None else "--by"
+        raise InputError(
+            f"{option} takes {robot.n_outputs} value(s), one per output "
+            f"({', '.join(robot.output_names)}); got {values.size}"
+        )
+    if args.intervals < 1:
+        raise InputError(f"--intervals must be >= 1, got {args.intervals}")
+    target = values if args.to is not None else robot.output(pose) + values
+    result = steer(robot, pose, target, duration=args.duration, intervals=args.intervals)
+    if args.plot:
+        result.trajectory.plot(
+            args.plot, title=f"{robot.spec.path.name}: steering", target=result.target
+        )
+    if args.json:
+        print(json.dumps(result.as_dict(), indent=2))
+    else:
+        print(result)
+        _print_profile(result)
+        if args.plot:
+            print(f"plot written to {args.plot}")
+    if args.view:
+        from cdpm.viewer import Viewer
+
+        viewer = Viewer(robot, port=args.port)
+        print(f"viewer at {viewer.url}; playing the motion (Ctrl-C stops)")
+        try:
+            viewer.play(result.trajectory, loop=True)
+        except KeyboardInterrupt:
+            pass
+        finally:
+            viewer.close()
+    return 0 if result.reached else 1
+
+
+def _print_profile(result) -> None:
+    names = result.trajectory.cable_names
+    print("  tension profile [N] (interval start [s], then one column per cable)")
+    print("  " + f"{'t':>8} " + " ".join(f"{n:>10}" for n in names))
+    for t, row in zip(result.time[:-1], result.tension, strict=True):
+        print("  " + f"{t:>8.4g} " + " ".join(f"{x:>10.4g}" for x in row))

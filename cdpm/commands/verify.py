@@ -1,0 +1,99 @@
+"""``cdpm verify``: show a pose's POC verdict on the nonlinear robot."""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+from cdpm.commands._pose import add_pose_arguments, pose_from_args
+from cdpm.commands.plot import argument_type
+
+NAME = "verify"
+HELP = "steer the nonlinear robot to targets around a pose with pull-only tensions"
+DESCRIPTION = """\
+Decide positive output controllability at a pose, then show what it means on
+the full nonlinear dynamics. At a YES pose: steer the output to the 2p
+targets y0 +- R e_i with tensions inside every cable's bounds at every
+instant, and print each target's miss, peak tension and duration. At a NO
+pose: steer toward the blocked direction v of the certificate and print the
+best attempt, whose progress v.(y - y0) stays at most of second order in R.
+The default R is 0.2 % of the robot's size (the largest distance between two
+cable attachment points)."""
+EPILOG = """\
+examples:
+  cdpm verify models/two_link_planar/two_link_planar.yaml --pose nominal
+  cdpm verify models/two_link_vertical/two_link_vertical.yaml --radius 0.005 --plot v.png
+  cdpm verify models/spatial_8cable/spatial_8cable.yaml --pose centre --random 4 --json"""
+
+
+def _radius(text: str) -> float:
+    from cdpm.errors import InputError
+    from cdpm.expressions import parse_number
+
+    value = parse_number(text)
+    if not (value > 0 and value < float("inf")):
+        raise InputError(f"--radius must be a positive distance, got {text!r}")
+    return value
+
+
+def _count(text: str) -> int:
+    from cdpm.errors import InputError
+
+    try:
+        value = int(text)
+    except ValueError:
+        value = -1
+    if value < 0:
+        raise InputError(f"--random takes a count >= 0, got {text!r}")
+    return value
+
+
+def _image(text: str):
+    from cdpm.plotting import check_image_path
+
+    return check_image_path(text)
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    add_pose_arguments(parser)
+    parser.add_argument(
+        "--radius",
+        type=argument_type(_radius),
+        metavar="R",
+        help="distance of the targets from y0 [output units, m] (default 0.2 %% of the "
+        "robot's size)",
+    )
+    parser.add_argument(
+        "--random",
+        type=argument_type(_count),
+        default=0,
+        metavar="N",
+        help="also steer to N random directions at distance R (YES poses)",
+    )
+    parser.add_argument(
+        "--duration", type=argument_type(_radius), metavar="T", help="steering time [s]"
+    )
+    parser.add_argument("--json", action="store_true", help="print the report as JSON")
+    parser.add_argument(
+        "--plot", type=argument_type(_image), metavar="IMAGE", help="draw every run to IMAGE"
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    from cdpm.robot import load_robot
+    from cdpm.verification import verify_pose
+
+    robot = load_robot(args.spec)
+    pose = pose_from_args(robot, args)
+    report = verify_pose(
+        robot, pose, args.radius, random_directions=args.random, duration=args.duration
+    )
+    if args.plot:
+        report.plot(args.plot)
+    if args.json:
+        print(json.dumps(report.as_dict(), indent=2))
+    else:
+        print(report)
+        if args.plot:
+            print(f"plot written to {args.plot}")
+    return 0

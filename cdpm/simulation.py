@@ -1,0 +1,396 @@
+"""Nonlinear simulation of a cable robot under given cable tensions.
+
+:func:`simulate` integrates the full dynamics (seed paper eq 11, with the
+URDF's viscous joint damping D and the spec's constant load w_ext)::
+
+    M(q) q'' + C(q, q') q' + G(q) + D q' + w_ext = -L(q)^T f(t)
+
+with Pinocchio's articulated-body algorithm (ABA) for q'' on the
+configuration manifold: between output samples the state is written in a
+chart ``q = pin.integrate(q_c, delta)`` around the last sample q_c, where
+``delta' = (d integrate / d delta)^-1 q'``, so free-flyers and other joints
+with quaternions integrate exactly (no drift off the unit sphere). Each
+piece is solved by scipy's adaptive Dormand-Prince 8(5,3) method
+(``DOP853``) with relative and absolute error tolerances ``rtol`` and
+``atol``; a piecewise-constant tension profile is integrated interval by
+interval, so its jumps never fall inside a step.
+
+Tensions are either a :class:`TensionProfile` (knot times (K+1,) [s],
+values (K, m) [N], value k held on [time[k], time[k+1])), a constant (m,),
+or a feedback callable ``f(t, q, v) -> (m,)``. The result is a
+:class:`Trajectory`.
+"""
+
+from __future__ import annotations
+
+import html
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from cdpm.errors import InputError
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cdpm.robot import CableRobot
+
+__all__ = ["TensionProfile", "Trajectory", "simulate"]
+
+#: default error tolerances of the integrator (relative, absolute)
+SIM_RTOL = 1e-10
+SIM_ATOL = 1e-12
+#: default output samples per second of simulated time, at least this many in all
+SAMPLES_PER_SECOND = 200
+MIN_SAMPLES = 50
+
+Feedback = Callable[[float, np.ndarray, np.ndarray], Any]
+
+
+@dataclass(frozen=True)
+class TensionProfile:
+    """Piecewise-constant cable tensions.
+
+    Attributes:
+        time: knot times [s], shape (K+1,), strictly increasing.
+        values: tensions [N], shape (K, m); value k is held on
+            [time[k], time[k+1]) and the last one after time[K].
+    """
+
+    time: np.ndarray
+    values: np.ndarray
+
+    @classmethod
+    def make(cls, time: Any, values: Any, m: int) -> TensionProfile:
+        """A validated profile (copies), or an InputError naming the problem."""
+        try:
+            t = np.array(time, dtype=float).reshape(-1)
+            f = np.array(values, dtype=float)
+        except (TypeError, ValueError) as exc:
+            raise InputError(f"tension profile: time and values must be numbers ({exc})") from exc
+        if f.ndim == 1 and f.shape[0] == m and t.shape[0] == 2:
+            f = f[None]
+        if t.shape[0] < 2 or f.shape != (t.shape[0] - 1, m):
+            raise InputError(
+                f"tension profile: time has {t.shape[0]} knots and values shape {f.shape}; "
+                f"give K+1 knot times [s] and (K, {m}) tensions [N] (one row per interval)"
+            )
+        if not (np.all(np.isfinite(t)) and np.all(np.isfinite(f))):
+            raise InputError("tension profile: time and values must be finite")
+        if np.any(np.diff(t) <= 0):
+            raise InputError("tension profile: knot times must be strictly increasing")
+        return cls(t, f)
+
+    def __call__(self, t: float) -> np.ndarray:
+        """The tensions [N] held at time t, shape (m,)."""
+        k = int(np.searchsorted(self.time, t, side="right")) - 1
+        return self.values[min(max(k, 0), self.values.shape[0] - 1)]
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    """A simulated motion, sampled at times t.
+
+    Attributes:
+        t: sample times [s], shape (T,).
+        q: configurations, shape (T, nq).
+        v: velocities (tangent space), shape (T, nv).
+        f: cable tensions applied at each sample [N], shape (T, m).
+        y: outputs, shape (T, p) [m or rad].
+        lengths: cable lengths [m], shape (T, m).
+        tension_min, tension_max: the cables' bounds [N], each (m,).
+        cable_names, output_names, coordinate_names: labels.
+        profile: the piecewise-constant profile simulated, or None for a
+            feedback law.
+    """
+
+    t: np.ndarray
+    q: np.ndarray
+    v: np.ndarray
+    f: np.ndarray
+    y: np.ndarray
+    lengths: np.ndarray
+    tension_min: np.ndarray
+    tension_max: np.ndarray
+    cable_names: tuple[str, ...]
+    output_names: tuple[str, ...]
+    coordinate_names: tuple[str, ...]
+    profile: TensionProfile | None = None
+
+    @property
+    def out_of_bounds(self) -> np.ndarray:
+        """True where a cable's tension leaves [f_min, f_max], shape (T, m).
+
+        For a piecewise-constant profile the check covers every interval's
+        value exactly (not only the samples)."""
+        f = self.f if self.profile is None else np.vstack([self.f, self.profile.values])
+        bad = (f < self.tension_min) | (f > self.tension_max)
+        return bad[: self.f.shape[0]] | bad[self.f.shape[0] :].any(axis=0)
+
+    @property
+    def within_bounds(self) -> bool:
+        """Every tension inside its cable's bounds at every instant."""
+        return not bool(self.out_of_bounds.any())
+
+    def to_dataset(self):
+        """The trajectory as an ``xarray.Dataset`` (dims time, cable, output,
+        coordinate; units in the attributes)."""
+        import xarray as xr
+
+        return xr.Dataset(
+            {
+                "tension": (("time", "cable"), self.f, {"units": "N"}),
+                "cable_length": (("time", "cable"), self.lengths, {"units": "m"}),
+                "y": (("time", "output"), self.y, {"long_name": "outputs"}),
+                "v": (("time", "velocity"), self.v, {"long_name": "tangent velocity"}),
+                "q": (("time", "q_index"), self.q, {"long_name": "configuration vector"}),
+                "out_of_bounds": (("time", "cable"), self.out_of_bounds),
+            },
+            coords={
+                "time": ("time", self.t, {"units": "s"}),
+                "cable": list(self.cable_names),
+                "output": list(self.output_names),
+                "velocity": [f"{c}_dot" for c in self.coordinate_names],
+                "tension_min": ("cable", self.tension_min, {"units": "N"}),
+                "tension_max": ("cable", self.tension_max, {"units": "N"}),
+            },
+            attrs={"within_bounds": int(self.within_bounds)},
+        )
+
+    def plot(self, path=None, *, title: str | None = None, target=None):
+        """Outputs y(t) (change from the start) and tensions f(t) in two
+        panels; with ``path``, saved there. ``target`` (p,) draws the
+        outputs' targets. Returns the matplotlib Figure."""
+        from cdpm.plotting import _matplotlib
+
+        _, Figure = _matplotlib()
+        fig = Figure(figsize=(8, 6), layout="constrained")
+        ax_y, ax_f = fig.subplots(2, 1, sharex=True)
+        dy = self.y - self.y[0]
+        for i, name in enumerate(self.output_names):
+            (line,) = ax_y.plot(self.t, dy[:, i] * 1e3, label=name)
+            if target is not None:
+                ax_y.axhline(
+                    (target[i] - self.y[0, i]) * 1e3, color=line.get_color(), ls="--", lw=0.8
+                )
+        ax_y.set_ylabel("output change y - y(0) [mm]")
+        ax_y.legend(loc="best", fontsize=8)
+        ax_y.grid(alpha=0.3)
+        times = self.t if self.profile is None else self.profile.time
+        for j, name in enumerate(self.cable_names):
+            if self.profile is None:
+                ax_f.plot(self.t, self.f[:, j], label=name)
+            else:
+                vals = np.append(self.profile.values[:, j], self.profile.values[-1, j])
+                ax_f.step(times, vals, where="post", label=name)
+        ax_f.set_xlabel("time [s]")
+        ax_f.set_ylabel("cable tension [N]")
+        ax_f.legend(loc="best", fontsize=8, ncol=2)
+        ax_f.grid(alpha=0.3)
+        if title:
+            fig.suptitle(title, fontsize=10)
+        if path is not None:
+            fig.savefig(path, dpi=100)
+        return fig
+
+    def __str__(self) -> str:
+        bounds = "inside" if self.within_bounds else "OUTSIDE"
+        lines = [
+            f"Trajectory: {self.t.size} samples over {self.t[-1] - self.t[0]:.4g} s; "
+            f"tensions {bounds} the cable bounds",
+            f"  y(0) = {np.array2string(self.y[0], precision=6)}",
+            f"  y(T) = {np.array2string(self.y[-1], precision=6)}",
+            f"  peak tension {float(np.max(self.f, initial=0.0)):.4g} N",
+        ]
+        return "\n".join(lines)
+
+    def _repr_html_(self) -> str:
+        return f"<pre>{html.escape(str(self))}</pre>"
+
+
+def _as_tension(robot: CableRobot, tension: Any) -> TensionProfile | Feedback | np.ndarray:
+    m = robot.n_cables
+    if isinstance(tension, TensionProfile):
+        return TensionProfile.make(tension.time, tension.values, m)
+    if callable(tension):
+        return tension
+    if isinstance(tension, tuple) and len(tension) == 2:
+        return TensionProfile.make(tension[0], tension[1], m)
+    try:
+        f = np.array(tension, dtype=float).reshape(-1)
+    except (TypeError, ValueError) as exc:
+        raise InputError(
+            "tension must be a TensionProfile, (time, values), a constant (m,) [N] "
+            f"or a callable f(t, q, v); got {type(tension).__name__}"
+        ) from exc
+    if f.shape != (m,) or not np.all(np.isfinite(f)):
+        raise InputError(f"a constant tension needs {m} finite values [N], got {tension!r}")
+    return f
+
+
+class _Dynamics:
+    """q'' of the robot, and the chart ODE for (delta, v)."""
+
+    def __init__(self, robot: CableRobot):
+        import pinocchio as pin
+
+        self.robot, self.pin = robot, pin
+        self.model = robot.model
+        self.data = robot.model.createData()
+        self.damping = robot.joint_damping
+        self.w_ext = robot.external_wrench
+        from cdpm.configuration import _kind
+
+        # every joint a plain vector space: the chart is q = q_c + delta
+        self.flat = robot.nq == robot.nv and all(
+            _kind(self.model.joints[j]) == "euclidean" for j in range(1, self.model.njoints)
+        )
+
+    def acceleration(self, q, v, f) -> np.ndarray:
+        L = self.robot.kinematics(q).jacobian
+        tau = -L.T @ f - self.damping * v - self.w_ext
+        return self.pin.aba(self.model, self.data, q, v, tau)
+
+    def chart_rhs(self, qc, tension, t0):
+        nv, pin, model = self.robot.nv, self.pin, self.model
+        arg1 = pin.ArgumentPosition.ARG1
+
+        def rhs(t, state):
+            delta, v = state[:nv], state[nv:]
+            q = qc + delta if self.flat else pin.integrate(model, qc, delta)
+            f = tension(t0 + t, q, v)
+            a = self.acceleration(q, v, f)
+            if self.flat:
+                ddelta = v
+            else:
+                ddelta = np.linalg.solve(pin.dIntegrate(model, qc, delta, arg1), v)
+            return np.concatenate([ddelta, a])
+
+        return rhs
+
+
+def simulate(
+    robot: CableRobot,
+    q0: Any,
+    v0: Any = None,
+    *,
+    tension: Any,
+    duration: float | None = None,
+    samples: int | None = None,
+    rtol: float = SIM_RTOL,
+    atol: float = SIM_ATOL,
+) -> Trajectory:
+    """Simulate the nonlinear robot from (q0, v0) under cable tensions.
+
+    Args:
+        robot: the robot.
+        q0: start configuration (nq,), natural coordinates (nv,) or a pose name.
+        v0: start velocity (nv,) [rad/s or m/s]; default rest.
+        tension: a :class:`TensionProfile` or ``(time, values)`` (knots (K+1,)
+            [s], tensions (K, m) [N]), a constant (m,) [N], or a feedback
+            law ``f(t, q, v) -> (m,)`` [N].
+        duration: simulated time [s]; default the profile's last knot
+            (required for constants and feedback laws).
+        samples: output samples (default 200 per second, at least 50); a
+            profile's knots are always samples too.
+        rtol, atol: the integrator's error tolerances (relative; absolute
+            in rad, m, rad/s, m/s).
+
+    Returns:
+        :class:`Trajectory`.
+
+    Raises:
+        InputError: bad start state, tensions, duration or tolerances.
+        ModelError: a cable reaches zero length on the way.
+    """
+    from scipy.integrate import solve_ivp
+
+    q = robot.as_q(q0)
+    nv, m = robot.nv, robot.n_cables
+    v = np.zeros(nv) if v0 is None else np.array(v0, dtype=float).reshape(-1)
+    if v.shape != (nv,) or not np.all(np.isfinite(v)):
+        raise InputError(f"v0 must be {nv} finite velocities, got {v0!r}")
+    law = _as_tension(robot, tension)
+    profile = law if isinstance(law, TensionProfile) else None
+    t_start = float(profile.time[0]) if profile is not None else 0.0
+    if duration is None:
+        if profile is None:
+            raise InputError("give duration= [s] for a constant tension or a feedback law")
+        duration = float(profile.time[-1] - t_start)
+    duration = float(duration)
+    if not (math.isfinite(duration) and duration > 0):
+        raise InputError(f"duration must be a positive time [s], got {duration!r}")
+    if not (0 < rtol < 1 and 0 < atol):
+        raise InputError(f"rtol must be in (0, 1) and atol > 0, got {rtol}, {atol}")
+    t_end = t_start + duration
+    n = samples or max(MIN_SAMPLES, int(math.ceil(SAMPLES_PER_SECOND * duration)) + 1)
+    times = np.linspace(t_start, t_end, n)
+    if profile is not None:
+        inside = profile.time[(profile.time > t_start) & (profile.time < t_end)]
+        times = np.unique(np.concatenate([times, inside]))
+
+    if profile is not None:
+
+        def value(t, q_, v_):
+            return profile(t)
+
+    elif callable(law):
+
+        def value(t, q_, v_):
+            f = np.asarray(law(t, q_, v_), dtype=float).reshape(-1)
+            if f.shape != (m,) or not np.all(np.isfinite(f)):
+                raise InputError(
+                    f"the feedback law returned {f!r} at t = {t:g} s; it must return "
+                    f"{m} finite tensions [N]"
+                )
+            return f
+
+    else:
+        constant = law
+
+        def value(t, q_, v_):
+            return constant
+
+    dyn = _Dynamics(robot)
+    qs, vs, fs = [q.copy()], [v.copy()], [value(times[0], q, v)]
+    for t0, t1 in zip(times[:-1], times[1:], strict=True):
+        if profile is not None:
+            held = profile(t0)  # the interval's value, also exactly at its end
+
+            def piece(t, q_, v_, held=held):
+                return held
+        else:
+            piece = value
+        rhs = dyn.chart_rhs(q, piece, t0)
+        sol = solve_ivp(
+            rhs,
+            (0.0, t1 - t0),
+            np.concatenate([np.zeros(nv), v]),
+            method="DOP853",
+            rtol=rtol,
+            atol=atol,
+        )
+        if not sol.success:
+            raise InputError(f"the integrator stopped at t = {t0:g} s: {sol.message}")
+        delta, v = sol.y[:nv, -1], sol.y[nv:, -1].copy()
+        q = q + delta if dyn.flat else dyn.pin.integrate(robot.model, q, delta)
+        qs.append(q.copy())
+        vs.append(v.copy())
+        fs.append(value(t1, q, v))
+    qs, vs, fs = np.array(qs), np.array(vs), np.array(fs)
+    kin = robot.kinematics_batch(qs)
+    return Trajectory(
+        t=times,
+        q=qs,
+        v=vs,
+        f=fs,
+        y=np.array(kin.output),
+        lengths=np.array(kin.lengths),
+        tension_min=robot.tension_min.copy(),
+        tension_max=robot.tension_max.copy(),
+        cable_names=tuple(robot.cable_names),
+        output_names=tuple(robot.output_names),
+        coordinate_names=tuple(robot.coordinate_names),
+        profile=profile,
+    )

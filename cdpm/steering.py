@@ -1,0 +1,391 @@
+"""Pull-only steering: tension profiles that move the nonlinear robot's
+output to a target, with every cable inside its bounds at every instant.
+
+:func:`steer` starts at rest at an equilibrium (q*, f*), plans on the
+linearisation and corrects on the nonlinear simulation:
+
+1. **Plan.** With piecewise-constant tension changes du_k on K intervals
+   of [0, T], the linear state at T is ``x(T) = sum_k Phi^(K-1-k) Gamma du_k``
+   (``Phi = e^{A h}``, ``Gamma = int_0^h e^{As} ds B``, exact for
+   piecewise-constant inputs). One linear program (HiGHS through scipy)
+   finds the du of least total change ``sum |du|`` with ``C x(T) = dy`` and
+   ``f_min - f* <= du <= f_max - f*``: a slack cable (f* = f_min) can only
+   pull harder, a taut one both ways.
+2. **Correct.** The profile ``f* + du`` is simulated on the nonlinear robot
+   (:func:`cdpm.simulate`); the miss ``y(T) - target`` is subtracted from
+   the commanded change and the LP solved again (shooting), until the miss
+   is below the tolerance.
+
+When the LP has no solution (a NO pose steered toward its blocked
+direction, or a target beyond what the bounds allow in time T), the best
+attempt minimises the linear miss ``|C x(T) - dy|_1`` instead, is
+simulated, and the result says why the target is not reached.
+"""
+
+from __future__ import annotations
+
+import html
+import math
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from cdpm.errors import InputError
+from cdpm.simulation import TensionProfile, Trajectory, simulate
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cdpm.linearisation import Linearisation
+    from cdpm.robot import CableRobot
+
+__all__ = ["SteerResult", "steer", "plan_profile", "default_duration"]
+
+#: default number of piecewise-constant intervals of a steering profile
+STEER_INTERVALS = 20
+#: default miss tolerance, relative to the distance to the target
+STEER_MISS_RTOL = 1e-3
+#: shooting iterations at most
+STEER_ITERATIONS = 12
+#: default duration [s] when the linearisation has no time scale (A^2 = 0)
+STEER_DURATION = 1.0
+
+
+@dataclass(frozen=True)
+class SteerResult:
+    """A steering attempt.
+
+    Attributes:
+        time: knot times [s], shape (K+1,).
+        tension: absolute tensions [N], shape (K, m), exactly as simulated
+            (interval k holds ``tension[k]`` on [time[k], time[k+1])).
+        trajectory: the nonlinear simulation of that profile.
+        target: the output target, shape (p,).
+        y0: the output at the equilibrium, shape (p,).
+        miss: |y(T) - target| [output units].
+        reached: miss <= tolerance.
+        status: one line on the outcome (why not, when not reached).
+        tolerance: the miss tolerance used.
+        iterations: nonlinear simulations run (shooting iterations).
+        equilibrium_tension: f* [N], shape (m,).
+        blocked_direction: for a target the linearisation cannot reach,
+            a unit v (p,) with v.(y - y0) unable to grow to first order
+            (the POC certificate's separator when the pose is NO), else None.
+    """
+
+    time: np.ndarray
+    tension: np.ndarray
+    trajectory: Trajectory
+    target: np.ndarray
+    y0: np.ndarray
+    miss: float
+    reached: bool
+    status: str
+    tolerance: float
+    iterations: int
+    equilibrium_tension: np.ndarray
+    blocked_direction: np.ndarray | None = None
+
+    @property
+    def duration(self) -> float:
+        """T [s]."""
+        return float(self.time[-1] - self.time[0])
+
+    @property
+    def peak_tension(self) -> float:
+        """Largest tension of the profile [N]."""
+        return float(self.tension.max(initial=0.0))
+
+    @property
+    def final_velocity(self) -> np.ndarray:
+        """Velocity at T (nv,); the robot is generally still moving."""
+        return self.trajectory.v[-1]
+
+    @property
+    def within_bounds(self) -> bool:
+        """Every tension inside its cable's bounds at every instant."""
+        return self.trajectory.within_bounds
+
+    def as_dict(self) -> dict:
+        """JSON-serialisable content."""
+        return {
+            "reached": bool(self.reached),
+            "status": self.status,
+            "target": self.target.tolist(),
+            "y0": self.y0.tolist(),
+            "y_final": self.trajectory.y[-1].tolist(),
+            "miss": float(self.miss),
+            "tolerance": float(self.tolerance),
+            "duration": self.duration,
+            "iterations": int(self.iterations),
+            "peak_tension": self.peak_tension,
+            "within_bounds": bool(self.within_bounds),
+            "final_velocity": self.final_velocity.tolist(),
+            "time": self.time.tolist(),
+            "tension": self.tension.tolist(),
+            "cable_names": list(self.trajectory.cable_names),
+            "blocked_direction": None
+            if self.blocked_direction is None
+            else self.blocked_direction.tolist(),
+        }
+
+    def __str__(self) -> str:
+        word = "REACHED" if self.reached else "NOT REACHED"
+        lines = [
+            f"Steering: {word} ({self.status})",
+            f"  target {np.array2string(self.target, precision=6)} from "
+            f"y0 {np.array2string(self.y0, precision=6)}; y(T) "
+            f"{np.array2string(self.trajectory.y[-1], precision=6)}",
+            f"  miss {self.miss:.3g} (tolerance {self.tolerance:.3g}) after "
+            f"{self.iterations} simulation(s); T = {self.duration:.4g} s, "
+            f"{self.tension.shape[0]} intervals",
+            f"  peak tension {self.peak_tension:.4g} N; tensions "
+            f"{'inside' if self.within_bounds else 'OUTSIDE'} the bounds; final speed "
+            f"{float(np.linalg.norm(self.final_velocity)):.3g}",
+        ]
+        if self.blocked_direction is not None:
+            lines.append(
+                f"  blocked direction v = {np.array2string(self.blocked_direction, precision=4)}"
+            )
+        return "\n".join(lines)
+
+    def _repr_html_(self) -> str:
+        return f"<pre>{html.escape(str(self))}</pre>"
+
+
+def default_duration(lin: Linearisation) -> float:
+    """T [s]: STEER_DURATION, or a quarter period of the fastest mode of the
+    stiffness block when that is shorter (fast modes: short, gentle moves)."""
+    K = lin.stiffness
+    if not np.any(K):
+        return STEER_DURATION
+    omega = math.sqrt(float(np.max(np.abs(np.linalg.eigvals(K)))))
+    return min(STEER_DURATION, 0.5 * math.pi / omega) if omega > 0 else STEER_DURATION
+
+
+def _transition(A: np.ndarray, B: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
+    """(Phi, Gamma) = (e^{A h}, int_0^h e^{A s} ds B) from one exponential."""
+    from scipy.linalg import expm
+
+    n, m = B.shape
+    aug = np.zeros((n + m, n + m))
+    aug[:n, :n], aug[:n, n:] = A, B
+    E = expm(aug * h)
+    return E[:n, :n], E[:n, n:]
+
+
+def _output_map(lin: Linearisation, T: float, K: int) -> np.ndarray:
+    """The (p, K m) matrix taking the stacked changes du_k to C x(T)."""
+    Phi, Gamma = _transition(lin.A, lin.B, T / K)
+    blocks, P = [], Gamma
+    for _ in range(K):
+        blocks.append(lin.C @ P)
+        P = Phi @ P
+    return np.hstack(blocks[::-1])  # interval k is multiplied by Phi^(K-1-k)
+
+
+def plan_profile(
+    lin: Linearisation,
+    dy: np.ndarray,
+    T: float,
+    K: int,
+    fmin: np.ndarray,
+    fmax: np.ndarray,
+) -> tuple[np.ndarray | None, np.ndarray]:
+    """The least total tension change reaching ``C x(T) = dy``, or, when no
+    change within the bounds does, the one of least miss.
+
+    Returns:
+        (du (K, m) [N] or None when the exact target is out of reach,
+        best-effort du (K, m) [N]).
+    """
+    from scipy.optimize import linprog
+
+    f0 = lin.tension
+    m, p = f0.shape[0], dy.shape[0]
+    G = _output_map(lin, T, K)  # (p, K m)
+    lo = np.tile(fmin - f0, K)
+    hi = np.tile(fmax - f0, K)
+    # du = a - b with a in [0, max(hi, 0)], b in [0, max(-lo, 0)]
+    a_hi, b_hi = np.maximum(hi, 0.0), np.maximum(-lo, 0.0)
+    n = K * m
+    bounds = [(0.0, x if math.isfinite(x) else None) for x in np.concatenate([a_hi, b_hi])]
+    scale = max(float(np.abs(G).max()), 1e-300)
+    res = linprog(
+        np.ones(2 * n),
+        A_eq=np.hstack([G, -G]) / scale,
+        b_eq=dy / scale,
+        bounds=bounds,
+        method="highs",
+    )
+    exact = None
+    if res.status == 0:
+        exact = (res.x[:n] - res.x[n:]).reshape(K, m)
+        return exact, exact
+    # best effort: minimise |G du - dy|_1 (then effort, lightly)
+    weight = 1e-6 / max(float(np.abs(dy).max()), 1e-300)
+    c = np.concatenate([np.full(2 * n, weight), np.ones(2 * p)])
+    A_eq = np.hstack([G, -G, -np.eye(p), np.eye(p)]) / scale
+    res = linprog(
+        c,
+        A_eq=A_eq,
+        b_eq=dy / scale,
+        bounds=bounds + [(0.0, None)] * (2 * p),
+        method="highs",
+    )
+    if res.status != 0:  # pragma: no cover - the best-effort LP is always feasible
+        return None, np.zeros((K, m))
+    return None, (res.x[:n] - res.x[n : 2 * n]).reshape(K, m)
+
+
+def steer(
+    robot: CableRobot,
+    q: Any,
+    target: Any,
+    *,
+    duration: float | None = None,
+    intervals: int = STEER_INTERVALS,
+    tension: Any = None,
+    pretension: float | None = None,
+    tolerance: float | None = None,
+    max_iterations: int = STEER_ITERATIONS,
+) -> SteerResult:
+    """Move the nonlinear robot's output from its equilibrium at q to
+    ``target`` with pull-only tensions inside the cable bounds.
+
+    Args:
+        robot: the robot.
+        q: the equilibrium pose: a pose name, configuration (nq,) or natural
+            coordinates (nv,).
+        target: output target, shape (p,) [output units: m].
+        duration: T [s]; default :func:`default_duration`.
+        intervals: K piecewise-constant intervals.
+        tension, pretension: the equilibrium tension (as for
+            :func:`cdpm.linearise`).
+        tolerance: largest acceptable miss; default STEER_MISS_RTOL times
+            |target - y0| (at least 1e-12).
+        max_iterations: nonlinear simulations at most (shooting).
+
+    Returns:
+        :class:`SteerResult` (``reached`` False with a status in words when
+        the target is out of reach).
+
+    Raises:
+        InputError: a target of the wrong size or not finite, bad duration,
+            intervals or tolerance.
+        InfeasibleEquilibriumError: no equilibrium at q.
+    """
+    from cdpm.linearisation import linearise
+
+    lin = linearise(robot, q, tension=tension, pretension=pretension)
+    p = robot.n_outputs
+    try:
+        goal = np.array(target, dtype=float).reshape(-1)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"target must be {p} numbers (outputs {robot.output_names})") from exc
+    if goal.shape != (p,) or not np.all(np.isfinite(goal)):
+        raise InputError(
+            f"target must be {p} finite numbers, one per output "
+            f"({', '.join(robot.output_names)}); got {target!r}"
+        )
+    if not (isinstance(intervals, (int, np.integer)) and intervals >= 1):
+        raise InputError(f"intervals must be a positive integer, got {intervals!r}")
+    T = default_duration(lin) if duration is None else float(duration)
+    if not (math.isfinite(T) and T > 0):
+        raise InputError(f"duration must be a positive time [s], got {duration!r}")
+    y0 = lin.output.copy()
+    dy = goal - y0
+    tol = tolerance if tolerance is not None else max(STEER_MISS_RTOL * np.linalg.norm(dy), 1e-12)
+    if not (math.isfinite(tol) and tol > 0):
+        raise InputError(f"tolerance must be positive, got {tolerance!r}")
+    fmin, fmax = robot.tension_min, robot.tension_max
+    f0 = lin.tension
+    time = np.linspace(0.0, T, intervals + 1)
+    command = dy.copy()
+    best = None
+    blocked = None
+    status = ""
+    for iteration in range(1, max_iterations + 1):
+        du, attempt = plan_profile(lin, command, T, intervals, fmin, fmax)
+        values = np.clip(f0 + attempt, fmin, fmax)
+        traj = simulate(robot, lin.q, tension=TensionProfile(time, values))
+        miss = float(np.linalg.norm(traj.y[-1] - goal))
+        if best is None or miss < best[2]:
+            best = (values, traj, miss, iteration)
+        if du is None:
+            blocked = _blocked_direction(lin, command)
+            if blocked is not None:
+                best = _probe_blocked(robot, lin, blocked, goal, time, best, fmin, fmax)
+            status = (
+                "the linearisation cannot reach the target within the tension bounds in "
+                f"T = {T:.4g} s (its output cone misses the direction); best attempt shown"
+            )
+            break
+        if miss <= tol:
+            status = f"reached in {iteration} simulation(s)"
+            break
+        command = command - (traj.y[-1] - goal)
+    else:
+        status = f"miss still above the tolerance after {max_iterations} simulations"
+    values, traj, miss, iteration = best
+    reached = miss <= tol and blocked is None
+    if not reached and blocked is None and not status.startswith("miss"):
+        status = f"best miss {miss:.3g} above the tolerance {tol:.3g}"
+    return SteerResult(
+        time=time,
+        tension=values,
+        trajectory=traj,
+        target=goal,
+        y0=y0,
+        miss=miss,
+        reached=bool(reached),
+        status=status,
+        tolerance=float(tol),
+        iterations=iteration,
+        equilibrium_tension=f0.copy(),
+        blocked_direction=blocked,
+    )
+
+
+def _probe_blocked(robot, lin, v, goal, time, best, fmin, fmax):
+    """At a NO pose, the best of single-cable pulses toward the blocked
+    direction v: each cable that can pull harder pulls for one interval
+    (first, middle or last) with the tension change that would move the
+    linear output by |goal - y0|; the pulse that moves v.y(T) furthest
+    toward v is the best attempt (its gain is at most of second order in
+    the distance). Keeps ``best`` when no cable can pull harder."""
+    K, m = time.size - 1, lin.tension.shape[0]
+    G = _output_map(lin, float(time[-1]), K).reshape(lin.C.shape[0], K, m)
+    size = float(np.linalg.norm(goal - lin.output))
+    room = fmax - lin.tension
+    y0 = lin.output
+    probed = None
+    for k in sorted({0, K // 2, K - 1}):
+        for j in np.flatnonzero(room > 0):
+            gain = float(np.linalg.norm(G[:, k, j]))
+            if gain == 0:
+                continue
+            values = np.tile(lin.tension, (K, 1))
+            values[k, j] = min(lin.tension[j] + size / gain, fmax[j])
+            traj = simulate(robot, lin.q, tension=TensionProfile(time, values))
+            miss = float(np.linalg.norm(traj.y[-1] - goal))
+            count = (probed or best)[3] + 1
+            if probed is None or float(v @ (traj.y[-1] - y0)) > float(v @ (probed[1].y[-1] - y0)):
+                probed = (values, traj, miss, count)
+            else:
+                probed = (*probed[:3], count)
+    return probed or best
+
+
+def _blocked_direction(lin: Linearisation, dy: np.ndarray) -> np.ndarray | None:
+    """The POC certificate's separator when the pose is NO (oriented toward
+    dy), else None."""
+    from cdpm.analysis import Verdict, positive_output_controllability
+
+    res = positive_output_controllability(
+        lin.A, lin.B_cone, lin.C, sign_constrained=lin.sign_constrained
+    )
+    v = getattr(res.certificate, "separator", None)
+    if res.verdict is not Verdict.NO or v is None:
+        return None
+    v = np.asarray(v, dtype=float)
+    return v / np.linalg.norm(v)

@@ -1,0 +1,267 @@
+"""What a verdict means on the nonlinear robot: steer to targets around a pose.
+
+:func:`verify_pose` decides POC at a pose and then shows it on the full
+dynamics. At a YES pose it steers the output to the 2p targets
+``y0 +- R e_i`` (and, on request, to random directions at distance R) with
+pull-only tensions inside the bounds (:func:`cdpm.steer`). At a NO pose it
+steers toward the blocked direction (the certificate's separating vector v)
+and reports the best attempt: ``v.(y - y0)`` stays at most of second order
+in R.
+"""
+
+from __future__ import annotations
+
+import html
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from cdpm.errors import InputError
+from cdpm.steering import SteerResult, steer
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cdpm.robot import CableRobot
+
+__all__ = ["VerifyReport", "verify_pose", "default_radius"]
+
+#: default radius of the targets, as a fraction of the robot's size (the
+#: largest distance between two cable anchor points at the pose)
+RADIUS_FRACTION = 2e-3
+
+
+@dataclass(frozen=True)
+class VerifyReport:
+    """Steering runs around one pose.
+
+    Attributes:
+        model_name, pose_name: what was verified (pose_name None for a q).
+        verdict: the POC verdict at the pose (``"yes"``, ``"no"``, ``"marginal"``).
+        radius: R, the distance of the targets [output units].
+        y0: the output at the pose (p,).
+        directions: unit target directions, shape (n, p).
+        runs: one :class:`~cdpm.steering.SteerResult` per direction.
+        blocked_direction: at a NO pose, the separating vector v (p,).
+        robot_size: the length R is a fraction of [m].
+    """
+
+    model_name: str
+    pose_name: str | None
+    verdict: str
+    radius: float
+    y0: np.ndarray
+    directions: np.ndarray
+    runs: list[SteerResult] = field(default_factory=list)
+    blocked_direction: np.ndarray | None = None
+    robot_size: float = float("nan")
+
+    @property
+    def all_reached(self) -> bool:
+        """Every target reached."""
+        return all(r.reached for r in self.runs)
+
+    @property
+    def worst_relative_miss(self) -> float:
+        """max miss / R over the runs."""
+        return max((r.miss / self.radius for r in self.runs), default=0.0)
+
+    def blocked_progress(self) -> float | None:
+        """At a NO pose: the largest v.(y(t) - y0) over the best attempt
+        toward v, relative to R (second-order small), else None."""
+        if self.blocked_direction is None or not self.runs:
+            return None
+        traj = self.runs[0].trajectory
+        return float(np.max((traj.y - self.y0) @ self.blocked_direction)) / self.radius
+
+    def rows(self) -> list[dict]:
+        """One dict per run: direction, reached, miss, miss/R, peak tension,
+        duration, simulations."""
+        return [
+            {
+                "direction": d.tolist(),
+                "reached": bool(r.reached),
+                "miss": float(r.miss),
+                "relative_miss": float(r.miss / self.radius),
+                "peak_tension": r.peak_tension,
+                "within_bounds": bool(r.within_bounds),
+                "duration": r.duration,
+                "simulations": int(r.iterations),
+                "status": r.status,
+            }
+            for d, r in zip(self.directions, self.runs, strict=True)
+        ]
+
+    def as_dict(self) -> dict:
+        """JSON-serialisable content."""
+        return {
+            "model": self.model_name,
+            "pose": self.pose_name,
+            "verdict": self.verdict,
+            "radius": self.radius,
+            "robot_size": self.robot_size,
+            "y0": self.y0.tolist(),
+            "all_reached": self.all_reached,
+            "worst_relative_miss": self.worst_relative_miss,
+            "blocked_direction": None
+            if self.blocked_direction is None
+            else self.blocked_direction.tolist(),
+            "blocked_progress": self.blocked_progress(),
+            "runs": self.rows(),
+        }
+
+    def __str__(self) -> str:
+        where = f"pose {self.pose_name!r}" if self.pose_name else "the given q"
+        lines = [
+            f"cdpm verify: {self.model_name}, {where}: POC {self.verdict.upper()}",
+            f"  targets at R = {self.radius:.4g} from y0 = "
+            f"{np.array2string(self.y0, precision=6)} (R = {RADIUS_FRACTION:g} x robot size "
+            f"{self.robot_size:.4g} m unless given)",
+        ]
+        if self.blocked_direction is not None:
+            lines.append(
+                f"  blocked direction v = {np.array2string(self.blocked_direction, precision=4)}"
+                f"; best attempt: max v.(y - y0) = {self.blocked_progress():.3g} R"
+            )
+        lines.append(
+            f"  {'direction':<28} {'reached':>7} {'miss/R':>10} {'peak [N]':>10} "
+            f"{'T [s]':>7} {'sims':>5}"
+        )
+        for row in self.rows():
+            d = np.array2string(np.array(row["direction"]) + 0.0, precision=3, suppress_small=True)
+            lines.append(
+                f"  {d:<28} {'yes' if row['reached'] else 'NO':>7} {row['relative_miss']:>10.2e} "
+                f"{row['peak_tension']:>10.4g} {row['duration']:>7.3g} {row['simulations']:>5}"
+            )
+        if self.runs:
+            ok = "all tensions inside the cable bounds at every instant"
+            if not all(r.within_bounds for r in self.runs):
+                ok = "SOME TENSIONS OUTSIDE THE CABLE BOUNDS"
+            lines.append(f"  {ok}")
+        return "\n".join(lines)
+
+    def _repr_html_(self) -> str:
+        return f"<pre>{html.escape(str(self))}</pre>"
+
+    def plot(self, path=None):
+        """Output change and tensions of every run (one row per run); with
+        ``path``, saved there. Returns the Figure."""
+        from cdpm.plotting import _matplotlib
+
+        _, Figure = _matplotlib()
+        n = len(self.runs)
+        fig = Figure(figsize=(9, 2.2 * max(n, 1) + 0.6), layout="constrained")
+        axes = fig.subplots(max(n, 1), 2, squeeze=False)
+        for i, (d, run) in enumerate(zip(self.directions, self.runs, strict=True)):
+            traj = run.trajectory
+            ax_y, ax_f = axes[i]
+            ax_y.plot(traj.t, ((traj.y - self.y0) @ d) * 1e3, color="k", label="along target")
+            ax_y.axhline(self.radius * 1e3, color="k", ls="--", lw=0.8, label="target")
+            ax_y.set_ylabel("d.(y - y0) [mm]")
+            word = "reached" if run.reached else "NOT reached"
+            ax_y.set_title(
+                f"direction {np.array2string(d, precision=2)}: {word}, miss {run.miss:.2g}",
+                fontsize=9,
+            )
+            ax_y.grid(alpha=0.3)
+            for j, name in enumerate(traj.cable_names):
+                vals = np.append(run.tension[:, j], run.tension[-1, j])
+                ax_f.step(run.time, vals, where="post", label=name)
+            ax_f.set_ylabel("tension [N]")
+            ax_f.grid(alpha=0.3)
+            if i == 0:
+                ax_y.legend(fontsize=7, loc="best")
+                ax_f.legend(fontsize=7, loc="best", ncol=2)
+        axes[-1][0].set_xlabel("time [s]")
+        axes[-1][1].set_xlabel("time [s]")
+        fig.suptitle(
+            f"{self.model_name}, {self.pose_name or 'q'}: POC {self.verdict.upper()}, "
+            f"R = {self.radius * 1e3:.3g} mm",
+            fontsize=10,
+        )
+        if path is not None:
+            fig.savefig(path, dpi=100)
+        return fig
+
+
+def default_radius(robot: CableRobot, q: Any) -> tuple[float, float]:
+    """(R, size): R = RADIUS_FRACTION times the robot's size, the largest
+    distance between two cable attachment points at q [m]."""
+    points = np.vstack(robot.attachment_points(q))
+    diff = points[:, None, :] - points[None, :, :]
+    size = float(np.sqrt((diff**2).sum(axis=2)).max(initial=0.0)) or 1.0
+    return RADIUS_FRACTION * size, size
+
+
+def verify_pose(
+    robot: CableRobot,
+    pose: Any,
+    radius: float | None = None,
+    *,
+    random_directions: int = 0,
+    seed: int = 0,
+    tension: Any = None,
+    pretension: float | None = None,
+    duration: float | None = None,
+) -> VerifyReport:
+    """Show the POC verdict at a pose on the nonlinear robot.
+
+    Args:
+        robot: the robot.
+        pose: a pose name, configuration (nq,) or natural coordinates (nv,).
+        radius: R, the distance of the targets [output units]; default
+            :func:`default_radius`.
+        random_directions: extra targets in random unit directions (YES).
+        seed: their random seed.
+        tension, pretension: the equilibrium tension (as for
+            :func:`cdpm.linearise`).
+        duration: the steering time T [s] (default per pose).
+
+    Returns:
+        :class:`VerifyReport`.
+    """
+    from cdpm.report import analyze_pose
+
+    report = analyze_pose(robot, pose, tension=tension, pretension=pretension)
+    q = report.linearisation.q
+    size = default_radius(robot, q)[1]
+    R = RADIUS_FRACTION * size if radius is None else float(radius)
+    if not (np.isfinite(R) and R > 0):
+        raise InputError(f"radius must be a positive distance, got {radius!r}")
+    if not (isinstance(random_directions, (int, np.integer)) and random_directions >= 0):
+        raise InputError(f"random_directions must be a count >= 0, got {random_directions!r}")
+    p = robot.n_outputs
+    y0 = report.linearisation.output
+    verdict = report.poc.verdict.value
+    blocked = None
+    if verdict == "no":
+        v = getattr(report.poc.certificate, "separator", None)
+        blocked = np.asarray(v, dtype=float) / np.linalg.norm(v)
+        directions = blocked[None]
+    else:
+        eye = np.eye(p)
+        directions = np.vstack([np.stack([e, -e]) for e in eye]) if p else np.zeros((0, 0))
+        if random_directions:
+            extra = np.random.default_rng(seed).standard_normal((random_directions, p))
+            directions = np.vstack([directions, extra / np.linalg.norm(extra, axis=1)[:, None]])
+    runs = [
+        steer(
+            robot,
+            q,
+            y0 + R * d,
+            tension=tension,
+            pretension=pretension,
+            duration=duration,
+        )
+        for d in directions
+    ]
+    return VerifyReport(
+        model_name=robot.spec.path.name,
+        pose_name=pose if isinstance(pose, str) else None,
+        verdict=verdict,
+        radius=R,
+        y0=y0.copy(),
+        directions=directions,
+        runs=runs,
+        blocked_direction=blocked,
+        robot_size=size,
+    )
