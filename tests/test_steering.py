@@ -1,0 +1,212 @@
+"""Nonlinear simulation, pull-only steering and verification on the robot."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+import cdpm
+from cdpm.cli import main
+from cdpm.simulation import TensionProfile
+from tests.conftest import MODELS, PAPER_SPEC
+
+VERTICAL = MODELS / "two_link_vertical" / "two_link_vertical.yaml"
+SPATIAL = MODELS / "spatial_8cable" / "spatial_8cable.yaml"
+MULTILINK = MODELS / "multilink_arm" / "multilink_arm.yaml"
+TWO_CABLES = MODELS / "two_link_two_cables" / "two_link_two_cables.yaml"
+
+# --------------------------------------------------------------------------
+# the paper's arm in closed form (seed paper eqs 14-17, Table I), written
+# independently of Pinocchio and of cdpm's cable layer
+
+_ANCHORS = np.array([[0.0, 0.5], [0.0, 1.5], [0.0, -0.5], [0.0, -1.5]])
+#: (link, point in the link frame [m]): Table I's offsets from each link's
+#: centre of mass (0.5 m along the link)
+_ATTACH = [(1, (0.8, 0.1)), (2, (0.8, 0.1)), (1, (0.8, -0.1)), (2, (0.8, -0.1))]
+
+
+def _rot(a):
+    return np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
+
+
+def _drot(a):
+    return np.array([[-np.sin(a), -np.cos(a)], [np.cos(a), -np.sin(a)]])
+
+
+def _paper_L(q):
+    """Cable Jacobian: l_i = |B_i(q) - A_i|, row i = u_i^T dB_i/dq (eq 16)."""
+    L = np.zeros((4, 2))
+    for i, (link, p) in enumerate(_ATTACH):
+        p = np.array(p)
+        if link == 1:
+            B = _rot(q[0]) @ p
+            dB = np.stack([_drot(q[0]) @ p, np.zeros(2)], axis=1)
+        else:
+            a = q[0] + q[1]
+            B = _rot(q[0]) @ [1.0, 0.0] + _rot(a) @ p
+            d1 = _drot(q[0]) @ [1.0, 0.0] + _drot(a) @ p
+            dB = np.stack([d1, _drot(a) @ p], axis=1)
+        u = (B - _ANCHORS[i]) / np.linalg.norm(B - _ANCHORS[i])
+        L[i] = u @ dB
+    return L
+
+
+def _paper_rhs(profile):
+    def rhs(t, x):
+        q, v = x[:2], x[2:]
+        c, s = np.cos(q[1]), np.sin(q[1])
+        M = np.array([[1.5 + c, 0.25 + 0.5 * c], [0.25 + 0.5 * c, 0.25]])  # eq 14
+        Cv = np.array([-0.5 * v[1] * s * (2 * v[0] + v[1]), 0.5 * v[0] ** 2 * s])  # eq 15
+        f = profile(t)
+        return np.concatenate([v, np.linalg.solve(M, -Cv - _paper_L(q).T @ f)])
+
+    return rhs
+
+
+@pytest.fixture(scope="module")
+def paper():
+    return cdpm.load_robot(PAPER_SPEC)
+
+
+def test_closed_form_dynamics_match_the_model(paper):
+    q = np.array([0.4, 1.3])
+    np.testing.assert_allclose(_paper_L(q), paper.cable_jacobian(q), atol=1e-12)
+
+
+def test_a_steering_profile_replays_in_an_independent_simulation(paper):
+    from scipy.integrate import solve_ivp
+
+    y0 = paper.output("nominal")
+    res = cdpm.steer(paper, "nominal", y0 + 0.005)
+    assert res.reached
+    profile = TensionProfile(res.time, res.tension)
+    x = np.concatenate([paper.poses["nominal"], np.zeros(2)])
+    for t0, t1 in zip(res.time[:-1], res.time[1:], strict=True):  # one piece per interval
+        sol = solve_ivp(
+            _paper_rhs(lambda t, t0=t0: profile(t0)),
+            (t0, t1),
+            x,
+            method="DOP853",
+            rtol=1e-12,
+            atol=1e-13,
+        )
+        x = sol.y[:, -1]
+    y_independent = np.cos(x[0]) + np.cos(x[0] + x[1])  # eq 17
+    y_cdpm = res.trajectory.y[-1, 0]
+    assert abs(y_independent - y_cdpm) <= 1e-6 * abs(y_cdpm)
+    # the change it makes agrees far better than the 1e-6 asked for
+    assert abs(y_independent - y_cdpm) <= 1e-6 * 0.005
+
+
+@pytest.mark.parametrize("radius", [1e-3, -1e-3, 1e-2, -1e-2])
+def test_paper_nominal_targets_are_reached_pulling_only(paper, radius):
+    y0 = paper.output("nominal")
+    res = cdpm.steer(paper, "nominal", y0 + radius)
+    assert res.reached and res.miss < 0.01 * abs(radius)
+    assert np.all(res.tension >= 0) and res.within_bounds
+    # every cable was slack at the equilibrium: the profile only pulls
+    np.testing.assert_array_equal(res.equilibrium_tension, 0.0)
+    assert np.all(res.trajectory.f >= 0)
+
+
+@pytest.mark.parametrize(
+    ("spec", "pose"),
+    [(VERTICAL, "nominal"), (SPATIAL, "centre"), (MULTILINK, "reach")],
+    ids=["vertical", "spatial", "multilink"],
+)
+def test_loaded_and_spatial_yes_poses_reach_every_target(spec, pose):
+    robot = cdpm.load_robot(spec)
+    report = cdpm.verify_pose(robot, pose, radius=0.005)
+    assert report.verdict == "yes"
+    assert len(report.runs) == 2 * robot.n_outputs
+    assert report.all_reached and report.worst_relative_miss < 0.01
+    for run in report.runs:
+        assert run.within_bounds
+        assert np.all(run.tension >= robot.tension_min) and np.all(run.tension <= robot.tension_max)
+
+
+def test_no_pose_cannot_move_toward_its_blocked_direction():
+    robot = cdpm.load_robot(TWO_CABLES)
+    report = cdpm.verify_pose(robot, "nominal", radius=0.005)
+    assert report.verdict == "no"
+    np.testing.assert_allclose(report.blocked_direction, [1.0])
+    (run,) = report.runs
+    assert not run.reached and "cannot reach" in run.status
+    assert run.peak_tension > 0  # a real attempt: a cable pulled
+    assert report.blocked_progress() <= 0.01
+    # the other way is open
+    back = cdpm.steer(robot, "nominal", report.y0 - 0.005)
+    assert back.reached
+
+
+def test_free_flyer_stays_on_the_manifold_and_energy_is_kept():
+    spatial = cdpm.load_robot(SPATIAL)
+    eq = cdpm.equilibrium_tension(spatial, "centre")
+    traj = cdpm.simulate(spatial, "centre", tension=eq.tension, duration=0.5)
+    np.testing.assert_allclose(np.linalg.norm(traj.q[:, 3:7], axis=1), 1.0, atol=1e-12)
+    # held at equilibrium, it stays
+    assert np.abs(traj.y - traj.y[0]).max() < 1e-9
+    # no gravity, no cables, no damping: kinetic energy is constant
+    paper = cdpm.load_robot(PAPER_SPEC)
+    v0 = np.array([0.7, -1.1])
+    traj = cdpm.simulate(paper, "nominal", v0, tension=np.zeros(4), duration=2.0)
+    energy = [0.5 * v @ paper.mass_matrix(q) @ v for q, v in zip(traj.q, traj.v, strict=True)]
+    np.testing.assert_allclose(energy, energy[0], rtol=1e-9)
+
+
+def test_integrator_error_is_controlled(paper):
+    profile = (np.array([0.0, 0.3, 0.6]), np.array([[1.0, 0, 2, 0], [0, 3, 0, 1]]))
+    loose = cdpm.simulate(paper, "nominal", tension=profile, rtol=1e-7, atol=1e-9)
+    tight = cdpm.simulate(paper, "nominal", tension=profile, rtol=1e-12, atol=1e-14)
+    default = cdpm.simulate(paper, "nominal", tension=profile)
+    assert np.abs(loose.q[-1] - tight.q[-1]).max() < 1e-5
+    assert np.abs(default.q[-1] - tight.q[-1]).max() < 1e-9
+    assert 0.3 in default.t  # the profile's knots are samples
+
+
+def test_feedback_law_and_bounds_flags(paper):
+    const = cdpm.simulate(paper, "nominal", tension=np.array([1.0, 0, 0, 0]), duration=0.3)
+    law = cdpm.simulate(
+        paper, "nominal", tension=lambda t, q, v: np.array([1.0, 0, 0, 0]), duration=0.3
+    )
+    np.testing.assert_allclose(law.q, const.q, atol=1e-12)
+    assert const.within_bounds
+    pushing = cdpm.simulate(paper, "nominal", tension=np.array([-1.0, 0, 0, 0]), duration=0.1)
+    assert not pushing.within_bounds and pushing.out_of_bounds[:, 0].all()
+    ds = const.to_dataset()
+    assert ds["tension"].attrs["units"] == "N" and ds.sizes["cable"] == 4
+
+
+def test_bad_simulation_and_steering_input(paper):
+    with pytest.raises(cdpm.InputError, match="knot times must be strictly increasing"):
+        cdpm.simulate(paper, "nominal", tension=([0.0, 0.0], [[1, 0, 0, 0]]))
+    with pytest.raises(cdpm.InputError, match="give duration"):
+        cdpm.simulate(paper, "nominal", tension=np.zeros(4))
+    with pytest.raises(cdpm.InputError, match="needs 4 finite values"):
+        cdpm.simulate(paper, "nominal", tension=np.zeros(3), duration=1)
+    with pytest.raises(cdpm.InputError, match="must return 4 finite tensions"):
+        cdpm.simulate(paper, "nominal", tension=lambda t, q, v: [1.0], duration=0.1)
+    with pytest.raises(cdpm.InputError, match="one per output"):
+        cdpm.steer(paper, "nominal", [0.1, 0.2])
+    with pytest.raises(cdpm.InputError, match="radius must be a positive"):
+        cdpm.verify_pose(paper, "nominal", radius=-1)
+
+
+def test_verify_and_steer_commands(capsys, tmp_path):
+    spec = str(PAPER_SPEC)
+    assert main(["verify", spec, "--pose", "nominal", "--radius", "0.002", "--json"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["verdict"] == "yes" and report["all_reached"]
+    assert len(report["runs"]) == 2 and report["worst_relative_miss"] < 0.01
+    assert main(["steer", spec, "--by", "0.003", "--plot", str(tmp_path / "s.png")]) == 0
+    out = capsys.readouterr().out
+    assert "Steering: REACHED" in out and "tension profile [N]" in out
+    assert (tmp_path / "s.png").stat().st_size > 10_000
+    # not reached: exit 1, with the reason
+    assert main(["steer", str(TWO_CABLES), "--by", "0.003"]) == 1
+    assert "NOT REACHED" in capsys.readouterr().out
+    # a wrong number of values names the outputs
+    assert main(["steer", spec, "--to", "1", "2"]) == 1
+    assert "--to takes 1 value(s), one per output (tip_x)" in capsys.readouterr().err
