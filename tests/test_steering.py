@@ -210,3 +210,29 @@ def test_verify_and_steer_commands(capsys, tmp_path):
     # a wrong number of values names the outputs
     assert main(["steer", spec, "--to", "1", "2"]) == 1
     assert "--to takes 1 value(s), one per output (tip_x)" in capsys.readouterr().err
+
+
+def test_remark_11_on_the_nonlinear_robot(paper):
+    """Seed paper Remark 11 at the nominal pose: the Brammer witness w gives
+    a quantity w.x (x = (q - q*, q')) that nonnegative tensions never raise
+    to first order, so the state is not positive controllable, while the
+    output still moves both ways."""
+    lin = cdpm.linearise(paper, "nominal")
+    pc = cdpm.positive_controllability(lin.A, lin.B_cone, sign_constrained=lin.sign_constrained)
+    w = pc.witness
+    assert np.all(w @ lin.B <= 1e-12)
+    rng = np.random.default_rng(5)
+    q0 = paper.poses["nominal"]
+    moves = []
+    for run in range(8):
+        # random nonnegative pulls, mostly of one cable (c1 moves the tip to
+        # +x, the others to -x)
+        values = rng.uniform(0, 0.005, (10, 4))
+        values[:, run % 4] += rng.uniform(0, 0.1, 10)
+        traj = cdpm.simulate(paper, "nominal", tension=(np.linspace(0, 1, 11), values))
+        s = np.hstack([traj.q - q0, traj.v]) @ w
+        rise = float(np.max(s - np.minimum.accumulate(s)))
+        drop = float(s[0] - s.min())
+        assert rise <= 0.01 * drop + 1e-12  # second order at most
+        moves.append(traj.y[-1, 0] - traj.y[0, 0])
+    assert min(moves) < -1e-4 and max(moves) > 1e-4
