@@ -306,7 +306,8 @@ def main(argv=None) -> int:
     n_base = 40 if args.quick else 200
     repeats = 3 if args.quick else 7
     print(
-        f"cdpm map benchmark ({'quick' if args.quick else 'full'}); machine load average "
+        f"cdpm map benchmark ({'quick' if args.quick else 'full'}"
+        f"{', per-pose costs only' if args.per_pose_only else ''}); machine load average "
         f"{os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs: timings are noisy when busy\n"
         f"cdpm from {Path(cdpm.__file__).parent}\n"
     )

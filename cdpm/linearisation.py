@@ -35,6 +35,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from cdpm.equilibrium import (
+    EQUILIBRIUM_METHODS,
     EquilibriumResult,
     InfeasibleEquilibriumError,
     check_equilibrium,
@@ -340,7 +341,8 @@ def _equilibrium(robot: CableRobot, q, tension, pretension) -> EquilibriumResult
         raise InputError(
             f"the given tension is not an equilibrium at this pose: statics residual "
             f"|L^T f + G + w_ext| = {eq.residual:.6g} (N or N m); let cdpm compute one: "
-            "omit the tension (tension=None) or name a method (zero, min_norm, pretension)"
+            "omit the tension (tension=None) or name a method "
+            f"({', '.join(EQUILIBRIUM_METHODS)})"
         )
     return eq
 

@@ -27,15 +27,19 @@ MASS_COND_MAX = 1e12
 #: statics hold when |L^T f + G + w_ext| <= STATICS_RTOL max(1 N, |G + w_ext|,
 #: |L| |f|); a tension within STATICS_RTOL max(1, |f|) [N] of a bound sits on it
 STATICS_RTOL = 1e-9
-#: a given tension within this [N] (relative to max(1, |f|)) of a bound is on it
+#: a given tension within this [N] of a bound is on it (clipped onto it)
 BOUND_TOLERANCE = 1e-9
 #: singular values of L^T at most this times the largest are zero (equality
 #: rows of the least-norm QP)
 STATICS_RANK_RTOL = 1e-12
 #: the batched least-norm solver: residual (relative to the statics' scale)
-#: below which a pose is solved, and below which Newton steps stop
+#: below which a pose is solved
 BATCH_STATICS_RTOL = 1e-11
+#: ... its Newton steps stop below this residual (relative to max(1, |load|))
 BATCH_NEWTON_STOP_RTOL = 1e-13
+#: ... Newton steps at most, and halvings of its backtracking line search
+NEWTON_ITERATIONS = 25
+NEWTON_HALVINGS = 16
 #: the batched solver's Farkas gap (relative to max(1, |load|)) that proves
 #: a pose has no equilibrium
 FARKAS_RTOL = 1e-6
@@ -66,6 +70,11 @@ KRYLOV_COLUMN_NEGLIGIBLE = 1e-12
 #: batched span exits leave to the analyser the systems whose angular deficit
 #: is within this [rad] of ``tol`` (wrench closure: the same vectors, round-off apart)
 WRENCH_DEFER_BAND = 1e-11
+#: exits leave open the systems whose deciding numbers lie within this
+#: fraction of their zero threshold (the analyser computes them in another order)
+THRESHOLD_DEFER_FRACTION = 0.5
+#: ... and the systems whose angular gap is within this of pi - tol [rad]
+ANGULAR_DEFER_BAND = 1e-11
 #: ... and, for Brammer's test on a linear image of -M^-1 L^T (which scales
 #: small deficits by up to its condition number squared), deficits in this range [rad]
 BRAMMER_DEFER = (1e-12, 1e-5)

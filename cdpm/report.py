@@ -128,7 +128,8 @@ class PoseReport:
         ]
         if self.criteria:
             lines += ["", "Map criteria (as a workspace map stores them)"]
-            lines += [_indent(line) for line in _criteria_lines(self.criteria)]
+            names = self.linearisation.output_names
+            lines += [_indent(line) for line in _criteria_lines(self.criteria, names)]
         return _without_negative_zeros("\n".join(lines))
 
     def _equilibrium_lines(self) -> list[str]:
@@ -187,9 +188,9 @@ def _plain(value: Any) -> Any:
     return value.tolist() if value.ndim else value.item()
 
 
-def _criteria_lines(criteria: dict[str, Any]) -> list[str]:
+def _criteria_lines(criteria: dict[str, Any], output_names=()) -> list[str]:
     """One line per criterion: verdict and status codes by name, quantities
-    with their units."""
+    with their units (per-output values with the outputs' names)."""
     from cdpm.maps.criteria import CRITERIA
 
     lines = []
@@ -199,8 +200,13 @@ def _criteria_lines(criteria: dict[str, Any]) -> list[str]:
             names = {code: key for key, code in c.flags.items()}
             text = f"{names.get(int(value), str(value))} ({int(value)})"
         else:
-            arr = np.asarray(value, dtype=float)
-            text = np.array2string(arr, precision=6) if arr.ndim else f"{float(arr):.6g}"
+            arr = np.asarray(value, dtype=float) + 0.0
+            if c is not None and c.dims == ("output",) and len(output_names) == arr.size:
+                text = ", ".join(f"{n} = {x:.6g}" for n, x in zip(output_names, arr, strict=True))
+            elif arr.ndim:
+                text = np.array2string(arr, precision=6, suppress_small=True)
+            else:
+                text = f"{float(arr):.6g}"
             if c is not None and c.units not in (None, "1"):
                 text += f" {c.units}"
         lines.append(f"{name + ':':<24}{text}")

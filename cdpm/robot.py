@@ -5,7 +5,7 @@ linearisation needs: cable lengths l(q), the cable-joint Jacobian L(q)
 (``l' = L q'``, seed paper eq 16), the mass matrix M(q), gravity G(q), and
 the outputs y = h(q) with their Jacobian.
 
-Conventions (THEORY.md section 1): a straight segment from attachment point
+Conventions (docs/analysis.md): a straight segment from attachment point
 A to B has length ``|B - A|`` and unit vector ``u = (B - A)/|B - A|``; its row
 of L is ``u^T (J_B - J_A)`` with ``J_X`` the (3, nv) world-aligned
 translational Jacobian of the point X. A cable with several segments sums

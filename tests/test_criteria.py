@@ -22,8 +22,8 @@ def _poses(robot, n, seed, spread=0.3):
 
 @pytest.mark.parametrize("spec", [VERTICAL, SPATIAL], ids=["vertical", "spatial"])
 def test_n_taut_counts_the_free_inputs_of_linearise(spec):
-    """n_taut equals the number of cables cdpm.linearise leaves free (not on
-    a bound) at each pose, and -1 where there is no equilibrium."""
+    """n_taut equals the number of taut cables (f* > 0) of cdpm.linearise's
+    equilibrium at each pose, and -1 where there is no equilibrium."""
     robot = cdpm.load_robot(spec)
     natural = _poses(robot, 12, seed=3)
     out = cdpm.evaluate_poses(robot, natural)
@@ -34,7 +34,8 @@ def test_n_taut_counts_the_free_inputs_of_linearise(spec):
             assert n_taut == -1
             continue
         lin = cdpm.linearise(robot, robot.from_natural(x))
-        assert n_taut == np.count_nonzero(~lin.sign_constrained)
+        assert n_taut == np.count_nonzero(lin.tension > 0)
+        assert n_taut == np.count_nonzero(lin.equilibrium.taut)
         checked += 1
     assert checked >= 4
     # gravity needs taut cables: every analysed pose has some
@@ -137,3 +138,59 @@ def test_viewer_overlay_colours_any_plotted_criterion(paper_robot):
     assert np.allclose(blue, blue[0])
     with pytest.raises(cdpm.InputError, match="use one of verdict, margin, poc"):
         map_points(ds, color_by="y")
+
+
+def test_register_refuses_what_maps_cannot_store():
+    def zeros(batch):
+        return np.zeros(len(batch))
+
+    with pytest.raises(ValueError, match="already registered; pass replace=True"):
+        register(CRITERIA["n_taut"])
+    with pytest.raises(ValueError, match=r"extra dimensions \['cable'\] are not supported"):
+        register(Criterion("per_cable", "float64", np.nan, "x", zeros, dims=("cable",)))
+    with pytest.raises(ValueError, match="is not a numpy dtype"):
+        register(Criterion("odd", "nonsense", 0, "x", zeros))
+    with pytest.raises(ValueError, match="must be an identifier"):
+        register(Criterion("two words", "float64", 0, "x", zeros))
+    assert "per_cable" not in CRITERIA and "odd" not in CRITERIA
+    # replace=True: the same name again (a notebook cell run twice)
+    entry = CRITERIA["n_taut"]
+    assert register(entry, replace=True) is entry
+
+
+def test_a_worker_without_a_criterion_says_how_to_register_it(paper_robot):
+    from cdpm.maps._evaluate import MapJob
+
+    job = MapJob("min_norm", True, 1e-9, (*CRITERIA, "defined_in_main_only"))
+    with pytest.raises(cdpm.InputError, match=r"'defined_in_main_only' are not registered"):
+        job.evaluate(paper_robot, np.zeros((1, 2)))
+
+
+def test_evaluate_poses_checks_its_input(paper_robot):
+    with pytest.raises(cdpm.InputError, match=r"shape \(N, 2\)"):
+        cdpm.evaluate_poses(paper_robot, np.zeros((3, 3)))
+    with pytest.raises(cdpm.InputError, match="non-finite"):
+        cdpm.evaluate_poses(paper_robot, np.array([[0.0, np.nan]]))
+    with pytest.raises(cdpm.InputError, match="tol must be an angle"):
+        cdpm.evaluate_poses(paper_robot, np.zeros((1, 2)), tol=5)
+    one = cdpm.evaluate_poses(paper_robot, np.array([0.5, 1.0]))  # one pose, flat
+    assert one["poc"].shape == (1,)
+
+
+def test_pretension_method_without_pretension_warns(paper_robot):
+    with pytest.warns(cdpm.EquilibriumWarning, match="pretension of 0 N is the 'min_norm'"):
+        cdpm.evaluate_poses(paper_robot, np.zeros((1, 2)), "pretension")
+
+
+def test_analysis_without_outputs_is_trivially_poc():
+    from cdpm.analysis.batch import analyse_systems
+
+    A = np.zeros((2, 4, 4))
+    A[:, 0, 2] = A[:, 1, 3] = 1.0
+    B = np.zeros((2, 4, 3))
+    B[:, 2:] = np.random.default_rng(0).normal(size=(2, 2, 3))
+    res = analyse_systems(A, B, np.zeros((2, 0, 4)), np.ones((2, 3), bool))
+    np.testing.assert_array_equal(res.poc, cdpm.VERDICT_CODES["yes"])
+    for i in range(2):
+        one = cdpm.positive_controllability(A[i], B[i])
+        assert res.positive_controllable[i] == cdpm.VERDICT_CODES[one.verdict.value]

@@ -193,7 +193,7 @@ def fine_times(T: float, eigvals) -> np.ndarray:
 def prove_nonpositive(ev: Evaluator, v: np.ndarray, j: int, T: float):
     """Try to prove f(t) = v^T C e^{At} b_j <= 0 for all t >= 0.
 
-    Three pieces (THEORY section 3): a Taylor bound on (0, t1], a sampled
+    Three pieces (docs/analysis.md): a Taylor bound on (0, t1], a sampled
     bound with a second-derivative bound on [t1, T'] and a dominant-mode
     bound on [T', inf). Needs the modal evaluator.
 

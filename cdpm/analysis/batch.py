@@ -4,7 +4,7 @@
 with a pose axis first, positive output controllability (with its margin),
 output controllability and positive (Brammer) controllability; a map runs
 it on every chunk and :func:`cdpm.analyze_pose` on a batch of one. It
-first runs the vectorised exits below, each deciding the systems it can
+first runs the vectorised exits of :mod:`cdpm.analysis.exits`, each deciding the systems it can
 beyond doubt, and hands every system they leave open to the per-system
 analyser (:func:`cdpm.positive_output_controllability` and friends), so
 both entry points decide with one procedure and one set of thresholds
@@ -15,7 +15,7 @@ Exits:
 - ``nilpotent``: the seed paper's case, ``A = [[0, I], [0, 0]]``,
   ``B = [0; Bv]``, ``C = [Cq, 0]`` with every input sign-constrained. Then
   ``CB = 0`` and ``C e^{At} B = t Cq Bv``, so POC is a sign test (p = 1)
-  or an angular-gap test (p = 2) on the columns of ``Cq Bv`` (THEORY.md
+  or an angular-gap test (p = 2) on the columns of ``Cq Bv`` (docs/analysis.md
   section 3), output controllability is rank ``Cq Bv = p`` and Brammer's
   test asks whether the columns of Bv positively span R^nv.
 - ``mixed-cone``: the free (taut) inputs alone reach every output
@@ -119,6 +119,11 @@ def analyse_systems(
     mg = np.full(k, np.nan)
     failed = np.zeros(k, dtype=bool)
     open_poc = np.zeros(k, dtype=bool)
+    if C.shape[1] == 0:  # no output: POC and output controllability hold trivially
+        poc[:], oc[:], mg[:] = YES, YES, np.inf
+        pc[:] = free_controllable(A, B, mask)
+        _per_system(A, B, C, mask, open_poc, poc, mg, oc, pc, failed, tol)
+        return SystemVerdicts(poc, mg if margin else np.full(k, np.nan), oc, pc, failed)
     nil = nilpotent_mechanical(A, B, C, mask) if k else np.zeros(0, dtype=bool)
     if nil.any():
         idx = np.flatnonzero(nil)

@@ -3,8 +3,10 @@ once beyond doubt (the system axis last or first, as each says).
 
 :mod:`cdpm.analysis.batch` runs them on every map chunk and on the batch of
 one of :func:`cdpm.analyze_pose`; the per-system analyser shares
-:func:`nilpotent_sign`. Each test returns, besides its codes, the systems it
-leaves open (within a few round-off units of its threshold).
+:func:`nilpotent_sign`. The threshold tests (nilpotent POC, output rank,
+span codes) also return the systems they leave open, within a few round-off
+units of their thresholds; the rank exits (:func:`output_controllable`,
+:func:`free_controllable`) return NOT_ANALYSED where they are not sure.
 """
 
 from __future__ import annotations
@@ -14,10 +16,12 @@ import math
 import numpy as np
 
 from cdpm.numerics import (
+    ANGULAR_DEFER_BAND,
     KRYLOV_COLUMN_NEGLIGIBLE,
     RANK_DEFICIENT_RATIO,
     RANK_RATIO,
     SPAN_TOL,
+    THRESHOLD_DEFER_FRACTION,
     ZERO_RTOL,
 )
 from cdpm.verdicts import NO, NOT_ANALYSED, YES
@@ -87,7 +91,7 @@ def _max_angular_gap(S: np.ndarray):
     big = norms.max(axis=0)
     zero = ZERO_RTOL * big
     keep = norms > zero
-    near = np.any(np.abs(norms - zero) <= 0.5 * zero, axis=0)
+    near = np.any(np.abs(norms - zero) <= THRESHOLD_DEFER_FRACTION * zero, axis=0)
     theta = np.arctan2(S[1], S[0])
     two_pi = 2 * math.pi
     gap = np.full(norms.shape[1], -np.inf)
@@ -138,13 +142,15 @@ def nilpotent_poc(CAB: np.ndarray, tol: float):
         margin[yes] = np.minimum(x.max(axis=0), -x.min(axis=0))[yes]
         # the analyser's CAB differs by round-off (~1e-16 |x|): only values
         # close to the threshold could be decided differently
-        todo |= np.any(np.abs(np.abs(x) - thr) <= 0.5 * thr, axis=0) & (big > 0)
+        todo |= np.any(np.abs(np.abs(x) - thr) <= THRESHOLD_DEFER_FRACTION * thr, axis=0) & (
+            big > 0
+        )
         return codes, margin, todo
     if p == 2:
         gap, near = _max_angular_gap(CAB)
         yes = gap < math.pi - tol
         codes[yes] = YES
-        todo |= near | (np.abs(gap - (math.pi - tol)) <= ZERO_RTOL)
+        todo |= near | (np.abs(gap - (math.pi - tol)) <= ANGULAR_DEFER_BAND)
         margin[yes] = _inradius_2d(CAB[..., yes])
         return codes, margin, todo
     todo[:] = True

@@ -1,6 +1,6 @@
 """The POC margin: a continuous index of how robustly POC holds.
 
-THEORY section 4:
+docs/analysis.md, the margin:
 
     mu_T = min_{|v|=1} max_{t in [0, T], j} v^T W C e^{At} b_j s_j
 

@@ -19,9 +19,10 @@ more tension; slack: pink; unavailable: grey) and the output frame marker
 coloured by the positive output controllability verdict (green YES, red NO,
 amber MARGINAL), print the URL and serve until Ctrl-C. With --map, overlay a
 workspace map made by `cdpm map` from the same spec (output positions
-coloured by verdict or margin; --allow-other-spec for a map made from another
-spec file). Needs the viz extra: pip install "cdpm[viz]". From another
-machine, forward the port: ssh -L 7000:127.0.0.1:7000 HOST."""
+coloured by the POC verdict, its margin or another map variable, --color-by;
+--allow-other-spec for a map made from another spec file). Needs the viz
+extra: pip install "cdpm[viz]". From another machine, forward the port:
+ssh -L 7000:127.0.0.1:7000 HOST."""
 EPILOG = (
     """\
 examples:

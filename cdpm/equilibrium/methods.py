@@ -191,7 +191,12 @@ def solve_equilibria(
 
 
 def _batch(LT, load, f, feasible, how, fmin, fmax, method, pretension) -> EquilibriumBatch:
-    at_lower, at_upper, taut = classify(f, fmin, fmax)
+    at_lower, at_upper, _ = classify(f, fmin, fmax)
+    if method != "given":
+        # a solved cable on a bound sits exactly on it (round-off apart,
+        # the solvers leave it within STATICS_RTOL)
+        f = np.where(at_lower, fmin, np.where(at_upper, fmax, f))
+    taut = f > 0
     return EquilibriumBatch(
         tension=f,
         feasible=feasible,

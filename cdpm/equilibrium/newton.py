@@ -10,6 +10,8 @@ from cdpm.numerics import (
     BATCH_STATICS_RTOL,
     FARKAS_RTOL,
     NEWTON_DAMPING,
+    NEWTON_HALVINGS,
+    NEWTON_ITERATIONS,
     NEWTON_RIDGE_RTOL,
 )
 
@@ -25,7 +27,11 @@ def _dual_value(b, lam, z, lower, upper):
 
 
 def min_norm_tensions(
-    LT: np.ndarray, load: np.ndarray, lower: np.ndarray, upper: np.ndarray, iterations: int = 25
+    LT: np.ndarray,
+    load: np.ndarray,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    iterations: int = NEWTON_ITERATIONS,
 ):
     """Least-norm tensions ``f`` with ``L^T f = load`` and ``lower <= f <= upper``
     at many poses (the problem of :func:`cdpm.equilibrium.equilibrium_tension`).
@@ -58,7 +64,7 @@ def min_norm_tensions(
     ridge = NEWTON_RIDGE_RTOL * np.maximum(np.trace(gram, axis1=1, axis2=2), 1e-300)
     lam = np.linalg.solve(gram + ridge[:, None, None] * eye, load[..., None])[..., 0]
     lam = np.ascontiguousarray(lam)
-    steps = 0.5 ** np.arange(16)
+    steps = 0.5 ** np.arange(NEWTON_HALVINGS)
     trace = np.trace(gram, axis1=1, axis2=2)
     load_norm = np.maximum(np.linalg.norm(load, axis=1), 1.0)
     active = np.arange(k)  # poses still iterating

@@ -19,6 +19,7 @@ from cdpm.maps._evaluate import (
     STATUS_CODES,
     VERDICT_CODES,
     MapJob,
+    check_tol,
     evaluate_poses,
     resolve_tension,
 )
@@ -143,7 +144,7 @@ def workspace_map(
             chunk_size = DEFAULT_CHUNK_SIZE
         else:
             chunk_size = _per_pose_chunk_size(_n_poses(axes))
-    tol = _check_tol(tol)
+    tol = check_tol(tol)
     plan = make_plan(robot, axes, base, setting, chunk_size, __version__, margin, tol)
     if store is None:
         _check_in_memory_size(robot, plan)
@@ -160,7 +161,7 @@ def workspace_map(
         progress = ProgressPrinter(sum(plan.chunk_size(k) for k in todo))
     elif progress is False:
         progress = None
-    job = MapJob(setting, bool(margin), float(tol))
+    job = MapJob(setting, bool(margin), float(tol), tuple(plan.settings["variables"]))
     run_chunks(robot, plan, job, todo, sink, workers, scheduler, progress)
     return sink.dataset()
 
@@ -193,19 +194,6 @@ def _n_poses(axes) -> int:
         return int(np.prod([np.size(v) for v in axes.values()]))
     except (AttributeError, TypeError):
         return 1  # make_plan explains what is wrong with the axes
-
-
-def _check_tol(tol) -> float:
-    """The span tolerance as a float in (0, 1) [rad], or an InputError."""
-    import math
-
-    try:
-        value = float(tol)
-    except (TypeError, ValueError):
-        value = math.nan
-    if not (0 < value < 1):
-        raise InputError(f"tol must be an angle in (0, 1) rad, got {tol!r} (default {SPAN_TOL})")
-    return value
 
 
 def _check_in_memory_size(robot: CableRobot, plan) -> None:

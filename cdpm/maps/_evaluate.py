@@ -41,6 +41,8 @@ __all__ = [
     "evaluate_batch",
     "resolve_tension",
     "zero_equilibrium",
+    "check_tol",
+    "check_poses",
 ]
 
 
@@ -54,12 +56,23 @@ def resolve_tension(robot: CableRobot, tension: Any) -> str | list[float]:
     from cdpm.errors import InputError
 
     if tension is None:
-        return str(robot.spec.equilibrium_method)
+        tension = str(robot.spec.equilibrium_method)
     if isinstance(tension, str):
         if tension not in EQUILIBRIUM_METHODS:
             raise InputError(
                 f"unknown equilibrium method {tension!r}; use one of "
                 f"{', '.join(EQUILIBRIUM_METHODS)} or give tensions [N]"
+            )
+        if EQUILIBRIUM_METHODS[tension].uses_pretension and not robot.spec.pretension:
+            import warnings
+
+            from cdpm.equilibrium import EquilibriumWarning
+
+            warnings.warn(
+                f"the {tension!r} method with the spec's pretension of 0 N is the 'min_norm' "
+                "method; set equilibrium.pretension in the spec to keep every cable taut",
+                EquilibriumWarning,
+                stacklevel=3,
             )
         return tension
     f = np.asarray(tension, dtype=float).reshape(-1)
@@ -77,9 +90,46 @@ def resolve_tension(robot: CableRobot, tension: Any) -> str | list[float]:
         ]
         raise InputError(
             f"tension outside the cable bounds: {'; '.join(bad)}; give tensions within the "
-            "spec's tension_min/tension_max or a method name (zero, min_norm, pretension)"
+            f"spec's tension_min/tension_max or a method name ({', '.join(EQUILIBRIUM_METHODS)})"
         )
     return [float(x) for x in f]
+
+
+def check_tol(tol: Any) -> float:
+    """The span tolerance as a float in (0, 1) [rad], or an InputError."""
+    import math
+
+    from cdpm.errors import InputError
+
+    try:
+        value = float(tol)
+    except (TypeError, ValueError):
+        value = math.nan
+    if not (0 < value < 1):
+        raise InputError(f"tol must be an angle in (0, 1) rad, got {tol!r} (default {SPAN_TOL})")
+    return value
+
+
+def check_poses(robot: CableRobot, natural: Any) -> np.ndarray:
+    """Poses as a float array (N, nv) of finite natural coordinates, or an
+    InputError naming the expected shape."""
+    from cdpm.errors import InputError
+
+    try:
+        arr = np.asarray(natural, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"poses must be numbers (natural coordinates): {exc}") from exc
+    if arr.ndim == 1 and arr.size == robot.nv:
+        arr = arr[None]
+    if arr.ndim != 2 or arr.shape[1] != robot.nv:
+        raise InputError(
+            f"poses must have shape (N, {robot.nv}) (natural coordinates "
+            f"{', '.join(robot.coordinate_names)}), got shape {arr.shape}"
+        )
+    if not np.all(np.isfinite(arr)):
+        bad = np.flatnonzero(~np.all(np.isfinite(arr), axis=1))
+        raise InputError(f"poses {bad[:5].tolist()} have non-finite coordinates")
+    return arr
 
 
 def zero_equilibrium(robot: CableRobot, setting) -> bool:
@@ -106,14 +156,23 @@ class MapJob:
         tension: the tension setting (:func:`resolve_tension`).
         margin: compute ``poc_margin``.
         tol: angle-like tolerance of the span decisions.
+        variables: the map's variables (registered criteria).
     """
 
     tension: str | list[float]
     margin: bool = True
     tol: float = SPAN_TOL
+    variables: tuple[str, ...] = ()
 
     def evaluate(self, robot: CableRobot, natural: np.ndarray) -> dict[str, np.ndarray]:
-        """:func:`evaluate_poses` of ``natural`` (N, nv) with these settings."""
+        """:func:`evaluate_poses` of ``natural`` (N, nv) with these settings;
+        raises a clear InputError when a map variable's criterion is not
+        registered in this (worker) process."""
+        from cdpm.maps.criteria import missing_criteria_error
+
+        error = missing_criteria_error(self.variables)
+        if error is not None:
+            raise error
         return evaluate_poses(robot, natural, self.tension, margin=self.margin, tol=self.tol)
 
 
@@ -160,7 +219,8 @@ def evaluate_batch(
     from cdpm.linearisation import linearise_batch, mass_inverse
     from cdpm.maps._batch import configurations
 
-    natural = np.asarray(natural, dtype=float).reshape(-1, robot.nv)
+    natural = check_poses(robot, natural)
+    tol = check_tol(tol)
     setting = resolve_tension(robot, tension)
     n = natural.shape[0]
     kin = robot.kinematics_batch(configurations(robot, natural), dynamics=True)

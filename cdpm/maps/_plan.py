@@ -293,9 +293,8 @@ def make_plan(
         "chunk_size": int(chunk_size),
         "margin": bool(margin),
         "variables": list(CRITERIA),
+        "tol": float(SPAN_TOL if tol is None else tol),
     }
-    if tol is not None and tol != SPAN_TOL:
-        settings["tol"] = float(tol)
     if mode == "sample":
         settings["seed"] = axes.seed
     return MapPlan(
@@ -326,6 +325,11 @@ def settings_difference(stored: dict, current: dict) -> list[str]:
                     )
         elif key == "spec_sha256":
             lines.append("the cable spec or its URDF changed (file hash differs)")
+        elif key not in stored:
+            lines.append(
+                f"{key}: not recorded in the store (made by an earlier cdpm), now {b!r}; "
+                "this store cannot be resumed, only replaced"
+            )
         else:
             lines.append(f"{key}: stored {a!r}, now {b!r}")
     return lines

@@ -29,7 +29,15 @@ if TYPE_CHECKING:  # pragma: no cover
     from cdpm.linearisation import LinearisationBatch
     from cdpm.robot import CableRobot
 
-__all__ = ["Criterion", "PoseBatch", "CRITERIA", "register", "verdict_criteria"]
+__all__ = [
+    "Criterion",
+    "PoseBatch",
+    "CRITERIA",
+    "CRITERION_DIMS",
+    "register",
+    "verdict_criteria",
+    "missing_criteria_error",
+]
 
 
 @dataclass
@@ -136,12 +144,68 @@ class Criterion:
 CRITERIA: dict[str, Criterion] = {}
 
 
-def register(criterion: Criterion) -> Criterion:
-    """Add a criterion to :data:`CRITERIA` (a name may be registered once)."""
-    if criterion.name in CRITERIA:
-        raise ValueError(f"criterion {criterion.name!r} is already registered")
-    CRITERIA[criterion.name] = criterion
+#: extra dimensions a criterion may have, and their sizes' meaning
+CRITERION_DIMS = ("output", "xyz")
+
+#: names a criterion cannot take (the map's coordinates)
+_RESERVED = ("sample", "output", "xyz")
+
+
+def register(criterion: Criterion, *, replace: bool = False) -> Criterion:
+    """Add a criterion to :data:`CRITERIA`.
+
+    Register criteria at the top level of a module (not under
+    ``if __name__ == "__main__":``): maps with several workers compute
+    chunks in other processes, which import modules but do not run a
+    script's main block.
+
+    Args:
+        criterion: the criterion.
+        replace: replace a criterion of the same name (e.g. when a notebook
+            cell runs twice) instead of refusing it.
+
+    Raises:
+        ValueError: the name is taken (without ``replace``) or not an
+            identifier, the dtype is not a numpy dtype, or an extra
+            dimension is not one of CRITERION_DIMS.
+    """
+    name = criterion.name
+    if not (isinstance(name, str) and name.isidentifier()) or name in _RESERVED:
+        raise ValueError(f"criterion name {name!r} must be an identifier other than {_RESERVED}")
+    if name in CRITERIA and not replace:
+        raise ValueError(
+            f"criterion {name!r} is already registered; pass replace=True to replace it"
+        )
+    try:
+        np.dtype(criterion.dtype)
+    except TypeError as exc:
+        raise ValueError(
+            f"criterion {name!r}: dtype {criterion.dtype!r} is not a numpy dtype"
+        ) from exc
+    bad = [d for d in criterion.dims if d not in CRITERION_DIMS]
+    if bad:
+        raise ValueError(
+            f"criterion {name!r}: extra dimensions {bad} are not supported; use "
+            f"{CRITERION_DIMS} (one value per output, or x, y, z)"
+        )
+    CRITERIA[name] = criterion
     return criterion
+
+
+def missing_criteria_error(names) -> Exception | None:
+    """The error for map variables not registered in this process (a
+    worker that did not run the registration), or None."""
+    missing = [n for n in names if n not in CRITERIA]
+    if not missing:
+        return None
+    from cdpm.errors import InputError
+
+    return InputError(
+        f"criteria {', '.join(map(repr, missing))} are not registered in this worker process: "
+        'workers import modules but do not run a script\'s `if __name__ == "__main__":` '
+        "block. Register criteria at the top level of a module your script imports (or of "
+        "the script, above the guard), or map with workers=1"
+    )
 
 
 def verdict_criteria() -> list[str]:
@@ -194,10 +258,9 @@ def _frame_attrs(robot: CableRobot) -> dict:
 
 
 def _n_taut(batch: PoseBatch) -> np.ndarray:
-    if batch.linearisation is None:
+    if batch.equilibrium is None:
         return np.full(len(batch), -1, dtype=np.int16)
-    free = ~batch.linearisation.sign_constrained
-    return batch.scatter(np.count_nonzero(free, axis=1), -1, np.int16)
+    return batch.scatter(np.count_nonzero(batch.equilibrium.taut, axis=1), -1, np.int16)
 
 
 for _name, _long, _field in (
@@ -275,7 +338,7 @@ register(
         "n_taut",
         "int16",
         -1,
-        "number of cables strictly inside their tension bounds (free inputs)",
+        "number of taut cables (equilibrium tension > 0)",
         _n_taut,
         units="1",
         description="-1 where the pose was not analysed",
