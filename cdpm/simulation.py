@@ -172,7 +172,11 @@ class Trajectory:
             (line,) = ax_y.plot(self.t, dy[:, i] * 1e3, label=name)
             if target is not None:
                 ax_y.axhline(
-                    (target[i] - self.y[0, i]) * 1e3, color=line.get_color(), ls="--", lw=0.8
+                    (target[i] - self.y[0, i]) * 1e3,
+                    color=line.get_color(),
+                    ls="--",
+                    lw=0.8,
+                    label=f"{name} target",
                 )
         ax_y.set_ylabel("output change y - y(0) [mm]")
         ax_y.legend(loc="best", fontsize=8)

@@ -70,6 +70,10 @@ class SteerResult:
         blocked_direction: for a target the linearisation cannot reach,
             a unit v (p,) with v.(y - y0) unable to grow to first order
             (the POC certificate's separator when the pose is NO), else None.
+        blocked_progress: with a blocked direction v: the largest
+            v.(y(t) - y0) over every attempt made (the pulses of each cable
+            that can pull harder, at the start, middle and end), in output
+            units: at most of second order in the distance.
     """
 
     time: np.ndarray
@@ -84,6 +88,7 @@ class SteerResult:
     iterations: int
     equilibrium_tension: np.ndarray
     blocked_direction: np.ndarray | None = None
+    blocked_progress: float | None = None
 
     @property
     def duration(self) -> float:
@@ -126,6 +131,7 @@ class SteerResult:
             "blocked_direction": None
             if self.blocked_direction is None
             else self.blocked_direction.tolist(),
+            "blocked_progress": self.blocked_progress,
         }
 
     def __str__(self) -> str:
@@ -144,7 +150,9 @@ class SteerResult:
         ]
         if self.blocked_direction is not None:
             lines.append(
-                f"  blocked direction v = {np.array2string(self.blocked_direction, precision=4)}"
+                f"  blocked direction v = {np.array2string(self.blocked_direction, precision=4)}; "
+                f"pulling every cable in turn, v.(y - y0) reached at most "
+                f"{self.blocked_progress:.3g}"
             )
         return "\n".join(lines)
 
@@ -303,6 +311,7 @@ def steer(
     command = dy.copy()
     best = None
     blocked = None
+    progress = None
     status = ""
     for iteration in range(1, max_iterations + 1):
         du, attempt = plan_profile(lin, command, T, intervals, fmin, fmax)
@@ -314,7 +323,7 @@ def steer(
         if du is None:
             blocked = _blocked_direction(lin, command)
             if blocked is not None:
-                best = _probe_blocked(robot, lin, blocked, goal, time, best, fmin, fmax)
+                best, progress = _probe_blocked(robot, lin, blocked, goal, time, best, fmin, fmax)
             status = (
                 "the linearisation cannot reach the target within the tension bounds in "
                 f"T = {T:.4g} s (its output cone misses the direction); best attempt shown"
@@ -343,22 +352,23 @@ def steer(
         iterations=iteration,
         equilibrium_tension=f0.copy(),
         blocked_direction=blocked,
+        blocked_progress=progress,
     )
 
 
 def _probe_blocked(robot, lin, v, goal, time, best, fmin, fmax):
-    """At a NO pose, the best of single-cable pulses toward the blocked
-    direction v: each cable that can pull harder pulls for one interval
-    (first, middle or last) with the tension change that would move the
-    linear output by |goal - y0|; the pulse that moves v.y(T) furthest
-    toward v is the best attempt (its gain is at most of second order in
-    the distance). Keeps ``best`` when no cable can pull harder."""
+    """At a NO pose, single-cable pulses toward the blocked direction v:
+    each cable that can pull harder pulls for one interval (first, middle
+    or last) with the tension change that would move the linear output by
+    |goal - y0|. Returns (the attempt of least miss among ``best`` and the
+    pulses, the largest v.(y(t) - y0) any pulse reached at any time)."""
     K, m = time.size - 1, lin.tension.shape[0]
     G = _output_map(lin, float(time[-1]), K).reshape(lin.C.shape[0], K, m)
     size = float(np.linalg.norm(goal - lin.output))
     room = fmax - lin.tension
     y0 = lin.output
-    probed = None
+    progress = float(np.max((best[1].y - y0) @ v))
+    count = best[3]
     for k in sorted({0, K // 2, K - 1}):
         for j in np.flatnonzero(room > 0):
             gain = float(np.linalg.norm(G[:, k, j]))
@@ -368,12 +378,11 @@ def _probe_blocked(robot, lin, v, goal, time, best, fmin, fmax):
             values[k, j] = min(lin.tension[j] + size / gain, fmax[j])
             traj = simulate(robot, lin.q, tension=TensionProfile(time, values))
             miss = float(np.linalg.norm(traj.y[-1] - goal))
-            count = (probed or best)[3] + 1
-            if probed is None or float(v @ (traj.y[-1] - y0)) > float(v @ (probed[1].y[-1] - y0)):
-                probed = (values, traj, miss, count)
-            else:
-                probed = (*probed[:3], count)
-    return probed or best
+            count += 1
+            progress = max(progress, float(np.max((traj.y - y0) @ v)))
+            if miss < best[2]:
+                best = (values, traj, miss, count)
+    return (*best[:3], count), progress
 
 
 def _blocked_direction(lin: Linearisation, dy: np.ndarray) -> np.ndarray | None:

@@ -66,12 +66,13 @@ class VerifyReport:
         return max((r.miss / self.radius for r in self.runs), default=0.0)
 
     def blocked_progress(self) -> float | None:
-        """At a NO pose: the largest v.(y(t) - y0) over the best attempt
-        toward v, relative to R (second-order small), else None."""
+        """At a NO pose: the largest v.(y(t) - y0) over every attempt toward
+        v (single-cable pulls, :attr:`SteerResult.blocked_progress`),
+        relative to R (second-order small), else None."""
         if self.blocked_direction is None or not self.runs:
             return None
-        traj = self.runs[0].trajectory
-        return float(np.max((traj.y - self.y0) @ self.blocked_direction)) / self.radius
+        progress = self.runs[0].blocked_progress
+        return None if progress is None else progress / self.radius
 
     def rows(self) -> list[dict]:
         """One dict per run: direction, reached, miss, miss/R, peak tension,
@@ -120,7 +121,8 @@ class VerifyReport:
         if self.blocked_direction is not None:
             lines.append(
                 f"  blocked direction v = {np.array2string(self.blocked_direction, precision=4)}"
-                f"; best attempt: max v.(y - y0) = {self.blocked_progress():.3g} R"
+                f"; pulling each cable in turn, v.(y - y0) reached at most "
+                f"{self.blocked_progress():.3g} R"
             )
         lines.append(
             f"  {'direction':<28} {'reached':>7} {'miss/R':>10} {'peak [N]':>10} "
@@ -159,7 +161,8 @@ class VerifyReport:
             ax_y.set_ylabel("d.(y - y0) [mm]")
             word = "reached" if run.reached else "NOT reached"
             ax_y.set_title(
-                f"direction {np.array2string(d, precision=2)}: {word}, miss {run.miss:.2g}",
+                f"direction {np.array2string(d + 0.0, precision=2)}: {word}, "
+                f"miss {run.miss * 1e3:.2g} mm",
                 fontsize=9,
             )
             ax_y.grid(alpha=0.3)
