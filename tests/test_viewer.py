@@ -413,6 +413,270 @@ def _one_pose_map(code: int):
     )
 
 
+# ---------------------------------------------------------------- playback
+
+
+def _server_scene(viewer) -> dict[str, dict]:
+    """What the meshcat server holds, as a browser opening the page gets it:
+    for each path (under /meshcat/), its last transform (4, 4) and object."""
+    import base64
+    import re
+
+    import umsgpack  # meshcat's own message format
+
+    scene: dict[str, dict] = {}
+    for blob in re.findall(r'base64,([A-Za-z0-9+/=]*)"\)', viewer._root.static_html()):
+        command = umsgpack.unpackb(base64.b64decode(blob))
+        node = scene.setdefault(command["path"].removeprefix("/meshcat/"), {})
+        if command["type"] == "set_transform":
+            node["transform"] = np.array(command["matrix"]).reshape(4, 4).T
+        elif command["type"] == "set_object":
+            node["object"] = command["object"]
+    return scene
+
+
+def _material_color(scene: dict, path: str) -> int:
+    return scene[path]["object"]["materials"][0]["color"]
+
+
+def _rgb(color: int) -> np.ndarray:
+    return np.array([(color >> shift) & 255 for shift in (16, 8, 0)]) / 255
+
+
+def _ports(viewer) -> list[int]:
+    web = int(viewer.url().split(":")[2].split("/")[0])
+    return [web, int(viewer.zmq_url.rsplit(":", 1)[1])]
+
+
+def _free_port() -> int:
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def _viewer_servers(parent: int | None = None, port: int | None = None) -> set[int]:
+    """Processes running a meshcat server of cdpm (python -m cdpm.viewer),
+    children of ``parent`` (any when None) or serving ``port``, zombies included."""
+    if not os.path.isdir("/proc"):
+        pytest.skip("needs Linux /proc to list processes")
+    found = set()
+    for proc in Path("/proc").iterdir():
+        if not proc.name.isdigit():
+            continue
+        try:
+            stat = (proc / "stat").read_text()
+            argv = (proc / "cmdline").read_bytes().decode(errors="replace").split("\0")
+        except OSError:  # gone meanwhile
+            continue
+        ppid = int(stat.rsplit(")", 1)[1].split()[1])
+        if "cdpm.viewer" not in argv:
+            continue
+        if parent is not None and ppid != parent:
+            continue
+        if port is not None and str(port) not in argv:
+            continue
+        found.add(int(proc.name))
+    return found
+
+
+def _steer_target(robot, dy: float = 0.005) -> np.ndarray:
+    return robot.output("nominal") + dy
+
+
+def test_play_ends_on_the_last_pose_with_cables_coloured_by_tension(paper_robot):
+    pytest.importorskip("meshcat")
+    import pinocchio as pin
+
+    from cdpm.viewer.scene import _rgb_int
+
+    # c1 pulls for 0.1 s, then lets go while c3 pulls twice as hard as c2; c4 stays slack
+    profile = ([0.0, 0.1, 0.2], [[4.0, 0.0, 0.0, 0.0], [0.0, 2.0, 4.0, 0.0]])
+    traj = cdpm.simulate(paper_robot, "nominal", tension=profile)
+    before = _viewer_servers(parent=os.getpid())
+    v = cdpm.viewer.Viewer(paper_robot, "nominal", geometry="generated")
+    try:
+        ports = _ports(v)
+        assert _viewer_servers(parent=os.getpid()) == before | {v.server_pid}
+        start = _server_scene(v)
+        shown = v.play(traj)
+        scene = _server_scene(v)
+        # 0.2 s at 30 frames per second: frames at 0, 1/30, ..., 0.2 s
+        wall, qs, _ = v._frames(traj, 1.0, 30)
+    finally:
+        v.close()
+    # the server is gone: no process, nothing listening on its ports
+    assert _viewer_servers(parent=os.getpid()) == before
+    for port in ports:
+        assert _listening(port) == []
+    np.testing.assert_allclose(wall, np.arange(7) / 30, atol=1e-15)
+    np.testing.assert_array_equal(qs[-1], traj.q[-1])
+    assert 1 <= shown <= 7  # frames are dropped only when drawing falls behind the clock
+    assert v.state is None  # the frames are not analysed
+
+    # the last frame: links, output frame and cables at the trajectory's last pose
+    model = paper_robot.model
+    data = model.createData()
+    q_end = traj.q[-1]
+    assert np.linalg.norm(q_end - traj.q[0]) > 0.02  # the arm moved
+    pin.framesForwardKinematics(model, data, q_end)
+    for j in (1, 2):
+        drawn = scene[f"cdpm/robot/joint{j}"]["transform"]
+        np.testing.assert_allclose(drawn, data.oMi[j].homogeneous, atol=1e-12)
+    moved = start["cdpm/robot/joint2"]["transform"] - data.oMi[2].homogeneous
+    assert np.abs(moved).max() > 1e-2
+    tip = data.oMf[model.getFrameId("tip")].homogeneous
+    np.testing.assert_allclose(scene["cdpm/output/tip"]["transform"], tip, atol=1e-12)
+    for name, route in zip(
+        paper_robot.cable_names, paper_robot.attachment_points(q_end), strict=True
+    ):
+        T = scene[f"cdpm/cables/{name}/0"]["transform"]
+        np.testing.assert_allclose(T[:3, 3], 0.5 * (route[0] + route[1]), atol=1e-12)
+        np.testing.assert_allclose(T[:3, 1], route[1] - route[0], atol=1e-12)  # its length
+
+    # cables by their tension at the end: zero is slack pink, the largest (the
+    # scale) navy, half of it between
+    colour = {n: _material_color(scene, f"cdpm/cables/{n}/0/line") for n in paper_robot.cable_names}
+    assert colour["c1"] == colour["c4"] == _rgb_int(COLORS["slack"])
+    assert colour["c3"] == _rgb_int(COLORS["taut_high"])
+    mid = 0.5 * (np.array(COLORS["taut_low"]) + np.array(COLORS["taut_high"]))
+    np.testing.assert_allclose(_rgb(colour["c2"]), mid, atol=0.03)  # 32 shades
+    # at the start, the equilibrium at zero tension: every cable slack
+    for name in paper_robot.cable_names:
+        assert _material_color(start, f"cdpm/cables/{name}/0/line") == _rgb_int(COLORS["slack"])
+    assert _material_color(start, "cdpm/output/tip/marker") == _rgb_int(COLORS["yes"])
+    marker = _material_color(scene, "cdpm/output/tip/marker")
+    assert marker == _rgb_int(COLORS["not_analysed"])
+
+
+def test_play_a_steering_result_ends_where_display_draws_its_last_pose(viewer, paper_robot):
+    # URDF visuals (Pinocchio's meshcat support) move like generated links
+    assert viewer.geometry == "urdf"
+    result = cdpm.steer(paper_robot, "nominal", _steer_target(paper_robot), duration=0.2)
+    assert viewer.play(result, speed=2.0) >= 1
+    played = _server_scene(viewer)
+    state = viewer.display(result.trajectory.q[-1])
+    displayed = _server_scene(viewer)
+    assert state.verdict is not None
+    moving = [p for p in displayed if p.startswith(("cdpm/robot", "cdpm/cables", "cdpm/output"))]
+    transforms = [p for p in moving if "transform" in displayed[p]]
+    assert len(transforms) >= 2 + 4 + 1  # two links, four cables, the output frame
+    for path in transforms:
+        np.testing.assert_allclose(
+            played[path]["transform"], displayed[path]["transform"], atol=1e-12, err_msg=path
+        )
+    viewer.display("nominal")
+    start = _server_scene(viewer)
+    assert any(not np.allclose(start[p]["transform"], played[p]["transform"]) for p in transforms)
+
+
+def test_play_refuses_what_it_cannot_play(viewer, paper_robot):
+    from dataclasses import replace
+
+    traj = cdpm.simulate(paper_robot, "nominal", tension=[0.0, 1.0, 0.0, 0.0], duration=0.1)
+    with pytest.raises(InputError, match="play takes a Trajectory .* got str"):
+        viewer.play("nominal")
+    other = replace(traj, cable_names=("a", "b", "c", "d"))
+    with pytest.raises(InputError, match=r"cables \(a, b, c, d\) are not this robot's"):
+        viewer.play(other)
+    with pytest.raises(InputError, match="speed=0 must be a positive number"):
+        viewer.play(traj, speed=0)
+    with pytest.raises(InputError, match="fps=nan must be a positive number"):
+        viewer.play(traj, fps=float("nan"))
+    with pytest.raises(InputError, match="seconds=-1 must be a non-negative"):
+        viewer.play(traj, seconds=-1)
+    viewer.display("nominal")
+
+
+def test_ctrl_c_stops_playback_and_the_viewer_stays_usable(viewer, paper_robot):
+    import threading
+
+    traj = cdpm.simulate(paper_robot, "nominal", tension=[0.0, 1.0, 0.0, 0.0], duration=0.1)
+    # a request whose reply was not read, as when Ctrl-C lands between the two
+    viewer._window.zmq_socket.send(b"url")
+    viewer._drain_reply()
+    viewer._drain_reply()  # nothing outstanding: returns at once
+    assert viewer.display("nominal").verdict_key == "yes"
+
+    def ctrl_c_in(seconds: float) -> threading.Timer:
+        timer = threading.Timer(seconds, os.kill, (os.getpid(), signal.SIGINT))
+        timer.start()
+        return timer
+
+    # a loop ends at Ctrl-C (not at its 60 s) and returns the frames shown
+    timer = ctrl_c_in(0.5)
+    try:
+        started = time.monotonic()
+        shown = viewer.play(traj, loop=True, seconds=60)
+        assert time.monotonic() - started < 60
+    finally:
+        timer.cancel()
+    assert shown >= 1
+    assert viewer.display("nominal").verdict_key == "yes"
+    # a single pass (20 s slowed down 200 times) passes Ctrl-C on
+    timer = ctrl_c_in(0.5)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            viewer.play(traj, speed=0.005)
+    finally:
+        timer.cancel()
+    assert viewer.display("nominal").verdict_key == "yes"
+
+
+def test_steer_command_views_for_seconds_then_stops_its_server(capsys):
+    pytest.importorskip("meshcat")
+    from cdpm.cli import main
+
+    port = _free_port()
+    before = _viewer_servers(parent=os.getpid())
+    args = ["steer", str(PAPER_SPEC), "--by", "0.005", "--duration", "0.2"]
+    assert main([*args, "--view", "--port", str(port), "--seconds", "0.5"]) == 0
+    out, err = capsys.readouterr()
+    assert f"viewer: http://127.0.0.1:{port}/static/  (playing the motion" in out
+    assert "viewer stopped after " in err
+    assert _viewer_servers(parent=os.getpid()) == before
+    assert _listening(port) == []
+    assert main([*args, "--seconds", "1"]) == 1
+    assert "--seconds goes with --view" in capsys.readouterr().err
+
+
+def test_steer_command_ctrl_c_stops_playback_and_the_server():
+    pytest.importorskip("meshcat")
+    port = _free_port()
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "cdpm.cli", "steer", str(PAPER_SPEC), "--by", "0.005"]
+        + ["--view", "--port", str(port)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        cwd=ROOT,
+    )
+    try:
+        url = ""
+        deadline = time.monotonic() + 60
+        while not url and time.monotonic() < deadline:
+            line = proc.stdout.readline()
+            if line.startswith("viewer: "):
+                url = line.split()[1]
+            if not line and proc.poll() is not None:
+                break
+        assert url == f"http://127.0.0.1:{port}/static/", proc.stderr.read()
+        assert _viewer_servers(port=port)  # serving while it plays
+        time.sleep(1.0)
+        proc.send_signal(signal.SIGINT)
+        assert proc.wait(timeout=30) == 0  # the target was reached; Ctrl-C ends the view
+        err = proc.stderr.read()
+        assert "viewer stopped after " in err and "Traceback" not in err
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert _viewer_servers(port=port) == set()
+    if os.path.exists("/proc/net/tcp"):
+        assert _listening(port) == []
+
+
 def test_generated_geometry_and_close(paper_robot):
     pytest.importorskip("meshcat")
     v = cdpm.viewer.Viewer(paper_robot, [0.2, 0.3], geometry="generated")

@@ -30,6 +30,15 @@ def _number(text: str) -> float:
     return parse_number(text)
 
 
+def _seconds(text: str) -> float:
+    from cdpm.errors import InputError
+
+    value = _number(text)
+    if not (0 <= value < float("inf")):
+        raise InputError(f"--seconds must be a non-negative time [s], got {text!r}")
+    return value
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_pose_arguments(parser)
     goal = parser.add_mutually_exclusive_group(required=True)
@@ -63,6 +72,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--port", type=int, default=None, help="viewer port (default: meshcat picks one)"
     )
+    parser.add_argument(
+        "--seconds",
+        type=argument_type(_seconds),
+        default=None,
+        metavar="S",
+        help="with --view: play in a loop for S seconds, then exit (default: until Ctrl-C)",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -81,6 +97,8 @@ def run(args: argparse.Namespace) -> int:
             f"{option} takes {robot.n_outputs} value(s), one per output "
             f"({', '.join(robot.output_names)}); got {values.size}"
         )
+    if args.seconds is not None and not args.view:
+        raise InputError("--seconds goes with --view (how long to play the motion)")
     if args.intervals < 1:
         raise InputError(f"--intervals must be >= 1, got {args.intervals}")
     target = values if args.to is not None else robot.output(pose) + values
@@ -97,16 +115,21 @@ def run(args: argparse.Namespace) -> int:
         if args.plot:
             print(f"plot written to {args.plot}")
     if args.view:
+        import signal
+        import sys
+
+        from cdpm.commands.view import _exit_on_sigterm
         from cdpm.viewer import Viewer
 
-        viewer = Viewer(robot, port=args.port)
-        print(f"viewer at {viewer.url}; playing the motion (Ctrl-C stops)")
-        try:
-            viewer.play(result.trajectory, loop=True)
-        except KeyboardInterrupt:
-            pass
-        finally:
-            viewer.close()
+        # a plain `kill` also closes the viewer (and stops its server process)
+        signal.signal(signal.SIGTERM, _exit_on_sigterm)
+        out = sys.stderr if args.json else sys.stdout  # keep --json output parseable
+        with Viewer(robot, result.trajectory.q[0], port=args.port) as viewer:
+            until = "Ctrl-C to stop" if args.seconds is None else f"for {args.seconds:g} s"
+            print(f"viewer: {viewer.url()}  (playing the motion in a loop, {until})", file=out)
+            out.flush()
+            frames = viewer.play(result, loop=True, seconds=args.seconds)  # Ctrl-C ends it
+        print(f"viewer stopped after {frames} frames", file=sys.stderr)
     return 0 if result.reached else 1
 
 

@@ -2,9 +2,11 @@
 
 The scene is built once (links, anchors, attachment points, cables, output
 frames); :meth:`Viewer.display` then moves it to a pose and recolours the
-cables by state and the output marker by the POC verdict, and
-:meth:`Viewer.show_map` overlays a workspace map. meshcat and pinocchio are
-imported when a viewer is made.
+cables by state and the output marker by the POC verdict,
+:meth:`Viewer.play` moves it through a simulated motion in real time (cables
+coloured by their tension at each instant), and :meth:`Viewer.show_map`
+overlays a workspace map. meshcat and pinocchio are imported when a viewer
+is made.
 """
 
 from __future__ import annotations
@@ -32,6 +34,7 @@ from cdpm.viewer.state import (
     default_pose,
     pose_state,
     skeleton_segments,
+    tension_colors,
     tension_scale,
 )
 
@@ -39,6 +42,9 @@ __all__ = ["Viewer"]
 
 #: Colour Pinocchio gives URDF visuals that have no material.
 _PIN_DEFAULT_COLOR = (0.9, 0.9, 0.9, 1.0)
+
+#: Wall time [s] the last frame stays between passes of a looping playback.
+_LOOP_PAUSE = 0.5
 
 
 def _import_meshcat():
@@ -78,6 +84,44 @@ def _segment_transform(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return T
 
 
+def _positive(value: Any, name: str, hint: str, allow_zero: bool = False) -> float:
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        x = math.nan
+    if not (math.isfinite(x) and (x > 0 or (allow_zero and x == 0))):
+        kind = "a non-negative" if allow_zero else "a positive"
+        raise InputError(f"{name}={value!r} must be {kind} number: {hint}")
+    return x
+
+
+def _as_trajectory(trajectory: Any, robot):
+    """The :class:`cdpm.Trajectory` of a trajectory or a steering result,
+    checked against the robot."""
+    from cdpm.simulation import Trajectory
+
+    traj = getattr(trajectory, "trajectory", trajectory)
+    if not isinstance(traj, Trajectory):
+        raise InputError(
+            "play takes a Trajectory (cdpm.simulate) or a SteerResult (cdpm.steer), "
+            f"got {type(trajectory).__name__}"
+        )
+    if tuple(traj.cable_names) != tuple(robot.cable_names):
+        raise InputError(
+            f"the trajectory's cables ({', '.join(traj.cable_names)}) are not this "
+            f"robot's ({', '.join(robot.cable_names)}); simulate this robot"
+        )
+    n = traj.t.shape[0]
+    if traj.q.shape != (n, robot.nq) or traj.f.shape != (n, robot.n_cables) or n < 1:
+        raise InputError(
+            f"the trajectory has q of shape {traj.q.shape} and f of shape {traj.f.shape}; "
+            f"expected ({n}, {robot.nq}) and ({n}, {robot.n_cables}) for {n} sample times"
+        )
+    if np.any(np.diff(traj.t) <= 0) or not np.all(np.isfinite(traj.t)):
+        raise InputError("the trajectory's sample times must be finite and increasing")
+    return traj
+
+
 def _translation(p: np.ndarray) -> np.ndarray:
     T = np.eye(4)
     T[:3, 3] = p
@@ -89,8 +133,9 @@ class Viewer:
 
     Starts a meshcat server (web and zmq ports on 127.0.0.1 only) in a
     subprocess, or connects to a running one with ``zmq_url``; open
-    :meth:`url` in a browser. The scene is built once; :meth:`display`
-    then only sends transforms, and materials of cables whose colour changed.
+    :meth:`url` in a browser. The scene is built once; :meth:`display` and
+    each frame of :meth:`play` then only send transforms, and materials of
+    cables whose colour changed.
 
     Scene (meshcat paths under ``/meshcat/cdpm``): ``robot`` (URDF visuals or
     generated links), ``anchors`` (route points fixed to the world, dark
@@ -394,36 +439,170 @@ class Viewer:
         t0 = time.perf_counter()
         state = pose_state(self.robot, q, self._geometry)  # also updates the kinematics
         t1 = time.perf_counter()
+        scale = self._tension_scale or tension_scale(self.robot, state.tension)
+        self._draw(state.q, cable_colors(state, scale), state.verdict_rgb)
+        t2 = time.perf_counter()
+        self.state = state
+        self.last_display_seconds = {"analysis": t1 - t0, "draw": t2 - t1, "total": t2 - t0}
+        return state
+
+    def _draw(
+        self,
+        q: np.ndarray,
+        cable_rgb: list[tuple[float, float, float]],
+        marker_rgb: tuple[float, float, float],
+    ) -> None:
+        """Send the transforms of the pose q (the geometry already updated at
+        q) and the materials of cables and marker whose colour changed."""
         geo = self._geometry
         if self._pin_viz is not None:
-            self._pin_viz.display(state.q)
+            self._pin_viz.display(q)
         else:
             placements = geo.joint_placements()
             for j in range(1, self.robot.model.njoints):
                 self._send(f"cdpm/robot/joint{j}", "set_transform", placements[j])
-        points = np.concatenate(state.cable_points) if state.cable_points else np.zeros((0, 3))
+        points = geo.points()
         for k, joint in enumerate(geo.point_joint):
             if joint != 0:
                 self._send(f"cdpm/attachments/p{k}", "set_transform", _translation(points[k]))
-        scale = self._tension_scale or tension_scale(self.robot, state.tension)
-        for i, (name, rgb) in enumerate(
-            zip(self.robot.cable_names, cable_colors(state, scale), strict=True)
-        ):
+        for i, (name, rgb) in enumerate(zip(self.robot.cable_names, cable_rgb, strict=True)):
             self._set_cable_color(i, rgb)
-            route = state.cable_points[i]
+            route = points[geo.route_slices[i]]
             for k in range(len(route) - 1):
                 self._send(
                     f"cdpm/cables/{name}/{k}",
                     "set_transform",
                     _segment_transform(route[k], route[k + 1]),
                 )
-        self._set_marker_color(state.verdict_rgb)
+        self._set_marker_color(marker_rgb)
         for name, T in zip(geo.output_frames, geo.output_placements(), strict=True):
             self._send(f"cdpm/output/{name}", "set_transform", T)
-        t2 = time.perf_counter()
-        self.state = state
-        self.last_display_seconds = {"analysis": t1 - t0, "draw": t2 - t1, "total": t2 - t0}
-        return state
+
+    # ------------------------------------------------------------ playback
+
+    def play(
+        self,
+        trajectory,
+        *,
+        speed: float = 1.0,
+        fps: float = 30,
+        loop: bool = False,
+        seconds: float | None = None,
+    ) -> int:
+        """Play a motion in real time: robot, cables and output marker.
+
+        The trajectory's samples are resampled to ``fps`` frames per second
+        of wall time (configurations interpolated on the configuration
+        manifold, tensions as simulated: a profile's held value, else
+        interpolated); the last frame is the trajectory's last sample. Each
+        frame sends only transforms, and materials of cables whose colour
+        changed; nothing is analysed. Cables are coloured by their tension at
+        that instant on the scale of :meth:`display` (:func:`tension_colors`:
+        at the lower bound slack pink, else light blue to navy up to the
+        viewer's ``tension_scale``, default the cables' largest finite upper
+        bound, else the trajectory's largest tension). The output marker is
+        grey (not analysed) while playing: the poses of a motion are not
+        equilibria; :meth:`display` analyses again. When drawing falls behind
+        the clock, frames are dropped (never the last one of a pass).
+
+        Args:
+            trajectory: a :class:`cdpm.Trajectory` (:func:`cdpm.simulate`) or
+                a :class:`cdpm.SteerResult` (its ``trajectory``), of this robot.
+            speed: playback rate; 2 plays twice as fast as simulated time.
+            fps: frames per second of wall time.
+            loop: play again and again (with a 0.5 s pause on the last frame
+                between passes) until Ctrl-C or ``seconds``.
+            seconds: stop after this many seconds of wall time (waiting on
+                the last frame when the playback ends earlier without loop).
+
+        Returns:
+            The number of frames shown. Ctrl-C ends a looping playback and
+            returns normally; a single pass re-raises it (the viewer stays
+            usable either way). :attr:`state` is None afterwards.
+
+        Raises:
+            InputError: not a trajectory of this robot, or bad speed, fps or seconds.
+        """
+        traj = _as_trajectory(trajectory, self.robot)
+        speed = _positive(speed, "speed", "a playback rate, e.g. 1.0 for real time")
+        fps = _positive(fps, "fps", "frames per second, e.g. 30")
+        if seconds is not None:
+            seconds = _positive(seconds, "seconds", "wall time [s]", allow_zero=True)
+        wall, qs, colors = self._frames(traj, speed, fps)
+        self.state = None
+        self._set_marker_color(COLORS["not_analysed"])
+        shown = 0
+        start = time.perf_counter()
+        offset = 0.0  # wall time [s] of the current pass's first frame
+        try:
+            while True:
+                for k in range(wall.size):
+                    due = offset + wall[k]
+                    if seconds is not None and due > seconds:
+                        time.sleep(max(seconds - (time.perf_counter() - start), 0.0))
+                        return shown
+                    now = time.perf_counter() - start
+                    if k + 1 < wall.size and now > offset + wall[k + 1]:
+                        continue  # late: drop this frame, keep real time
+                    if due > now:
+                        time.sleep(due - now)
+                    self._geometry.update(qs[k])
+                    self._draw(qs[k], colors[k], COLORS["not_analysed"])
+                    shown += 1
+                if not loop:
+                    break
+                offset += wall[-1] + _LOOP_PAUSE
+            if seconds is not None:
+                time.sleep(max(seconds - (time.perf_counter() - start), 0.0))
+        except KeyboardInterrupt:
+            self._drain_reply()
+            if not loop:
+                raise
+        return shown
+
+    def _frames(self, traj, speed: float, fps: float):
+        """One pass: wall times (n,) [s], configurations (n, nq) and cable colours."""
+        import pinocchio as pin
+
+        t = traj.t
+        duration = float(t[-1] - t[0]) / speed  # wall time of a pass
+        n = int(math.ceil(duration * fps - 1e-9)) + 1 if duration > 0 else 1
+        wall = np.minimum(np.arange(n) / fps, duration)
+        at = t[0] + wall * speed  # trajectory times
+        at[-1] = t[-1]
+        scale = self._tension_scale or tension_scale(self.robot, traj.f)
+        model = self.robot.model
+        qs = np.empty((n, traj.q.shape[1]))
+        colors = []
+        for k, s in enumerate(at):
+            i = min(max(int(np.searchsorted(t, s, side="right")) - 1, 0), max(t.size - 2, 0))
+            alpha = 0.0 if t.size == 1 else (s - t[i]) / (t[i + 1] - t[i])
+            if alpha <= 0.0:
+                qs[k] = traj.q[i]
+            elif alpha >= 1.0:
+                qs[k] = traj.q[i + 1]
+            else:
+                qs[k] = pin.interpolate(model, traj.q[i], traj.q[i + 1], alpha)
+            if traj.profile is not None:
+                f = traj.profile(s)
+            elif t.size == 1:
+                f = traj.f[0]
+            else:
+                f = traj.f[i] + min(max(alpha, 0.0), 1.0) * (traj.f[i + 1] - traj.f[i])
+            colors.append(tension_colors(f, self.robot.tension_min, self.robot.tension_max, scale))
+        return wall, qs, colors
+
+    def _drain_reply(self) -> None:
+        """After an interrupt: take the server's reply to a request sent just
+        before it, so the zmq REQ socket accepts the next one."""
+        zmq, socket = self._zmq, self._window.zmq_socket
+        try:
+            socket.recv(zmq.NOBLOCK)
+        except zmq.Again:  # the reply is on its way
+            if socket.poll(int(SERVER_TIMEOUT * 1000)):
+                socket.recv()
+        except zmq.ZMQError:  # no request outstanding
+            pass
 
     # ------------------------------------------------------------ workspace map
 

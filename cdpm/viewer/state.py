@@ -37,6 +37,7 @@ __all__ = [
     "default_pose",
     "tension_scale",
     "cable_colors",
+    "tension_colors",
     "COLORS",
 ]
 
@@ -411,6 +412,13 @@ def tension_scale(robot: CableRobot, tension: np.ndarray | None) -> float:
     return float(max(np.max(np.abs(tension)), 1e-9))
 
 
+def _taut_color(tension: float, scale: float, levels: int) -> tuple[float, float, float]:
+    t = min(max(float(tension) / scale, 0.0), 1.0)
+    t = round(t * (levels - 1)) / (levels - 1)
+    low, high = np.array(COLORS["taut_low"]), np.array(COLORS["taut_high"])
+    return tuple(float(c) for c in low + t * (high - low))
+
+
 def cable_colors(
     state: PoseState, scale: float, levels: int = 32
 ) -> list[tuple[float, float, float]]:
@@ -420,13 +428,41 @@ def cable_colors(
     colors = []
     for i, s in enumerate(state.cable_states):
         if s is CableState.TAUT:
-            t = min(max(float(state.tension[i]) / scale, 0.0), 1.0)
-            t = round(t * (levels - 1)) / (levels - 1)
-            low, high = np.array(COLORS["taut_low"]), np.array(COLORS["taut_high"])
-            colors.append(tuple(float(c) for c in low + t * (high - low)))
+            colors.append(_taut_color(state.tension[i], scale, levels))
         else:
             colors.append(COLORS[s.value])
     return colors
+
+
+def tension_colors(
+    tension: np.ndarray,
+    tension_min: np.ndarray,
+    tension_max: np.ndarray,
+    scale: float,
+    levels: int = 32,
+) -> list[tuple[float, float, float]]:
+    """RGB colour (0..1) of cables pulled with given tensions (not an equilibrium).
+
+    The scale of :func:`cable_colors`: a cable at its lower bound (zero
+    tension by default; the bound test of
+    :func:`cdpm.equilibrium.statics.classify`) is slack pink, any other
+    shades from light blue to navy as its tension goes from 0 to ``scale``.
+    :meth:`cdpm.viewer.Viewer.play` colours a trajectory's cables with it.
+
+    Args:
+        tension: the cables' tensions [N], shape (m,).
+        tension_min, tension_max: their bounds [N], each (m,).
+        scale: tension [N] drawn in the darkest taut colour.
+        levels: shades from light blue to navy.
+    """
+    from cdpm.equilibrium.statics import classify
+
+    f = np.asarray(tension, dtype=float)
+    at_lower, _, _ = classify(f, np.asarray(tension_min), np.asarray(tension_max))
+    return [
+        COLORS["slack"] if slack else _taut_color(fi, scale, levels)
+        for fi, slack in zip(f, at_lower, strict=True)
+    ]
 
 
 def default_pose(robot: CableRobot) -> np.ndarray:
