@@ -6,14 +6,16 @@ URDF's viscous joint damping D and the spec's constant load w_ext)::
     M(q) q'' + C(q, q') q' + G(q) + D q' + w_ext = -L(q)^T f(t)
 
 with Pinocchio's articulated-body algorithm (ABA) for q'' on the
-configuration manifold: between output samples the state is written in a
-chart ``q = pin.integrate(q_c, delta)`` around the last sample q_c, where
+configuration manifold: the state is written in a chart
+``q = pin.integrate(q_c, delta)`` around a point q_c, where
 ``delta' = (d integrate / d delta)^-1 q'``, so free-flyers and other joints
-with quaternions integrate exactly (no drift off the unit sphere). Each
-piece is solved by scipy's adaptive Dormand-Prince 8(5,3) method
-(``DOP853``) with relative and absolute error tolerances ``rtol`` and
-``atol``; a piecewise-constant tension profile is integrated interval by
-interval, so its jumps never fall inside a step.
+with quaternions integrate exactly (no drift off the unit sphere); the chart
+moves to every output sample. Robots whose joints are all plain vector
+spaces (revolute, prismatic) need no chart and integrate each
+piecewise-constant interval (or the whole span) in one go. Each piece is
+solved by scipy's adaptive Dormand-Prince 8(5,3) method (``DOP853``) with
+relative and absolute error tolerances ``rtol`` and ``atol``; a profile's
+jumps never fall inside a step.
 
 Tensions are either a :class:`TensionProfile` (knot times (K+1,) [s],
 values (K, m) [N], value k held on [time[k], time[k+1])), a constant (m,),
@@ -252,7 +254,7 @@ class _Dynamics:
         )
 
     def acceleration(self, q, v, f) -> np.ndarray:
-        L = self.robot.kinematics(q).jacobian
+        L = self.robot._kinematics(q)[0].jacobian  # q is valid: no re-validation
         tau = -L.T @ f - self.damping * v - self.w_ext
         return self.pin.aba(self.model, self.data, q, v, tau)
 
@@ -358,7 +360,15 @@ def simulate(
 
     dyn = _Dynamics(robot)
     qs, vs, fs = [q.copy()], [v.copy()], [value(times[0], q, v)]
-    for t0, t1 in zip(times[:-1], times[1:], strict=True):
+    # pieces integrated in one go: a profile's intervals (its jumps never
+    # inside a step) or the whole span; on a manifold, one chart per sample
+    if not dyn.flat:
+        cuts = times
+    elif profile is not None:
+        cuts = np.unique(np.concatenate([[t_start, t_end], inside]))
+    else:
+        cuts = np.array([t_start, t_end])
+    for t0, t1 in zip(cuts[:-1], cuts[1:], strict=True):
         if profile is not None:
             held = profile(t0)  # the interval's value, also exactly at its end
 
@@ -367,21 +377,25 @@ def simulate(
         else:
             piece = value
         rhs = dyn.chart_rhs(q, piece, t0)
+        out_t = times[(times > t0) & (times <= t1)]
         sol = solve_ivp(
             rhs,
             (0.0, t1 - t0),
             np.concatenate([np.zeros(nv), v]),
             method="DOP853",
+            t_eval=out_t - t0,
             rtol=rtol,
             atol=atol,
         )
         if not sol.success:
             raise InputError(f"the integrator stopped at t = {t0:g} s: {sol.message}")
-        delta, v = sol.y[:nv, -1], sol.y[nv:, -1].copy()
-        q = q + delta if dyn.flat else dyn.pin.integrate(robot.model, q, delta)
-        qs.append(q.copy())
-        vs.append(v.copy())
-        fs.append(value(t1, q, v))
+        for j, t in enumerate(out_t):
+            delta, v = sol.y[:nv, j], sol.y[nv:, j].copy()
+            qj = q + delta if dyn.flat else dyn.pin.integrate(robot.model, q, delta)
+            qs.append(qj.copy())
+            vs.append(v.copy())
+            fs.append(value(t, qj, v))
+        q = qs[-1]
     qs, vs, fs = np.array(qs), np.array(vs), np.array(fs)
     kin = robot.kinematics_batch(qs)
     return Trajectory(

@@ -7,7 +7,8 @@ import json
 
 from cdpm.commands._pose import add_pose_arguments, pose_from_args
 from cdpm.commands.plot import argument_type
-from cdpm.commands.verify import _image, _radius
+from cdpm.commands.verify import _duration, _image
+from cdpm.commands.view import _port
 
 NAME = "steer"
 HELP = "find pull-only tensions that move the output to a target, and simulate them"
@@ -57,7 +58,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="the target as a change of the outputs from the pose's [m]",
     )
     parser.add_argument(
-        "--duration", type=argument_type(_radius), metavar="T", help="steering time [s]"
+        "--duration", type=argument_type(_duration), metavar="T", help="steering time [s]"
     )
     parser.add_argument(
         "--intervals", type=int, default=20, metavar="K", help="piecewise-constant intervals"
@@ -70,7 +71,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--view", action="store_true", help="play the motion in the 3-D viewer (127.0.0.1)"
     )
     parser.add_argument(
-        "--port", type=int, default=None, help="viewer port (default: meshcat picks one)"
+        "--port",
+        type=argument_type(_port),
+        default=None,
+        help="viewer web port, 1-65535 (default: first free from 7000)",
     )
     parser.add_argument(
         "--seconds",

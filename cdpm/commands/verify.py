@@ -26,14 +26,24 @@ examples:
   cdpm verify models/spatial_8cable/spatial_8cable.yaml --pose centre --random 4 --json"""
 
 
-def _radius(text: str) -> float:
-    from cdpm.errors import InputError
-    from cdpm.expressions import parse_number
+def _positive(option: str, what: str):
+    """An argparse type for OPTION: a positive finite number (arithmetic allowed)."""
 
-    value = parse_number(text)
-    if not (value > 0 and value < float("inf")):
-        raise InputError(f"--radius must be a positive distance, got {text!r}")
-    return value
+    def check(text: str) -> float:
+        from cdpm.errors import InputError
+        from cdpm.expressions import parse_number
+
+        value = parse_number(text)
+        if not (value > 0 and value < float("inf")):
+            raise InputError(f"{option} must be a positive {what}, got {text!r}")
+        return value
+
+    check.__name__ = option.lstrip("-")
+    return check
+
+
+_radius = _positive("--radius", "distance [m]")
+_duration = _positive("--duration", "time [s]")
 
 
 def _count(text: str) -> int:
@@ -71,7 +81,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="also steer to N random directions at distance R (YES poses)",
     )
     parser.add_argument(
-        "--duration", type=argument_type(_radius), metavar="T", help="steering time [s]"
+        "--duration", type=argument_type(_duration), metavar="T", help="steering time [s]"
     )
     parser.add_argument("--json", action="store_true", help="print the report as JSON")
     parser.add_argument(
