@@ -258,9 +258,12 @@ def check_picture_path(path: str | os.PathLike) -> Path:
     Raises:
         InputError: any other suffix.
     """
-    target = Path(path)
+    from cdpm.plotting import check_output_folder
+
+    target = Path(path).expanduser()
     if target.suffix.lower() not in (".png", ".pdf", ".svg"):
         raise InputError(f"picture file {target.name!r}: use a .png, .pdf or .svg name")
+    check_output_folder(target)
     return target
 
 

@@ -75,6 +75,16 @@ def image_formats() -> list[str]:
     return sorted(FigureCanvasBase.get_supported_filetypes())
 
 
+def check_output_folder(path: Path) -> None:
+    """Raise an InputError (before any work) when the folder ``path`` is to
+    be written in does not exist or is not writable."""
+    folder = path.parent if str(path.parent) else Path(".")
+    if not folder.is_dir():
+        raise InputError(f"cannot write {path}: folder {folder} does not exist; create it first")
+    if not os.access(folder, os.W_OK):
+        raise InputError(f"cannot write {path}: folder {folder} is not writable")
+
+
 def check_image_path(path: str | os.PathLike) -> Path:
     """The image file a figure saved at ``path`` ends up in: ``path`` itself
     when matplotlib writes its extension, ``path`` + ``.png`` without one.
@@ -85,6 +95,7 @@ def check_image_path(path: str | os.PathLike) -> Path:
     """
     _matplotlib()
     out = Path(path).expanduser()
+    check_output_folder(out)
     if not out.suffix:
         return out.with_name(out.name + ".png")  # what matplotlib would write
     formats = image_formats()

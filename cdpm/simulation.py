@@ -63,6 +63,24 @@ class TensionProfile:
     time: np.ndarray
     values: np.ndarray
 
+    def __post_init__(self) -> None:
+        try:
+            t = np.array(self.time, dtype=float).reshape(-1)
+            f = np.array(self.values, dtype=float)
+        except (TypeError, ValueError) as exc:
+            raise InputError(f"tension profile: time and values must be numbers ({exc})") from exc
+        if f.ndim != 2 or t.shape[0] != f.shape[0] + 1 or f.shape[0] < 1:
+            raise InputError(
+                f"tension profile: time has {t.shape[0]} knots and values shape {f.shape}; "
+                "give K+1 knot times [s] and (K, m) tensions [N] (one row per interval)"
+            )
+        if not (np.all(np.isfinite(t)) and np.all(np.isfinite(f))):
+            raise InputError("tension profile: time and values must be finite")
+        if np.any(np.diff(t) <= 0):
+            raise InputError("tension profile: knot times must be strictly increasing")
+        object.__setattr__(self, "time", t)
+        object.__setattr__(self, "values", f)
+
     @classmethod
     def make(cls, time: Any, values: Any, m: int) -> TensionProfile:
         """A validated profile (copies), or an InputError naming the problem."""
@@ -122,13 +140,10 @@ class Trajectory:
 
     @property
     def out_of_bounds(self) -> np.ndarray:
-        """True where a cable's tension leaves [f_min, f_max], shape (T, m).
-
-        For a piecewise-constant profile the check covers every interval's
-        value exactly (not only the samples)."""
-        f = self.f if self.profile is None else np.vstack([self.f, self.profile.values])
-        bad = (f < self.tension_min) | (f > self.tension_max)
-        return bad[: self.f.shape[0]] | bad[self.f.shape[0] :].any(axis=0)
+        """True where a cable's applied tension leaves [f_min, f_max], shape
+        (T, m). A profile's knots are samples, so every interval it played
+        is checked (at its first sample)."""
+        return (self.f < self.tension_min) | (self.f > self.tension_max)
 
     @property
     def within_bounds(self) -> bool:
@@ -221,7 +236,7 @@ def _as_tension(robot: CableRobot, tension: Any) -> TensionProfile | Feedback | 
         return TensionProfile.make(tension.time, tension.values, m)
     if callable(tension):
         return tension
-    if isinstance(tension, tuple) and len(tension) == 2:
+    if isinstance(tension, tuple) and len(tension) == 2 and np.ndim(tension[0]) == 1:
         return TensionProfile.make(tension[0], tension[1], m)
     try:
         f = np.array(tension, dtype=float).reshape(-1)
@@ -330,6 +345,10 @@ def simulate(
     if not (0 < rtol < 1 and 0 < atol):
         raise InputError(f"rtol must be in (0, 1) and atol > 0, got {rtol}, {atol}")
     t_end = t_start + duration
+    if samples is not None and not (
+        isinstance(samples, (int, np.integer)) and not isinstance(samples, bool) and samples >= 2
+    ):
+        raise InputError(f"samples must be an integer >= 2 (start and end), got {samples!r}")
     n = samples or max(MIN_SAMPLES, int(math.ceil(SAMPLES_PER_SECOND * duration)) + 1)
     times = np.linspace(t_start, t_end, n)
     if profile is not None:

@@ -46,6 +46,8 @@ STEER_INTERVALS = 20
 STEER_MISS_RTOL = 1e-3
 #: shooting iterations at most
 STEER_ITERATIONS = 12
+#: most intervals a profile may have (one LP variable pair per cable and interval)
+STEER_MAX_INTERVALS = 1000
 #: default duration [s] when the linearisation has no time scale (A^2 = 0)
 STEER_DURATION = 1.0
 
@@ -65,7 +67,8 @@ class SteerResult:
         reached: miss <= tolerance.
         status: one line on the outcome (why not, when not reached).
         tolerance: the miss tolerance used.
-        iterations: nonlinear simulations run (shooting iterations).
+        iterations: nonlinear simulations run (shooting iterations and, at
+            a blocked direction, the single-cable pulls).
         equilibrium_tension: f* [N], shape (m,).
         blocked_direction: for a target the linearisation cannot reach,
             a unit v (p,) with v.(y - y0) unable to grow to first order
@@ -145,13 +148,14 @@ class SteerResult:
             f"{self.iterations} simulation(s); T = {self.duration:.4g} s, "
             f"{self.tension.shape[0]} intervals",
             f"  peak tension {self.peak_tension:.4g} N; tensions "
-            f"{'inside' if self.within_bounds else 'OUTSIDE'} the bounds; final speed "
-            f"{float(np.linalg.norm(self.final_velocity)):.3g}",
+            f"{'inside' if self.within_bounds else 'OUTSIDE'} the bounds; final velocity "
+            f"{np.array2string(self.final_velocity + 0.0, precision=3)} (rad/s or m/s: "
+            "the robot still moves at T)",
         ]
         if self.blocked_direction is not None:
             lines.append(
                 f"  blocked direction v = {np.array2string(self.blocked_direction, precision=4)}; "
-                f"pulling every cable in turn, v.(y - y0) reached at most "
+                f"pulling each cable in turn, v.(y - y0) reached at most "
                 f"{self.blocked_progress:.3g}"
             )
         return "\n".join(lines)
@@ -295,8 +299,14 @@ def steer(
             f"target must be {p} finite numbers, one per output "
             f"({', '.join(robot.output_names)}); got {target!r}"
         )
-    if not (isinstance(intervals, (int, np.integer)) and intervals >= 1):
-        raise InputError(f"intervals must be a positive integer, got {intervals!r}")
+    if not (isinstance(intervals, (int, np.integer)) and not isinstance(intervals, bool)) or not (
+        1 <= intervals <= STEER_MAX_INTERVALS
+    ):
+        raise InputError(
+            f"intervals must be an integer from 1 to {STEER_MAX_INTERVALS}, got {intervals!r}"
+        )
+    if not (isinstance(max_iterations, (int, np.integer)) and max_iterations >= 1):
+        raise InputError(f"max_iterations must be a positive integer, got {max_iterations!r}")
     T = default_duration(lin) if duration is None else float(duration)
     if not (math.isfinite(T) and T > 0):
         raise InputError(f"duration must be a positive time [s], got {duration!r}")
@@ -309,36 +319,44 @@ def steer(
     f0 = lin.tension
     time = np.linspace(0.0, T, intervals + 1)
     command = dy.copy()
-    best = None
+    best = None  # (values, trajectory, miss) of least miss
     blocked = None
     progress = None
     status = ""
+    sims = 0
     for iteration in range(1, max_iterations + 1):
         du, attempt = plan_profile(lin, command, T, intervals, fmin, fmax)
         values = np.clip(f0 + attempt, fmin, fmax)
         traj = simulate(robot, lin.q, tension=TensionProfile(time, values))
+        sims += 1
         miss = float(np.linalg.norm(traj.y[-1] - goal))
         if best is None or miss < best[2]:
-            best = (values, traj, miss, iteration)
+            best = (values, traj, miss)
         if du is None:
-            blocked = _blocked_direction(lin, command)
+            blocked = _blocked_direction(lin, dy)
             if blocked is not None:
-                best, progress = _probe_blocked(robot, lin, blocked, goal, time, best, fmin, fmax)
-            status = (
-                "the linearisation cannot reach the target within the tension bounds in "
-                f"T = {T:.4g} s (its output cone misses the direction); best attempt shown"
-            )
+                best, progress, probes = _probe_blocked(robot, lin, blocked, goal, time, fmin, fmax)
+                sims += probes
+                status = (
+                    "POC NO: no pull moves the output along the blocked direction v to first "
+                    "order; shown: the single-cable pull that got furthest along v"
+                )
+            else:
+                what = "the target" if iteration == 1 else "the corrected target"
+                status = (
+                    f"the linearisation cannot reach {what} within the tension bounds in "
+                    f"T = {T:.4g} s; a longer duration or a nearer target may help "
+                    "(best attempt shown)"
+                )
             break
         if miss <= tol:
-            status = f"reached in {iteration} simulation(s)"
+            status = f"reached after {sims} simulation(s)"
             break
         command = command - (traj.y[-1] - goal)
     else:
-        status = f"miss still above the tolerance after {max_iterations} simulations"
-    values, traj, miss, iteration = best
+        status = f"miss still above the tolerance after {sims} simulations (best attempt shown)"
+    values, traj, miss = best
     reached = miss <= tol and blocked is None
-    if not reached and blocked is None and not status.startswith("miss"):
-        status = f"best miss {miss:.3g} above the tolerance {tol:.3g}"
     return SteerResult(
         time=time,
         tension=values,
@@ -349,45 +367,51 @@ def steer(
         reached=bool(reached),
         status=status,
         tolerance=float(tol),
-        iterations=iteration,
+        iterations=sims,
         equilibrium_tension=f0.copy(),
         blocked_direction=blocked,
         blocked_progress=progress,
     )
 
 
-def _probe_blocked(robot, lin, v, goal, time, best, fmin, fmax):
-    """At a NO pose, single-cable pulses toward the blocked direction v:
-    each cable that can pull harder pulls for one interval (first, middle
-    or last) with the tension change that would move the linear output by
-    |goal - y0|. Returns (the attempt of least miss among ``best`` and the
-    pulses, the largest v.(y(t) - y0) any pulse reached at any time)."""
+def _probe_blocked(robot, lin, v, goal, time, fmin, fmax):
+    """At a NO pose, single-cable pulls toward the blocked direction v: each
+    cable that can pull harder pulls for one interval (first, middle or
+    last) with the tension change that would move the linear output by
+    |goal - y0| (capped at its bound).
+
+    Returns:
+        ((values, trajectory, miss) of the pull that ends furthest along v,
+        the largest v.(y(t) - y0) of any pull at any time, pulls simulated).
+    """
     K, m = time.size - 1, lin.tension.shape[0]
     G = _output_map(lin, float(time[-1]), K).reshape(lin.C.shape[0], K, m)
     size = float(np.linalg.norm(goal - lin.output))
     room = fmax - lin.tension
     y0 = lin.output
-    progress = float(np.max((best[1].y - y0) @ v))
-    count = best[3]
+    shown, progress, count = None, 0.0, 0
     for k in sorted({0, K // 2, K - 1}):
         for j in np.flatnonzero(room > 0):
             gain = float(np.linalg.norm(G[:, k, j]))
-            if gain == 0:
-                continue
             values = np.tile(lin.tension, (K, 1))
-            values[k, j] = min(lin.tension[j] + size / gain, fmax[j])
+            pull = size / gain if gain > 0 else room[j]
+            values[k, j] = min(lin.tension[j] + pull, fmax[j])
             traj = simulate(robot, lin.q, tension=TensionProfile(time, values))
-            miss = float(np.linalg.norm(traj.y[-1] - goal))
             count += 1
+            miss = float(np.linalg.norm(traj.y[-1] - goal))
             progress = max(progress, float(np.max((traj.y - y0) @ v)))
-            if miss < best[2]:
-                best = (values, traj, miss, count)
-    return (*best[:3], count), progress
+            if shown is None or float(v @ traj.y[-1]) > float(v @ shown[1].y[-1]):
+                shown = (values, traj, miss)
+    if shown is None:  # no cable can pull harder: the equilibrium held
+        values = np.tile(lin.tension, (K, 1))
+        traj = simulate(robot, lin.q, tension=TensionProfile(time, values))
+        shown, count = (values, traj, float(np.linalg.norm(traj.y[-1] - goal))), count + 1
+    return shown, progress, count
 
 
 def _blocked_direction(lin: Linearisation, dy: np.ndarray) -> np.ndarray | None:
-    """The POC certificate's separator when the pose is NO (oriented toward
-    dy), else None."""
+    """The POC certificate's separator v when the pose is NO and the target
+    change dy has a component along it (v.dy > 0), else None."""
     from cdpm.analysis import Verdict, positive_output_controllability
 
     res = positive_output_controllability(
@@ -397,4 +421,5 @@ def _blocked_direction(lin: Linearisation, dy: np.ndarray) -> np.ndarray | None:
     if res.verdict is not Verdict.NO or v is None:
         return None
     v = np.asarray(v, dtype=float)
-    return v / np.linalg.norm(v)
+    v = v / np.linalg.norm(v)
+    return v if float(v @ dy) > 0 else None

@@ -54,6 +54,19 @@ class VerifyReport:
     runs: list[SteerResult] = field(default_factory=list)
     blocked_direction: np.ndarray | None = None
     robot_size: float = float("nan")
+    radius_given: bool = False
+
+    @property
+    def demonstrated(self) -> bool:
+        """The verdict shows on the robot: at a YES pose every target is
+        reached; at a NO pose the blocked direction is not, and no pull
+        moved the output along it by more than 1 % of R."""
+        if self.verdict == "yes":
+            return self.all_reached
+        if self.verdict == "no":
+            progress = self.blocked_progress()
+            return not self.all_reached and progress is not None and progress <= 0.01
+        return False
 
     @property
     def all_reached(self) -> bool:
@@ -106,17 +119,22 @@ class VerifyReport:
             "blocked_direction": None
             if self.blocked_direction is None
             else self.blocked_direction.tolist(),
-            "blocked_progress": self.blocked_progress(),
+            "blocked_progress_relative": self.blocked_progress(),
+            "demonstrated": self.demonstrated,
             "runs": self.rows(),
         }
 
     def __str__(self) -> str:
         where = f"pose {self.pose_name!r}" if self.pose_name else "the given q"
+        how = (
+            "given"
+            if self.radius_given
+            else f"{RADIUS_FRACTION:g} x the robot's size {self.robot_size:.4g} m"
+        )
         lines = [
             f"cdpm verify: {self.model_name}, {where}: POC {self.verdict.upper()}",
-            f"  targets at R = {self.radius:.4g} from y0 = "
-            f"{np.array2string(self.y0, precision=6)} (R = {RADIUS_FRACTION:g} x robot size "
-            f"{self.robot_size:.4g} m unless given)",
+            f"  targets at R = {self.radius:.4g} m ({how}) from y0 = "
+            f"{np.array2string(self.y0, precision=6)}",
         ]
         if self.blocked_direction is not None:
             lines.append(
@@ -138,7 +156,19 @@ class VerifyReport:
             ok = "all tensions inside the cable bounds at every instant"
             if not all(r.within_bounds for r in self.runs):
                 ok = "SOME TENSIONS OUTSIDE THE CABLE BOUNDS"
-            lines.append(f"  {ok}")
+            n = sum(r.reached for r in self.runs)
+            lines.append(f"  {n} of {len(self.runs)} targets reached; {ok}")
+            if self.verdict == "yes":
+                outcome = "every target reached" if self.demonstrated else "SOME TARGETS MISSED"
+            elif self.verdict == "no":
+                outcome = (
+                    "the blocked direction stays out of reach"
+                    if self.demonstrated
+                    else "NOT SHOWN (a pull moved the output along v; try a smaller --radius)"
+                )
+            else:
+                outcome = "a MARGINAL verdict shows nothing definite"
+            lines.append(f"  on the robot: {outcome}")
         return "\n".join(lines)
 
     def _repr_html_(self) -> str:
@@ -240,6 +270,8 @@ def verify_pose(
         v = getattr(report.poc.certificate, "separator", None)
         blocked = np.asarray(v, dtype=float) / np.linalg.norm(v)
         directions = blocked[None]
+    elif p == 1:  # the two directions are all there are
+        directions = np.array([[1.0], [-1.0]])
     else:
         eye = np.eye(p)
         directions = np.vstack([np.stack([e, -e]) for e in eye]) if p else np.zeros((0, 0))
@@ -267,4 +299,5 @@ def verify_pose(
         runs=runs,
         blocked_direction=blocked,
         robot_size=size,
+        radius_given=radius is not None,
     )

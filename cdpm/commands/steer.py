@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 
-from cdpm.commands._pose import add_pose_arguments, pose_from_args
+from cdpm.commands._pose import Q_HELP, add_pose_arguments, pose_from_args
 from cdpm.commands.plot import argument_type
 from cdpm.commands.verify import _duration, _image
 from cdpm.commands.view import _port
@@ -18,17 +18,31 @@ changes on the linearisation (an LP: slack cables only pull harder, taut ones
 stay inside their bounds) and correct them on the nonlinear simulation until
 the output reaches the target. Prints the outcome and the tension profile;
 --plot draws y(t) and f(t), --view plays the motion in the 3-D viewer."""
-EPILOG = """\
+EPILOG = (
+    """\
 examples:
   cdpm steer models/two_link_planar/two_link_planar.yaml --pose nominal --to 0.876
   cdpm steer models/two_link_vertical/two_link_vertical.yaml --by 0.005 0 --plot s.png
-  cdpm steer models/two_link_planar/two_link_planar.yaml --by -0.01 --view"""
+  cdpm steer models/two_link_planar/two_link_planar.yaml --by -0.01 --view
+
+"""
+    + Q_HELP
+)
 
 
 def _number(text: str) -> float:
+    import math
+
+    from cdpm.errors import InputError
     from cdpm.expressions import parse_number
 
-    return parse_number(text)
+    try:
+        value = parse_number(text)
+    except (TypeError, ValueError) as exc:
+        raise InputError(str(exc)) from exc
+    if not math.isfinite(value):
+        raise InputError(f"{text!r}: give a finite value")
+    return value
 
 
 def _seconds(text: str) -> float:
@@ -90,7 +104,7 @@ def run(args: argparse.Namespace) -> int:
 
     from cdpm.errors import InputError
     from cdpm.robot import load_robot
-    from cdpm.steering import steer
+    from cdpm.steering import STEER_MAX_INTERVALS, steer
 
     robot = load_robot(args.spec)
     pose = pose_from_args(robot, args)
@@ -103,13 +117,22 @@ def run(args: argparse.Namespace) -> int:
         )
     if args.seconds is not None and not args.view:
         raise InputError("--seconds goes with --view (how long to play the motion)")
-    if args.intervals < 1:
-        raise InputError(f"--intervals must be >= 1, got {args.intervals}")
+    if args.port is not None and not args.view:
+        raise InputError("--port goes with --view (the viewer's web port)")
+    if not 1 <= args.intervals <= STEER_MAX_INTERVALS:
+        raise InputError(
+            f"--intervals must be from 1 to {STEER_MAX_INTERVALS}, got {args.intervals}"
+        )
     target = values if args.to is not None else robot.output(pose) + values
     result = steer(robot, pose, target, duration=args.duration, intervals=args.intervals)
     if args.plot:
+        where = f"pose {pose!r}" if isinstance(pose, str) else "the given q"
+        word = "reached" if result.reached else "NOT reached"
         result.trajectory.plot(
-            args.plot, title=f"{robot.spec.path.name}: steering", target=result.target
+            args.plot,
+            title=f"{robot.spec.path.name}, {where}: steering to the dashed target, {word} "
+            f"(miss {result.miss * 1e3:.2g} mm)",
+            target=result.target,
         )
     if args.json:
         print(json.dumps(result.as_dict(), indent=2))

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 
-from cdpm.commands._pose import add_pose_arguments, pose_from_args
+from cdpm.commands._pose import Q_HELP, add_pose_arguments, pose_from_args
 from cdpm.commands.plot import argument_type
 
 NAME = "verify"
@@ -18,12 +18,19 @@ instant, and print each target's miss, peak tension and duration. At a NO
 pose: steer toward the blocked direction v of the certificate and print the
 best attempt, whose progress v.(y - y0) stays at most of second order in R.
 The default R is 0.2 % of the robot's size (the largest distance between two
-cable attachment points)."""
-EPILOG = """\
+cable attachment points). Exit status 0 when the verdict shows on the robot
+(YES: every target reached; NO: the blocked direction stays out of reach),
+else 1."""
+EPILOG = (
+    """\
 examples:
   cdpm verify models/two_link_planar/two_link_planar.yaml --pose nominal
   cdpm verify models/two_link_vertical/two_link_vertical.yaml --radius 0.005 --plot v.png
-  cdpm verify models/spatial_8cable/spatial_8cable.yaml --pose centre --random 4 --json"""
+  cdpm verify models/spatial_8cable/spatial_8cable.yaml --pose centre --random 4 --json
+
+"""
+    + Q_HELP
+)
 
 
 def _positive(option: str, what: str):
@@ -106,4 +113,4 @@ def run(args: argparse.Namespace) -> int:
         print(report)
         if args.plot:
             print(f"plot written to {args.plot}")
-    return 0
+    return 0 if report.demonstrated else 1
