@@ -86,6 +86,8 @@ ZERO_ATOL = 1e-8
 # --------------------------------------------------------------------------
 # POC: modal path and margins
 
+#: sample grids of the impulse response never assume a rate below this [1/time]
+RATE_FLOOR = 1e-3
 #: the closed-form evaluator of e^{At} needs eigenvector matrices (of the
 #: scaled A) conditioned below this (the modal path: MODAL_PATH_COND_MAX)
 MODAL_COND_MAX = 1e7

@@ -23,6 +23,22 @@ from cdpm.numerics import INVERTIBLE_COND_MAX
 _REASON_GENERAL_YES = "finitely many sampled output vectors positively span the output space"
 
 
+_REASON_ILL_CONDITIONED = (
+    "sampled output vectors positively span the output space in scaled coordinates, but "
+    "the certificate does not survive its re-check in the output's own units (the vectors "
+    "are nearly parallel there, e.g. late samples of a fast growing mode)"
+)
+
+
+def _checked_yes(sub: Reduced, cert, T):
+    """YES with a sampled certificate only when the certificate passes its
+    own re-check on the full system (as a user's ``verify`` would); else
+    MARGINAL: a YES must come with a certificate anyone can re-check."""
+    if cert.verify(sub.A, sub.B, sub.C):
+        return Verdict.YES, "general", _REASON_GENERAL_YES, cert, T
+    return marginal("general", _REASON_ILL_CONDITIONED, sub, T)
+
+
 def brammer_path(sub: Reduced, horizon, tol):
     A, Bp, Cr = sub.A, sub.Bp, sub.Cr
     n = A.shape[0]
@@ -84,7 +100,7 @@ def general_path(sub: Reduced, horizon, tol):
         T = T0 or sub.modal_T
         found = sample_search(sub, T, ModalScaled(sub.modal_ev))
         if found[0] == "yes":
-            return Verdict.YES, "general", _REASON_GENERAL_YES, found[1], T
+            return _checked_yes(sub, found[1], T)
     sc = Scaled(sub)
     Ts = T0 * sc.rho if T0 else _modes.default_horizon(sc.ev.eigvals)
     T = Ts / sc.rho
@@ -93,7 +109,7 @@ def general_path(sub: Reduced, horizon, tol):
     for _ in range(6):
         found = sample_search(sub, T, sc, extra)
         if found[0] == "yes":
-            return Verdict.YES, "general", _REASON_GENERAL_YES, found[1], T
+            return _checked_yes(sub, found[1], T)
         _, v, S, ts, m = found
         sep = separator(S, v)
         proofs, viol = [], []

@@ -20,6 +20,7 @@ from cdpm.numerics import (
     HORIZON_RATE_MIN,
     MODAL_COND_MAX,
     MODE_COEFF_RTOL,
+    RATE_FLOOR,
     REAL_EIG_ATOL,
     TAYLOR_ZERO_RTOL,
 )
@@ -173,7 +174,7 @@ def coarse_times(T: float) -> np.ndarray:
 
 def fine_times(T: float, eigvals) -> np.ndarray:
     """A finer grid resolving the fastest mode, plus tail points beyond T."""
-    fast = 1.0 if eigvals is None or eigvals.size == 0 else max(np.abs(eigvals).max(), 1e-3)
+    fast = 1.0 if eigvals is None or eigvals.size == 0 else max(np.abs(eigvals).max(), RATE_FLOOR)
     n = int(min(4000, max(200, math.ceil(T * fast / 0.25))))
     return np.unique(
         np.concatenate(
@@ -279,7 +280,7 @@ def prove_nonpositive(ev: Evaluator, v: np.ndarray, j: int, T: float):
 
 def _grid_bound(ev, v, j, kap, lam, t0, t1, depth=0, n=None):
     if n is None:
-        fast = max(np.abs(lam).max(), 1e-3)
+        fast = max(np.abs(lam).max(), RATE_FLOOR)
         n = int(min(20000, max(64, math.ceil((t1 - t0) * fast / 0.2))))
     t = np.linspace(t0, t1, n + 1)
     with np.errstate(over="ignore", invalid="ignore"):

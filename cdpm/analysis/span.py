@@ -482,7 +482,9 @@ def cross_polytope_radius(S: np.ndarray, S_sym: np.ndarray | None = None) -> tup
                 return 0.0, 0.0
             # the solver meets S^T x <= 1 to ~1e-9: rescale to feasible first
             gx = G @ x
-            support = float(max(np.max(gx), np.max(np.where(lower > -1.0 - 1e-9, -gx, -np.inf))))
+            support = float(
+                max(np.max(gx), np.max(np.where(lower > -1.0 - POLAR_LP_PRIMAL_TOL, -gx, -np.inf)))
+            )
             x = x / max(support, 1.0)
             vmax = max(vmax, sign * x[i])
             hi = min(hi, support / float(np.linalg.norm(x)) / max(support, 1.0))
