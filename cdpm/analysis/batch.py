@@ -126,10 +126,10 @@ def analyse_systems(
         return SystemVerdicts(poc, mg if margin else np.full(k, np.nan), oc, pc, failed)
     nil = nilpotent_mechanical(A, B, C, mask) if k else np.zeros(0, dtype=bool)
     if nil.any():
-        idx = np.flatnonzero(nil)
+        idx = slice(None) if nil.all() else np.flatnonzero(nil)  # a view when all
         nv = n // 2
-        Cq = np.moveaxis(C[idx, :, :nv], 0, -1)  # (p, nv, k)
-        Bv = np.moveaxis(B[idx, nv:], 0, -1)  # (nv, m, k)
+        Cq = np.ascontiguousarray(np.moveaxis(C[idx, :, :nv], 0, -1))  # (p, nv, k)
+        Bv = np.ascontiguousarray(np.moveaxis(B[idx, nv:], 0, -1))  # (nv, m, k)
         CAB = times(Cq, Bv)
         codes, values, todo = nilpotent_poc(CAB, tol)
         oc_codes, todo_oc = output_rank_full(CAB, Cq, Bv)
@@ -138,9 +138,10 @@ def analyse_systems(
         pc_codes, todo_pc = span_codes(Bv, BRAMMER_DEFER, tol)
         todo |= todo_oc | todo_pc
         keep = ~todo
-        poc[idx[keep]], mg[idx[keep]] = codes[keep], values[keep]
-        oc[idx[keep]], pc[idx[keep]] = oc_codes[keep], pc_codes[keep]
-        open_poc[idx[todo]] = True
+        at = np.flatnonzero(nil)
+        poc[at[keep]], mg[at[keep]] = codes[keep], values[keep]
+        oc[at[keep]], pc[at[keep]] = oc_codes[keep], pc_codes[keep]
+        open_poc[at[todo]] = True
     gen = np.flatnonzero(~nil)
     if gen.size:
         Ag, Bg, Cg, mk = A[gen], B[gen], C[gen], mask[gen]

@@ -170,6 +170,10 @@ def solve_equilibria(
         f = np.tile(np.minimum(lower, upper), (k, 1))
         how[:] = HOW["bound_conflict"]
         return _batch(LT, load, f, np.zeros(k, bool), how, fmin, fmax, method, used)
+    if not np.any(lower) and not np.any(load):
+        # no load and a box with corner 0: f = 0 holds every pose exactly
+        how[:] = HOW["box_corner"]
+        return _batch(LT, load, np.zeros((k, m)), np.ones(k, bool), how, fmin, fmax, method, used)
     f = np.tile(lower, (k, 1))
     feasible = holds(LT, load, f)  # the box's least-norm point holds the pose
     how[:] = HOW["box_corner"]
@@ -197,10 +201,11 @@ def _batch(LT, load, f, feasible, how, fmin, fmax, method, pretension) -> Equili
         # the solvers leave it within STATICS_RTOL)
         f = np.where(at_lower, fmin, np.where(at_upper, fmax, f))
     taut = f > 0
+    exact = not np.any(f) and not np.any(load)  # nothing to balance, nothing pulling
     return EquilibriumBatch(
         tension=f,
         feasible=feasible,
-        residual=residuals(LT, load, f),
+        residual=np.zeros(f.shape[0]) if exact else residuals(LT, load, f),
         at_lower_bound=at_lower,
         at_upper_bound=at_upper,
         taut=taut,

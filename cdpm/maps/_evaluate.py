@@ -249,7 +249,7 @@ def evaluate_batch(
     batch.analysed = ok[use]
     if not use.any():
         return batch
-    eq = _take(eq, use)
+    eq = eq if use.all() else _take(eq, use)
     input_sign = np.where(eq.at_lower_bound, 1, np.where(eq.at_upper_bound, -1, 0))
     lin = linearise_batch(robot, kin.take(batch.analysed), Minv[use], eq.tension, input_sign)
     verdicts = analyse_systems(
