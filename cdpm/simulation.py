@@ -159,9 +159,17 @@ class Trajectory:
             {
                 "tension": (("time", "cable"), self.f, {"units": "N"}),
                 "cable_length": (("time", "cable"), self.lengths, {"units": "m"}),
-                "y": (("time", "output"), self.y, {"long_name": "outputs"}),
-                "v": (("time", "velocity"), self.v, {"long_name": "tangent velocity"}),
-                "q": (("time", "q_index"), self.q, {"long_name": "configuration vector"}),
+                "y": (("time", "output"), self.y, {"long_name": "outputs", "units": "m"}),
+                "v": (
+                    ("time", "velocity"),
+                    self.v,
+                    {"long_name": "tangent velocity", "units": "rad/s or m/s per coordinate"},
+                ),
+                "q": (
+                    ("time", "q_index"),
+                    self.q,
+                    {"long_name": "configuration vector (Pinocchio's q, nq entries)"},
+                ),
                 "out_of_bounds": (("time", "cable"), self.out_of_bounds),
             },
             coords={

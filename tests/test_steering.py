@@ -269,3 +269,17 @@ def test_remark_11_on_the_nonlinear_robot(paper):
         assert rise <= 0.01 * drop + 1e-12  # second order at most
         moves.append(traj.y[-1, 0] - traj.y[0, 0])
     assert min(moves) < -1e-4 and max(moves) > 1e-4
+
+
+def test_verify_and_steer_take_the_equilibrium_options(capsys):
+    args = ["--pose", "centre", "--tension", "pretension", "--pretension", "10"]
+    assert main(["steer", str(SPATIAL), *args, "--by", "0.002", "0", "0", "--json"]) == 0
+    result = json.loads(capsys.readouterr().out)
+    assert result["reached"]
+    assert min(min(row) for row in result["tension"]) >= 10 - 1e-9  # every cable pretensioned
+    spec = str(VERTICAL)
+    assert main(["steer", spec, "--pose", "horizontal", "--tension", "zero", "--by", "0", "0"]) == 1
+    err = capsys.readouterr().err
+    assert "no equilibrium at this pose with method 'zero'" in err and "--tension min_norm" in err
+    assert main(["verify", spec, "--pose", "nominal", "--pretension", "5"]) == 1
+    assert "--pretension 5 only applies to --tension pretension" in capsys.readouterr().err

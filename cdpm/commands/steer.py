@@ -6,6 +6,7 @@ import argparse
 import json
 
 from cdpm.commands._pose import Q_HELP, add_pose_arguments, pose_from_args
+from cdpm.commands._tension import add_tension_arguments, cli_equilibrium, tension_from_args
 from cdpm.commands.plot import argument_type
 from cdpm.commands.verify import _duration, _image
 from cdpm.commands.view import _port
@@ -56,6 +57,7 @@ def _seconds(text: str) -> float:
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_pose_arguments(parser)
+    add_tension_arguments(parser)
     goal = parser.add_mutually_exclusive_group(required=True)
     goal.add_argument(
         "--to",
@@ -124,7 +126,17 @@ def run(args: argparse.Namespace) -> int:
             f"--intervals must be from 1 to {STEER_MAX_INTERVALS}, got {args.intervals}"
         )
     target = values if args.to is not None else robot.output(pose) + values
-    result = steer(robot, pose, target, duration=args.duration, intervals=args.intervals)
+    tension, pretension = tension_from_args(robot, args)
+    result = cli_equilibrium(
+        steer,
+        robot,
+        pose,
+        target,
+        duration=args.duration,
+        intervals=args.intervals,
+        tension=tension,
+        pretension=pretension,
+    )
     if args.plot:
         where = f"pose {pose!r}" if isinstance(pose, str) else "the given q"
         word = "reached" if result.reached else "NOT reached"

@@ -6,6 +6,7 @@ import argparse
 import json
 
 from cdpm.commands._pose import Q_HELP, add_pose_arguments, pose_from_args
+from cdpm.commands._tension import add_tension_arguments, cli_equilibrium, tension_from_args
 from cdpm.commands.plot import argument_type
 
 NAME = "verify"
@@ -73,6 +74,7 @@ def _image(text: str):
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_pose_arguments(parser)
+    add_tension_arguments(parser)
     parser.add_argument(
         "--radius",
         type=argument_type(_radius),
@@ -102,8 +104,16 @@ def run(args: argparse.Namespace) -> int:
 
     robot = load_robot(args.spec)
     pose = pose_from_args(robot, args)
-    report = verify_pose(
-        robot, pose, args.radius, random_directions=args.random, duration=args.duration
+    tension, pretension = tension_from_args(robot, args)
+    report = cli_equilibrium(
+        verify_pose,
+        robot,
+        pose,
+        args.radius,
+        random_directions=args.random,
+        duration=args.duration,
+        tension=tension,
+        pretension=pretension,
     )
     if args.plot:
         report.plot(args.plot)

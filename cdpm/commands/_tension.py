@@ -1,0 +1,89 @@
+"""``--tension`` and ``--pretension``: the equilibrium options of the per-pose
+commands (analyze, verify, steer)."""
+
+from __future__ import annotations
+
+import argparse
+from typing import TYPE_CHECKING
+
+from cdpm.errors import InputError
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cdpm.robot import CableRobot
+
+
+def add_tension_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add --tension METHOD|F... and --pretension N."""
+    parser.add_argument(
+        "--tension",
+        nargs="+",
+        metavar="METHOD|F",
+        help="equilibrium method (zero, min_norm, pretension) or one tension per cable [N]; "
+        "default: the spec's equilibrium.method (min_norm if none)",
+    )
+    parser.add_argument(
+        "--pretension",
+        type=float,
+        metavar="N",
+        help="least tension of every cable for the pretension method [N] "
+        "(default: the spec's equilibrium.pretension); an error with any other method",
+    )
+
+
+def cli_equilibrium(function, *args, **kwargs):
+    """Call ``function``; an infeasible equilibrium's message names this
+    command's options (--tension, --pretension) instead of Python arguments."""
+    from cdpm.equilibrium import InfeasibleEquilibriumError
+
+    try:
+        return function(*args, **kwargs)
+    except InfeasibleEquilibriumError as exc:
+        raise InfeasibleEquilibriumError(
+            exc.result, method_option="--tension {}", pretension_option="--pretension {}"
+        ) from None
+
+
+def tension_from_args(robot: CableRobot, args: argparse.Namespace):
+    """(tension setting, pretension) from --tension and --pretension, checked."""
+    tension = tension_argument(args.tension)
+    check_pretension(robot, tension, args.pretension)
+    return tension, args.pretension
+
+
+def check_pretension(robot: CableRobot, tension, pretension: float | None) -> None:
+    """--pretension only means something for the pretension method, and that
+    method needs one (from the flag or the spec)."""
+
+    method = tension if isinstance(tension, str) or tension is None else "given"
+    method = method or robot.spec.equilibrium_method
+    if pretension is not None and method != "pretension":
+        source = "" if tension is not None else f" ({robot.spec.path.name}'s equilibrium.method)"
+        what = "given tensions" if method == "given" else f"method {method!r}{source}"
+        raise InputError(
+            f"--pretension {pretension:g} only applies to --tension pretension, and this "
+            f"analysis uses {what}: add --tension pretension, or leave out --pretension"
+        )
+    if method == "pretension" and pretension is None and not robot.spec.pretension > 0:
+        raise InputError(
+            f"--tension pretension needs a pretension > 0 N and {robot.spec.path.name} gives "
+            "none (with 0 it is the min_norm method): add --pretension N, or set "
+            "equilibrium: {pretension: N} in the spec"
+        )
+
+
+def tension_argument(values: list[str] | None):
+    """None, a method name, or a list of tensions from ``--tension``."""
+    from cdpm.equilibrium import EQUILIBRIUM_METHODS
+    from cdpm.spec import parse_number
+
+    if not values:
+        return None
+    if len(values) == 1 and values[0] in EQUILIBRIUM_METHODS:
+        return values[0]
+    try:
+        return [parse_number(v) for v in values]
+    except ValueError as exc:
+        raise InputError(
+            f"--tension takes a method ({', '.join(EQUILIBRIUM_METHODS)}) or one tension "
+            f"per cable in N: {exc}"
+        ) from exc
