@@ -448,6 +448,30 @@ def _ports(viewer) -> list[int]:
     return [web, int(viewer.zmq_url.rsplit(":", 1)[1])]
 
 
+def _start_command(*args: str) -> subprocess.Popen:
+    """``cdpm ARGS`` in a subprocess, its output piped as text."""
+    return subprocess.Popen(
+        [sys.executable, "-m", "cdpm.cli", *args],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        cwd=ROOT,
+    )
+
+
+def _viewer_url(proc: subprocess.Popen, timeout: float = 60) -> str:
+    """The URL a viewer command prints on its ``viewer: URL`` line ("" if none)."""
+    url = ""
+    deadline = time.monotonic() + timeout
+    while not url and time.monotonic() < deadline:
+        line = proc.stdout.readline()
+        if line.startswith("viewer: "):
+            url = line.split()[1]
+        if not line and proc.poll() is not None:
+            break
+    return url
+
+
 def _free_port() -> int:
     import socket
 
@@ -644,23 +668,9 @@ def test_steer_command_views_for_seconds_then_stops_its_server(capsys):
 def test_steer_command_ctrl_c_stops_playback_and_the_server():
     pytest.importorskip("meshcat")
     port = _free_port()
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "cdpm.cli", "steer", str(PAPER_SPEC), "--by", "0.005"]
-        + ["--view", "--port", str(port)],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        cwd=ROOT,
-    )
+    proc = _start_command("steer", str(PAPER_SPEC), "--by", "0.005", "--view", "--port", str(port))
     try:
-        url = ""
-        deadline = time.monotonic() + 60
-        while not url and time.monotonic() < deadline:
-            line = proc.stdout.readline()
-            if line.startswith("viewer: "):
-                url = line.split()[1]
-            if not line and proc.poll() is not None:
-                break
+        url = _viewer_url(proc)
         assert url == f"http://127.0.0.1:{port}/static/", proc.stderr.read()
         assert _viewer_servers(port=port)  # serving while it plays
         time.sleep(1.0)
@@ -777,22 +787,9 @@ def test_view_command_serves_then_stops(capsys):
 
 def test_view_command_ctrl_c_exits_130_and_stops_the_server():
     pytest.importorskip("meshcat")
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "cdpm.cli", "view", str(PAPER_SPEC), "--pose", "nominal"],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        cwd=ROOT,
-    )
+    proc = _start_command("view", str(PAPER_SPEC), "--pose", "nominal")
     try:
-        url = ""
-        deadline = time.monotonic() + 60
-        while not url and time.monotonic() < deadline:
-            line = proc.stdout.readline()
-            if line.startswith("viewer: "):
-                url = line.split()[1]
-            if not line and proc.poll() is not None:
-                break
+        url = _viewer_url(proc)
         assert url.startswith("http://127.0.0.1:"), proc.stderr.read()
         port = int(url.split(":")[2].split("/")[0])
         proc.send_signal(signal.SIGINT)
