@@ -41,6 +41,7 @@ from cdpm.equilibrium import (
     check_equilibrium,
     equilibrium_tension,
 )
+from cdpm.equilibrium.statics import input_signs
 from cdpm.errors import InputError, ModelError
 from cdpm.numerics import BOUND_TOLERANCE, MASS_COND_MAX
 
@@ -384,7 +385,7 @@ def linearise(
             f"mass matrix is singular or not positive definite at q={q.tolist()}: "
             "check the URDF inertias (every moving joint needs mass or inertia beyond it)"
         )
-    input_sign = np.where(eq.at_lower_bound, 1, np.where(eq.at_upper_bound, -1, 0))
+    input_sign = input_signs(eq.at_lower_bound, eq.at_upper_bound)
     lin = linearise_batch(robot, batch, Minv, eq.tension[None], input_sign[None])
     f = eq.tension
     L = kin.jacobian

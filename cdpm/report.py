@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from cdpm.analysis._common import to_plain
 from cdpm.linearisation import Linearisation, linearise
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -90,7 +91,7 @@ class PoseReport:
             "output_controllability": self.output_controllability.as_dict(),
             "controllability": self.controllability.as_dict(),
             "wrench_closure": self.wrench_closure.as_dict(),
-            "criteria": {name: _plain(v) for name, v in self.criteria.items()},
+            "criteria": to_plain(self.criteria),
         }
 
     def __str__(self) -> str:
@@ -180,12 +181,6 @@ def _without_negative_zeros(text: str) -> str:
         return (" " if zero == "0." else "") + zero
 
     return _NEGATIVE_ZERO.sub(positive, text)
-
-
-def _plain(value: Any) -> Any:
-    """A criterion value as JSON data."""
-    value = np.asarray(value)
-    return value.tolist() if value.ndim else value.item()
 
 
 def _criteria_lines(criteria: dict[str, Any], output_names=()) -> list[str]:

@@ -83,24 +83,17 @@ class TensionProfile:
 
     @classmethod
     def make(cls, time: Any, values: Any, m: int) -> TensionProfile:
-        """A validated profile (copies), or an InputError naming the problem."""
-        try:
-            t = np.array(time, dtype=float).reshape(-1)
-            f = np.array(values, dtype=float)
-        except (TypeError, ValueError) as exc:
-            raise InputError(f"tension profile: time and values must be numbers ({exc})") from exc
-        if f.ndim == 1 and f.shape[0] == m and t.shape[0] == 2:
-            f = f[None]
-        if t.shape[0] < 2 or f.shape != (t.shape[0] - 1, m):
+        """A validated profile (copies) for m cables, or an InputError naming
+        the problem; one interval's values may be given as a flat (m,)."""
+        if np.ndim(values) == 1 and np.size(values) == m and np.size(time) == 2:
+            values = np.reshape(values, (1, m))
+        profile = cls(time, values)  # the constructor checks shapes and values
+        if profile.values.shape[1] != m:
             raise InputError(
-                f"tension profile: time has {t.shape[0]} knots and values shape {f.shape}; "
-                f"give K+1 knot times [s] and (K, {m}) tensions [N] (one row per interval)"
+                f"tension profile: values have {profile.values.shape[1]} columns; give one "
+                f"per cable ({m})"
             )
-        if not (np.all(np.isfinite(t)) and np.all(np.isfinite(f))):
-            raise InputError("tension profile: time and values must be finite")
-        if np.any(np.diff(t) <= 0):
-            raise InputError("tension profile: knot times must be strictly increasing")
-        return cls(t, f)
+        return profile
 
     def __call__(self, t: float) -> np.ndarray:
         """The tensions [N] held at time t, shape (m,)."""

@@ -38,8 +38,7 @@ def test_per_pose_equilibrium_and_linearisation_are_the_batch_of_one(name):
     eq = equilibrium_tensions(robot, LT, -kin.gravity - robot.external_wrench)
     Minv, regular = mass_inverse(kin.mass_matrix)
     assert regular.all()
-    sign = np.where(eq.at_lower_bound, 1, np.where(eq.at_upper_bound, -1, 0))
-    lin = linearise_batch(robot, kin, Minv, eq.tension, sign)
+    lin = linearise_batch(robot, kin, Minv, eq.tension, eq.input_sign)
     compared = 0
     for i, q in enumerate(qs):
         one = cdpm.equilibrium_tension(robot, q)

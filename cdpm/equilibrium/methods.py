@@ -10,6 +10,7 @@ A new method is an entry here: its box (or a solver of its own).
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -17,7 +18,7 @@ import numpy as np
 
 from cdpm.equilibrium.newton import min_norm_tensions
 from cdpm.equilibrium.qp import min_norm_in_bounds
-from cdpm.equilibrium.statics import classify, holds, residuals
+from cdpm.equilibrium.statics import classify, holds, input_signs, residuals
 
 __all__ = [
     "EquilibriumMethod",
@@ -123,6 +124,22 @@ class EquilibriumBatch:
     def sign_constrained(self) -> np.ndarray:
         """Cables on a bound (one-signed tension change), shape (N, m)."""
         return self.at_lower_bound | self.at_upper_bound
+
+    @property
+    def input_sign(self) -> np.ndarray:
+        """+1 at the lower bound, -1 at the upper one, 0 free, shape (N, m)."""
+        return input_signs(self.at_lower_bound, self.at_upper_bound)
+
+    def take(self, idx) -> EquilibriumBatch:
+        """The equilibria of the poses ``idx`` (indices or a boolean mask)."""
+        return dataclasses.replace(
+            self,
+            **{
+                f.name: getattr(self, f.name)[idx]
+                for f in dataclasses.fields(self)
+                if isinstance(getattr(self, f.name), np.ndarray)
+            },
+        )
 
 
 def solve_equilibria(

@@ -11,7 +11,14 @@ import numpy as np
 
 from cdpm.numerics import STATICS_RTOL
 
-__all__ = ["spectral_norms", "statics_tolerance", "residuals", "holds", "classify"]
+__all__ = [
+    "spectral_norms",
+    "statics_tolerance",
+    "residuals",
+    "holds",
+    "classify",
+    "input_signs",
+]
 
 
 def spectral_norms(LT: np.ndarray) -> np.ndarray:
@@ -67,3 +74,10 @@ def classify(f: np.ndarray, fmin: np.ndarray, fmax: np.ndarray):
     at_lower = f <= fmin + STATICS_RTOL * scale
     at_upper = np.isfinite(fmax) & (f >= fmax - STATICS_RTOL * scale) & ~at_lower
     return at_lower, at_upper, f > 0
+
+
+def input_signs(at_lower: np.ndarray, at_upper: np.ndarray) -> np.ndarray:
+    """The sign of each cable's admissible tension change: +1 at its lower
+    bound (it can only pull harder), -1 at its upper bound, 0 strictly
+    inside (free); int, shaped like the masks (..., m)."""
+    return np.where(at_lower, 1, np.where(at_upper, -1, 0))

@@ -144,7 +144,11 @@ def zero_equilibrium(robot: CableRobot, setting) -> bool:
     if np.any(robot.tension_min != 0) or np.any(robot.tension_max <= 0):
         return False
     if isinstance(setting, str):
-        return setting in ("zero", "min_norm")
+        from cdpm.equilibrium import EQUILIBRIUM_METHODS
+
+        box = EQUILIBRIUM_METHODS[setting].box
+        pretension = float(robot.spec.pretension or 0.0)
+        return box is None or not np.any(box(robot.tension_min, robot.tension_max, pretension)[0])
     return not any(setting)
 
 
@@ -249,26 +253,11 @@ def evaluate_batch(
     batch.analysed = ok[use]
     if not use.any():
         return batch
-    eq = eq if use.all() else _take(eq, use)
-    input_sign = np.where(eq.at_lower_bound, 1, np.where(eq.at_upper_bound, -1, 0))
-    lin = linearise_batch(robot, kin.take(batch.analysed), Minv[use], eq.tension, input_sign)
+    eq = eq if use.all() else eq.take(use)
+    lin = linearise_batch(robot, kin.take(batch.analysed), Minv[use], eq.tension, eq.input_sign)
     verdicts = analyse_systems(
         lin.A, lin.B_cone, lin.C, lin.sign_constrained, margin=margin, tol=tol
     )
     status[batch.analysed[verdicts.failed]] = STATUS_CODES["analysis_failed"]
     batch.equilibrium, batch.linearisation, batch.verdicts = eq, lin, verdicts
     return batch
-
-
-def _take(eq, idx):
-    """An :class:`~cdpm.equilibrium.EquilibriumBatch` of the poses idx."""
-    import dataclasses
-
-    return dataclasses.replace(
-        eq,
-        **{
-            f.name: getattr(eq, f.name)[idx]
-            for f in dataclasses.fields(eq)
-            if isinstance(getattr(eq, f.name), np.ndarray)
-        },
-    )

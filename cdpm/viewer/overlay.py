@@ -13,6 +13,7 @@ import numpy as np
 from cdpm import verdicts
 from cdpm.errors import InputError
 from cdpm.verdicts import NO, NOT_ANALYSED, VERDICT_RGB, YES
+from cdpm.viewer.state import COLORS
 
 __all__ = ["map_points", "check_map_spec", "color_choices", "VERDICT_CODES"]
 
@@ -117,7 +118,7 @@ def _sequential_colors(values: np.ndarray, fill) -> np.ndarray:
     lo = float(values[valid].min()) if valid.any() else 0.0
     hi = float(values[valid].max()) if valid.any() else 1.0
     t = np.clip((np.where(valid, values, lo) - lo) / ((hi - lo) or 1.0), 0.0, 1.0)[:, None]
-    light, dark = np.array([0.78, 0.86, 0.94]), np.array([0.03, 0.19, 0.42])
+    light, dark = np.array(COLORS["taut_low"]), np.array(COLORS["taut_high"])  # cables' ramp
     out = light + t * (dark - light)
     out[~valid] = VERDICT_RGB[NOT_ANALYSED]
     return out
