@@ -252,10 +252,14 @@ def verify_pose(
     Returns:
         :class:`VerifyReport`.
     """
-    from cdpm.report import analyze_pose
+    from cdpm.analysis import positive_output_controllability
+    from cdpm.linearisation import linearise
 
-    report = analyze_pose(robot, pose, tension=tension, pretension=pretension)
-    q = report.linearisation.q
+    lin = linearise(robot, pose, tension=tension, pretension=pretension)
+    poc = positive_output_controllability(
+        lin.A, lin.B_cone, lin.C, sign_constrained=lin.sign_constrained
+    )
+    q = lin.q
     size = default_radius(robot, q)[1]
     R = RADIUS_FRACTION * size if radius is None else float(radius)
     if not (np.isfinite(R) and R > 0):
@@ -263,11 +267,11 @@ def verify_pose(
     if not (isinstance(random_directions, (int, np.integer)) and random_directions >= 0):
         raise InputError(f"random_directions must be a count >= 0, got {random_directions!r}")
     p = robot.n_outputs
-    y0 = report.linearisation.output
-    verdict = report.poc.verdict.value
+    y0 = lin.output
+    verdict = poc.verdict.value
     blocked = None
     if verdict == "no":
-        v = getattr(report.poc.certificate, "separator", None)
+        v = getattr(poc.certificate, "separator", None)
         blocked = np.asarray(v, dtype=float) / np.linalg.norm(v)
         directions = blocked[None]
     elif p == 1:  # the two directions are all there are
