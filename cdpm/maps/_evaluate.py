@@ -237,7 +237,8 @@ def evaluate_batch(
     batch = PoseBatch(robot, kin, status, wrench, static, np.zeros(0, dtype=int))
     if ok.size == 0:
         return batch
-    LT, load = statics(robot, kin.take(ok))  # (k, nv, m), (k, nv)
+    LT, load = statics(robot, kin)
+    LT, load = LT[ok], load[ok]  # (k, nv, m), (k, nv)
     wrench[ok] = positively_spanning(-LT, tol)
     method = setting if isinstance(setting, str) else np.asarray(setting)
     eq = equilibrium_tensions(robot, LT, load, method, pretension)
