@@ -105,6 +105,26 @@ LOG_GROWTH_HIGH = math.log(1e4)
 GRID_POINTS = {1: 256, 2: 64, 3: 32}
 #: ... and for p >= 4
 GRID_POINTS_HIGH = 64
+#: reach margin: Simpson intervals on [0, T] (multiples of 4), by output
+#: count p (the zonotope has m K generators; its facet candidates grow as
+#: (m K)^(p-1))
+REACH_NODES = {1: 64, 2: 32, 3: 12}
+#: ... and for p >= 4
+REACH_NODES_HIGH = 4
+#: reach margin: array elements per block of the facet search (bounds memory)
+REACH_BLOCK_ELEMENTS = 4_000_000
+#: a facet candidate whose normal is shorter than this times the product of
+#: its generators' lengths comes from dependent generators and is skipped
+ZONOTOPE_NORMAL_RTOL = 1e-12
+#: reach margin: a zonotope inradius below this times the sum of its
+#: generators' lengths is round-off, reported as 0
+REACH_ZERO_RTOL = 1e-12
+#: default tension budget: the least characteristic acceleration [m/s^2]
+#: (the budget accelerates the robot's mass by max(|g|, this))
+REACH_MIN_ACCELERATION = 1.0
+#: default reach horizon: the time in which that acceleration moves the
+#: robot by this fraction of its size (the linearisation is a local model)
+REACH_SIZE_FRACTION = 0.1
 
 # --------------------------------------------------------------------------
 # spec

@@ -415,7 +415,7 @@ class _CableLabels:
 def _verdict_text(state: PoseState) -> str:
     if state.verdict is None:
         return "unavailable"
-    margin = "" if state.margin is None else f" (margin {_number(state.margin)})"
+    margin = "" if state.margin is None else f" (r_T {_number(state.margin)} m)"
     return f"{str(state.verdict).upper()}{margin}"
 
 

@@ -44,6 +44,11 @@ class PoseReport:
         criteria: every registered map criterion at this pose
             (:data:`cdpm.maps.criteria.CRITERIA`: name -> value), computed by
             the map pipeline on a batch of one, so a map shows the same.
+        reach: the reach margin's horizon and tension budget
+            (:class:`cdpm.reach.ReachSettings`); its value is
+            ``criteria["reach_margin"]``.
+        neighbourhood: the POC neighbourhood of the pose
+            (:func:`cdpm.poc_neighbourhood`), or None.
     """
 
     model_name: str
@@ -59,6 +64,28 @@ class PoseReport:
     wrench_closure: Any
     equilibrium: Any = None
     criteria: dict[str, Any] = field(default_factory=dict)
+    reach: Any = None
+    neighbourhood: Any = None
+
+    @property
+    def reach_margin(self) -> tuple[float, float]:
+        """(r_T [m], its error estimate [m]); NaN when not computed."""
+        return (
+            float(self.criteria.get("reach_margin", np.nan)),
+            float(self.criteria.get("reach_margin_error", np.nan)),
+        )
+
+    def _reach_lines(self) -> list[str]:
+        if self.reach is None:
+            return []
+        r, err = self.reach_margin
+        names = ", ".join(self.linearisation.output_names) or "the outputs"
+        exact = "exact" if err == 0 else f"+- {err:.2g}, quadrature estimate"
+        return [
+            f"Reach margin r_T = {r + 0.0:.4g} m ({exact}): within T = {self.reach.horizon:.3g} s "
+            f"the cables can move {names} {r + 0.0:.4g} m in every direction",
+            f"  {self.reach.describe()}",
+        ]
 
     def as_dict(self) -> dict:
         """JSON-serialisable content of the report."""
@@ -92,6 +119,14 @@ class PoseReport:
             "controllability": self.controllability.as_dict(),
             "wrench_closure": self.wrench_closure.as_dict(),
             "criteria": to_plain(self.criteria),
+            "reach": None
+            if self.reach is None
+            else {
+                **self.reach.as_dict(),
+                "reach_margin": self.reach_margin[0],
+                "error": self.reach_margin[1],
+            },
+            "neighbourhood": None if self.neighbourhood is None else self.neighbourhood.to_plain(),
         }
 
     def __str__(self) -> str:
@@ -126,7 +161,10 @@ class PoseReport:
             _indent(f"Output controllability: {self.output_controllability}"),
             _indent(f"Controllability (Kalman): {self.controllability}"),
             _indent(f"Wrench closure: {self.wrench_closure}"),
+            *[_indent(line) for line in self._reach_lines()],
         ]
+        if self.neighbourhood is not None:
+            lines += ["", *self.neighbourhood.lines()]
         if self.criteria:
             lines += ["", "Map criteria (as a workspace map stores them)"]
             names = self.linearisation.output_names
@@ -222,7 +260,14 @@ def _indent(text: str, prefix: str = "  ") -> str:
 
 
 def analyze_pose(
-    robot: CableRobot, q: Any, tension: Any = None, pretension: float | None = None
+    robot: CableRobot,
+    q: Any,
+    tension: Any = None,
+    pretension: float | None = None,
+    *,
+    horizon: Any = None,
+    tension_budget: Any = None,
+    neighbourhood: float | None = None,
 ) -> PoseReport:
     """Linearise ``robot`` at ``q`` and decide every property at that pose.
 
@@ -233,6 +278,13 @@ def analyze_pose(
         tension: equilibrium tension: None (the spec's method), a method
             name or an array (see :func:`~cdpm.linearise`).
         pretension: least tension [N] for the ``pretension`` method.
+        horizon: T [s] of the reach margin (default: the model's,
+            :func:`cdpm.reach.reach_settings`).
+        tension_budget: the reach margin's tension budget [N] (default:
+            the model's).
+        neighbourhood: half-width R [rad, m] of a local map around the pose
+            for the POC neighbourhood (:func:`cdpm.poc_neighbourhood`), or
+            None to skip it.
 
     Raises:
         InfeasibleEquilibriumError: no tension within the bounds holds the
@@ -241,6 +293,7 @@ def analyze_pose(
     from cdpm import analysis
     from cdpm.maps._evaluate import evaluate_batch
     from cdpm.maps.criteria import CRITERIA
+    from cdpm.reach import reach_settings
 
     pose_name = q if isinstance(q, str) else None
     lin = linearise(robot, q, tension=tension, pretension=pretension)
@@ -249,8 +302,16 @@ def analyze_pose(
     natural = robot.to_natural(lin.q)
     eq = lin.equilibrium
     setting = lin.tension if eq is None or eq.method == "given" else eq.method
-    batch = evaluate_batch(robot, natural[None], setting, pretension=pretension)
+    reach = reach_settings(robot, horizon, tension_budget)
+    batch = evaluate_batch(robot, natural[None], setting, pretension=pretension, reach=reach)
     criteria = {name: c.compute(batch)[0] for name, c in CRITERIA.items()}
+    ball = None
+    if neighbourhood is not None:
+        from cdpm.neighbourhood import poc_neighbourhood
+
+        ball = poc_neighbourhood(
+            robot, lin.q, neighbourhood, tension=setting, pretension=pretension
+        )
     return PoseReport(
         model_name=robot.spec.path.name,
         pose_name=pose_name,
@@ -269,4 +330,6 @@ def analyze_pose(
         wrench_closure=analysis.wrench_closure(lin.cable_jacobian),
         equilibrium=lin.equilibrium,
         criteria=criteria,
+        reach=reach,
+        neighbourhood=ball,
     )

@@ -68,7 +68,10 @@ def test_report_shows_every_criterion_as_a_map_would(paper_robot):
     assert set(report.criteria) == set(CRITERIA)
     assert report.criteria["poc"] == cdpm.VERDICT_CODES[report.poc.verdict.value]
     assert report.criteria["n_taut"] == 0
-    assert report.criteria["poc_margin"] == pytest.approx(report.poc.margin, rel=1e-9)
+    from cdpm.reach import reach_margins_at
+
+    r = reach_margins_at(paper_robot, report.linearisation)  # the per-pose linearisation
+    assert report.criteria["reach_margin"] == pytest.approx(r.value[0], rel=1e-12)
     text = str(report)
     assert (
         "Map criteria" in text and "n_taut:" in text and "poc:                    yes (1)" in text

@@ -25,6 +25,7 @@ from cdpm.maps import (
     sample_axes,
     workspace_map,
 )
+from cdpm.reach import reach_margins_at
 from tests.conftest import MODELS, PAPER_SPEC
 
 CODE = {"yes": 1, "no": 0, "marginal": 2}
@@ -257,7 +258,8 @@ def test_map_dataset_contract(paper_map):
     # both verdicts occur on this grid, and the margin is positive exactly on YES
     poc = ds["poc"].values
     assert (poc == 1).any() and (poc == 0).any()
-    assert np.all((ds["poc_margin"].values > 0) == (poc == 1))
+    assert np.all((ds["reach_margin"].values > 0) == (poc == 1))
+    assert ds.attrs["reach_horizon"] > 0 and ds.attrs["tension_budget"] > 0
     # tip x = cos q1 + cos(q1 + q2) (paper eq 17)
     q1, q2 = np.meshgrid(PAPER_AXES["q1"], PAPER_AXES["q2"], indexing="ij")
     np.testing.assert_allclose(ds["y"].values[..., 0], np.cos(q1) + np.cos(q1 + q2), atol=1e-12)
@@ -278,7 +280,8 @@ def test_map_verdicts_equal_public_per_pose(paper_map, paper_robot):
         oc = cdpm.output_controllability(lin.A, lin.B, lin.C)
         at = ds.isel(q1=i, q2=j)
         assert int(at["poc"]) == CODE[poc.verdict.value]
-        assert float(at["poc_margin"]) == pytest.approx(poc.margin, rel=1e-9, abs=1e-12)
+        r = reach_margins_at(paper_robot, lin, None, [poc.verdict is cdpm.Verdict.NO]).value[0]
+        assert float(at["reach_margin"]) == pytest.approx(r, rel=1e-9, abs=1e-15)
         assert int(at["positive_controllable"]) == CODE[brammer.verdict.value]
         assert int(at["wrench_closure"]) == CODE[closure.verdict.value]
         assert int(at["output_controllable"]) == (1 if oc.controllable else 0)
@@ -342,7 +345,7 @@ def test_degenerate_poses_are_flagged(write_spec):
     for name in ("poc", "wrench_closure", "positive_controllable"):
         assert (ds[name].values[1] == VERDICT_CODES["not_analysed"]).all()
         assert np.isin(ds[name].values[[0, 2]], [0, 1, 2]).all()
-    assert np.isnan(ds["poc_margin"].values[1]).all()
+    assert np.isnan(ds["reach_margin"].values[1]).all()
     # the outputs stay defined at degenerate poses
     assert np.isfinite(ds["y"].values).all()
 
@@ -415,7 +418,8 @@ def test_gravity_map_equals_public_per_pose(tension):
         assert out["poc"][i] == CODE[poc.verdict.value]
         # the map assembles A from batched terms: equal up to round-off, and
         # the margin is continuous in A
-        assert out["poc_margin"][i] == pytest.approx(poc.margin, rel=1e-7, abs=1e-9)
+        r = reach_margins_at(robot, lin, None, [poc.verdict is cdpm.Verdict.NO]).value[0]
+        assert out["reach_margin"][i] == pytest.approx(r, rel=1e-7, abs=1e-9)
         assert out["positive_controllable"][i] == CODE[brammer.verdict.value]
         assert out["output_controllable"][i] == int(cdpm.output_controllability(*args).controllable)
         assert out["tension_min"][i] == pytest.approx(lin.tension.min(), rel=1e-9, abs=1e-9)
@@ -431,13 +435,13 @@ def test_map_without_margin_has_the_same_verdicts(tmp_path):
     full = workspace_map(robot, axes, workers=1)
     fast = workspace_map(robot, axes, workers=1, margin=False, store=tmp_path / "m.zarr")
     assert fast.attrs["cdpm_settings"] != full.attrs["cdpm_settings"]
-    assert np.isnan(fast["poc_margin"].values).all()
+    assert np.isnan(fast["reach_margin"].values).all()
     assert (full["poc"].values == VERDICT_CODES["yes"]).any()
     for name in full.data_vars:
-        if name != "poc_margin":
+        if not name.startswith("reach_margin"):
             np.testing.assert_array_equal(fast[name].values, full[name].values, err_msg=name)
     paper = workspace_map(PAPER_SPEC, {"q1": [0.1, 0.5]}, base="nominal", workers=1, margin=False)
-    assert np.isnan(paper["poc_margin"].values).all()
+    assert np.isnan(paper["reach_margin"].values).all()
     assert paper["poc"].values.tolist() == [VERDICT_CODES["yes"]] * 2
 
 

@@ -35,7 +35,7 @@ def test_paper_figure(paper_robot, tmp_path):
     path = tmp_path / "nominal.png"
     fig = render_pose(paper_robot, "nominal", path)
     ax = fig.axes[0]
-    assert "POC YES (margin" in ax.get_title()
+    assert "POC YES (r_T 0.15 m)" in ax.get_title()
     assert (ax.get_xlabel(), ax.get_ylabel()) == ("x [m]", "y [m]")  # the arm's plane
     px = _pixels(path)
     assert _count_near(px, COLORS["slack"]) > 300  # four dashed pink cables

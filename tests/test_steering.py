@@ -11,53 +11,20 @@ import cdpm
 from cdpm.cli import main
 from cdpm.simulation import TensionProfile
 from tests.conftest import MODELS, PAPER_SPEC
+from tests.paper_model import paper_L as _paper_L
+from tests.paper_model import paper_M
 
 VERTICAL = MODELS / "two_link_vertical" / "two_link_vertical.yaml"
 SPATIAL = MODELS / "spatial_8cable" / "spatial_8cable.yaml"
 MULTILINK = MODELS / "multilink_arm" / "multilink_arm.yaml"
 TWO_CABLES = MODELS / "two_link_two_cables" / "two_link_two_cables.yaml"
 
-# --------------------------------------------------------------------------
-# the paper's arm in closed form (seed paper eqs 14-17, Table I), written
-# independently of Pinocchio and of cdpm's cable layer
-
-_ANCHORS = np.array([[0.0, 0.5], [0.0, 1.5], [0.0, -0.5], [0.0, -1.5]])
-#: (link, point in the link frame [m]): Table I's offsets from each link's
-#: centre of mass (0.5 m along the link)
-_ATTACH = [(1, (0.8, 0.1)), (2, (0.8, 0.1)), (1, (0.8, -0.1)), (2, (0.8, -0.1))]
-
-
-def _rot(a):
-    return np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
-
-
-def _drot(a):
-    return np.array([[-np.sin(a), -np.cos(a)], [np.cos(a), -np.sin(a)]])
-
-
-def _paper_L(q):
-    """Cable Jacobian: l_i = |B_i(q) - A_i|, row i = u_i^T dB_i/dq (eq 16)."""
-    L = np.zeros((4, 2))
-    for i, (link, p) in enumerate(_ATTACH):
-        p = np.array(p)
-        if link == 1:
-            B = _rot(q[0]) @ p
-            dB = np.stack([_drot(q[0]) @ p, np.zeros(2)], axis=1)
-        else:
-            a = q[0] + q[1]
-            B = _rot(q[0]) @ [1.0, 0.0] + _rot(a) @ p
-            d1 = _drot(q[0]) @ [1.0, 0.0] + _drot(a) @ p
-            dB = np.stack([d1, _drot(a) @ p], axis=1)
-        u = (B - _ANCHORS[i]) / np.linalg.norm(B - _ANCHORS[i])
-        L[i] = u @ dB
-    return L
-
 
 def _paper_rhs(profile):
     def rhs(t, x):
         q, v = x[:2], x[2:]
-        c, s = np.cos(q[1]), np.sin(q[1])
-        M = np.array([[1.5 + c, 0.25 + 0.5 * c], [0.25 + 0.5 * c, 0.25]])  # eq 14
+        s = np.sin(q[1])
+        M = paper_M(q)  # eq 14
         Cv = np.array([-0.5 * v[1] * s * (2 * v[0] + v[1]), 0.5 * v[0] ** 2 * s])  # eq 15
         f = profile(t)
         return np.concatenate([v, np.linalg.solve(M, -Cv - _paper_L(q).T @ f)])

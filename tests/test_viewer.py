@@ -72,7 +72,7 @@ def test_pose_state_paper_nominal(paper_robot):
 
 def test_pose_state_text_names_verdict_tensions_and_slack_cables(paper_robot):
     text = str(pose_state(paper_robot, NOMINAL))
-    assert text.startswith("POC: YES (margin ")
+    assert text.startswith("POC: YES (reach margin 0.1501 m)")
     assert "q1 = 0.5236, q2 = 1.0472" in text
     assert "slack cables: c1, c2, c3, c4" in text
     html = pose_state(paper_robot, NOMINAL)._repr_html_()
@@ -228,7 +228,7 @@ def _synthetic_map(xr, sample: bool = False):
     pos = np.stack([np.cos(Q1) + np.cos(Q1 + Q2), np.sin(Q1) + np.sin(Q1 + Q2), 0 * Q1], -1)
     pos[0, 0] = np.nan  # a pose without a position (e.g. failed)
     poc = np.array([[1, 0], [2, -1], [1, 1]], dtype=np.int8)
-    margin = np.array([[0.5, -0.2], [0.0, np.nan], [1.0, 0.25]])
+    margin = np.array([[0.5, 0.2], [0.0, np.nan], [1.0, 0.25]])
     ds = xr.Dataset(
         {
             "poc": (
@@ -236,7 +236,7 @@ def _synthetic_map(xr, sample: bool = False):
                 poc,
                 {"flag_values": [1, 0, 2, -1], "flag_meanings": "yes no marginal not_analysed"},
             ),
-            "poc_margin": (("q1", "q2"), margin),
+            "reach_margin": (("q1", "q2"), margin),
             "output_frame_position": (("q1", "q2", "xyz"), pos),
             "y": (("q1", "q2", "output"), pos[..., :1]),
         },
@@ -262,18 +262,20 @@ def test_map_points_by_margin():
     xr = pytest.importorskip("xarray")
     ds, _ = _synthetic_map(xr)
     _, colors = map_points(ds, color_by="margin")
-    # margins after dropping the NaN position: -0.2, 0.0, nan, 1.0, 0.25 (scale 1.0)
-    np.testing.assert_allclose(colors[1], [1, 1, 1])  # zero margin: white
+    # margins after dropping the NaN position: 0.2, 0.0, nan, 1.0, 0.25
+    np.testing.assert_allclose(colors[1], COLORS["taut_low"])  # least margin: light blue
     np.testing.assert_allclose(colors[2], COLORS["not_analysed"])  # NaN margin: grey
-    np.testing.assert_allclose(colors[3], COLORS["yes"])  # largest margin: full green
-    assert colors[0][0] > colors[0][1]  # negative: reddish
+    np.testing.assert_allclose(colors[3], COLORS["taut_high"])  # largest margin: navy
+    np.testing.assert_allclose(
+        colors[0], 0.8 * np.array(COLORS["taut_low"]) + 0.2 * np.array(COLORS["taut_high"])
+    )
 
 
 def test_map_points_errors():
     xr = pytest.importorskip("xarray")
     ds, _ = _synthetic_map(xr)
-    with pytest.raises(InputError, match="no variable 'poc_margin'"):
-        map_points(ds.drop_vars("poc_margin"), color_by="margin")
+    with pytest.raises(InputError, match="no variable 'reach_margin'"):
+        map_points(ds.drop_vars("reach_margin"), color_by="margin")
     with pytest.raises(InputError, match="color_by='tension'"):
         map_points(ds, color_by="tension")
     bad = ds.rename({"xyz": "component"})

@@ -132,7 +132,7 @@ class POCResult:
     def __str__(self) -> str:
         head = (
             f"positive output controllability: {self.verdict} ({self.method}; "
-            f"margin {self.margin + 0.0:.4g} on [0, {self.margin_horizon:.4g}])"
+            f"impulse index {self.margin + 0.0:.4g} on [0, {self.margin_horizon:.4g}])"
         )
         return "\n".join([head, f"  {self.reason}", *self._certificate_lines()])
 
@@ -142,7 +142,10 @@ class POCResult:
             [
                 ("method", self.method),
                 ("reason", self.reason),
-                ("margin", f"{self.margin + 0.0:.4g} (horizon {self.margin_horizon:.4g})"),
+                (
+                    "impulse index",
+                    f"{self.margin + 0.0:.4g} (horizon {self.margin_horizon:.4g})",
+                ),
                 ("certificate", "\n".join(self._certificate_lines())),
             ],
         )

@@ -6,6 +6,8 @@ import argparse
 import sys
 from typing import TYPE_CHECKING
 
+from cdpm.commands._reach import add_reach_arguments, reach_from_args
+
 if TYPE_CHECKING:  # pragma: no cover
     from cdpm.robot import CableRobot
 
@@ -79,12 +81,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--no-margin",
         action="store_true",
-        help="skip the POC margin (same verdicts; about 2x faster under gravity or pretension)",
+        help="skip the reach margin (same verdicts, faster)",
     )
     parser.add_argument(
         "--overwrite", action="store_true", help="replace an existing store instead of resuming it"
     )
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_reach_arguments(parser)
 
 
 def parse_axis(text: str, sampled: bool):
@@ -257,6 +260,9 @@ def run(args: argparse.Namespace) -> int:
     if isinstance(base, list):
         base = robot.configuration(base)
     _check_tension(robot, args.tension)
+    reach = None if args.no_margin else reach_from_args(robot, args)
+    if reach is not None and not args.quiet:
+        print(f"reach margin: {reach.describe()}")
     try:
         ds = workspace_map(
             robot,
@@ -272,6 +278,8 @@ def run(args: argparse.Namespace) -> int:
             chunk_size=args.chunk_size,
             progress=not args.quiet,
             margin=not args.no_margin,
+            horizon=None if reach is None else reach.horizon,
+            tension_budget=None if reach is None else reach.tension_budget,
         )
     except KeyboardInterrupt:
         return _interrupted(args)

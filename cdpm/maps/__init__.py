@@ -73,6 +73,8 @@ def workspace_map(
     progress: bool | Callable[[int, int, int], None] = False,
     margin: bool = True,
     tol: float = SPAN_TOL,
+    horizon: Any = None,
+    tension_budget: Any = None,
 ):
     """Map positive output controllability and classic criteria over poses.
 
@@ -104,14 +106,21 @@ def workspace_map(
             16384 poses).
         progress: True prints a progress bar on stderr; a callable is called
             as ``progress(done_poses, total_poses, chunk_index)``.
-        margin: compute the POC margin (``poc_margin``); ``False`` leaves
-            it NaN (same verdicts; under load about 2x faster).
+        margin: compute the reach margin (``reach_margin``); ``False``
+            leaves it NaN (same verdicts, faster).
         tol: angle-like tolerance of the span decisions, as in
             :func:`cdpm.positive_output_controllability` (stored with the map).
+        horizon: T [s] of the reach margin, one for every pose; default
+            the model's (:func:`cdpm.reach.reach_settings`; stored in the
+            map's ``reach_horizon`` attribute).
+        tension_budget: tension increase [N] above equilibrium allowed to
+            cables without an upper bound in the reach margin; default the
+            model's (attribute ``tension_budget``).
 
     Returns:
         ``xarray.Dataset`` with dims the axis names (grid) or ``sample``, and
-        variables ``poc``, ``poc_margin``, ``output_controllable``,
+        variables ``poc``, ``reach_margin`` [m] (and its error estimate
+        ``reach_margin_error``), ``output_controllable``,
         ``positive_controllable``, ``wrench_closure``, ``static_feasible``
         (int8 codes, see :data:`VERDICT_CODES`), ``tension_min``,
         ``tension_max`` [N], ``y`` (..., output) [m],
@@ -129,6 +138,7 @@ def workspace_map(
     from cdpm.maps._plan import make_plan
     from cdpm.maps._runner import ProgressPrinter, prestart_workers, run_chunks
     from cdpm.maps._store import MemorySink, ZarrSink
+    from cdpm.reach import reach_settings
     from cdpm.robot import CableRobot, load_robot
 
     _refuse_in_worker_bootstrap()
@@ -145,7 +155,8 @@ def workspace_map(
         else:
             chunk_size = _per_pose_chunk_size(_n_poses(axes))
     tol = check_tol(tol)
-    plan = make_plan(robot, axes, base, setting, chunk_size, __version__, margin, tol)
+    reach = reach_settings(robot, horizon, tension_budget) if margin else None
+    plan = make_plan(robot, axes, base, setting, chunk_size, __version__, margin, tol, reach)
     if store is None:
         _check_in_memory_size(robot, plan)
     if workers is None:
@@ -161,7 +172,7 @@ def workspace_map(
         progress = ProgressPrinter(sum(plan.chunk_size(k) for k in todo))
     elif progress is False:
         progress = None
-    job = MapJob(setting, bool(margin), float(tol), tuple(plan.settings["variables"]))
+    job = MapJob(setting, bool(margin), float(tol), tuple(plan.settings["variables"]), reach)
     run_chunks(robot, plan, job, todo, sink, workers, scheduler, progress)
     return sink.dataset()
 

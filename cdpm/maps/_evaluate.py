@@ -28,6 +28,7 @@ import numpy as np
 
 from cdpm.maps.criteria import CRITERIA, PoseBatch
 from cdpm.numerics import MIN_SEGMENT_LENGTH, SPAN_TOL
+from cdpm.reach import ReachSettings, reach_settings
 from cdpm.verdicts import NO, NOT_ANALYSED, STATUS_CODES, VERDICT_CODES, YES
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -158,15 +159,18 @@ class MapJob:
 
     Attributes:
         tension: the tension setting (:func:`resolve_tension`).
-        margin: compute ``poc_margin``.
+        margin: compute the reach margin.
         tol: angle-like tolerance of the span decisions.
         variables: the map's variables (registered criteria).
+        reach: horizon and tension budget of the reach margin, or None
+            for the model's defaults.
     """
 
     tension: str | list[float]
     margin: bool = True
     tol: float = SPAN_TOL
     variables: tuple[str, ...] = ()
+    reach: ReachSettings | None = None
 
     def evaluate(self, robot: CableRobot, natural: np.ndarray) -> dict[str, np.ndarray]:
         """:func:`evaluate_poses` of ``natural`` (N, nv) with these settings;
@@ -177,7 +181,9 @@ class MapJob:
         error = missing_criteria_error(self.variables)
         if error is not None:
             raise error
-        return evaluate_poses(robot, natural, self.tension, margin=self.margin, tol=self.tol)
+        return evaluate_poses(
+            robot, natural, self.tension, margin=self.margin, tol=self.tol, reach=self.reach
+        )
 
 
 def evaluate_poses(
@@ -187,6 +193,7 @@ def evaluate_poses(
     *,
     margin: bool = True,
     tol: float = SPAN_TOL,
+    reach: Any = None,
 ) -> dict[str, np.ndarray]:
     """Every map quantity at the poses ``natural`` (N, nv natural coordinates).
 
@@ -194,16 +201,18 @@ def evaluate_poses(
         robot: a :class:`~cdpm.robot.CableRobot`.
         natural: poses, shape (N, nv).
         tension: equilibrium tension setting (see :func:`resolve_tension`).
-        margin: compute ``poc_margin`` (else NaN; see
+        margin: compute the reach margin ``reach_margin`` (else NaN; see
             :func:`cdpm.workspace_map`).
         tol: angle-like tolerance of the span decisions (as in
             :func:`cdpm.positive_output_controllability`).
+        reach: the reach margin's :class:`~cdpm.reach.ReachSettings`, or
+            None for the model's defaults.
 
     Returns:
         dict: criterion name (:data:`cdpm.maps.criteria.CRITERIA`) -> array
         with leading dimension N.
     """
-    batch = evaluate_batch(robot, natural, tension, margin=margin, tol=tol)
+    batch = evaluate_batch(robot, natural, tension, margin=margin, tol=tol, reach=reach)
     return {name: c.compute(batch) for name, c in CRITERIA.items()}
 
 
@@ -215,6 +224,7 @@ def evaluate_batch(
     margin: bool = True,
     tol: float = SPAN_TOL,
     pretension: float | None = None,
+    reach: Any = None,
 ) -> PoseBatch:
     """The pipeline's stages at N poses (module docstring), as a
     :class:`~cdpm.maps.criteria.PoseBatch` for the criteria to read."""
@@ -235,6 +245,8 @@ def evaluate_batch(
     wrench = np.full(n, NOT_ANALYSED, dtype=np.int8)
     static = np.full(n, NOT_ANALYSED, dtype=np.int8)
     batch = PoseBatch(robot, kin, status, wrench, static, np.zeros(0, dtype=int))
+    if margin:
+        batch.reach = reach_settings(robot, reach)
     if ok.size == 0:
         return batch
     LT, load = statics(robot, kin)
@@ -257,7 +269,7 @@ def evaluate_batch(
     eq = eq if use.all() else eq.take(use)
     lin = linearise_batch(robot, kin.take(batch.analysed), Minv[use], eq.tension, eq.input_sign)
     verdicts = analyse_systems(
-        lin.A, lin.B_cone, lin.C, lin.sign_constrained, margin=margin, tol=tol
+        lin.A, lin.B_cone, lin.C, lin.sign_constrained, margin=False, tol=tol
     )
     status[batch.analysed[verdicts.failed]] = STATUS_CODES["analysis_failed"]
     batch.equilibrium, batch.linearisation, batch.verdicts = eq, lin, verdicts

@@ -231,6 +231,7 @@ def make_plan(
     version: str,
     margin: bool = True,
     tol: float | None = None,
+    reach=None,
 ) -> MapPlan:
     """Validate the axes and the base pose and lay out the chunks."""
     if not isinstance(chunk_size, (int, np.integer)) or chunk_size < 1:
@@ -295,6 +296,9 @@ def make_plan(
         "variables": list(CRITERIA),
         "tol": float(SPAN_TOL if tol is None else tol),
     }
+    if margin and reach is not None:
+        settings["reach_horizon"] = float(reach.horizon)
+        settings["tension_budget"] = float(reach.tension_budget)
     if mode == "sample":
         settings["seed"] = axes.seed
     return MapPlan(

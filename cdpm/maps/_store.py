@@ -54,6 +54,7 @@ def _attrs(robot: CableRobot, plan: MapPlan) -> dict:
         "robot_coordinates": s["coordinates"],
         "tension": json.dumps(s["tension"]),
         "chunk_size": s["chunk_size"],
+        **{k: s[k] for k in ("reach_horizon", "tension_budget") if k in s},
         "cdpm_settings": json.dumps(s, sort_keys=True),
     }
 

@@ -15,18 +15,19 @@ test. Nothing else changes: stores, reports, plots and help pick it up.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from cdpm.verdicts import NOT_ANALYSED, STATUS_CODES, VERDICT_CODES
+from cdpm.verdicts import NO, NOT_ANALYSED, STATUS_CODES, VERDICT_CODES
 
 if TYPE_CHECKING:  # pragma: no cover
     from cdpm.analysis.batch import SystemVerdicts
     from cdpm.equilibrium.methods import EquilibriumBatch
     from cdpm.kinematics import BatchKinematics
     from cdpm.linearisation import LinearisationBatch
+    from cdpm.reach import ReachSettings
     from cdpm.robot import CableRobot
 
 __all__ = [
@@ -55,6 +56,8 @@ class PoseBatch:
         equilibrium: equilibria of the ``analysed`` poses (k of them), or None.
         linearisation: their linearisations, or None.
         verdicts: their analysis, or None.
+        reach: horizon and tension budget of the reach margin, or None to
+            skip it (its criteria are then NaN).
     """
 
     robot: CableRobot
@@ -66,6 +69,8 @@ class PoseBatch:
     equilibrium: EquilibriumBatch | None = None
     linearisation: LinearisationBatch | None = None
     verdicts: SystemVerdicts | None = None
+    reach: ReachSettings | None = None
+    reach_cache: Any = field(default=None, repr=False)
 
     def __len__(self) -> int:
         return int(self.status.shape[0])
@@ -226,10 +231,29 @@ def _verdict(field: str) -> Callable[[PoseBatch], np.ndarray]:
     return compute
 
 
-def _poc_margin(batch: PoseBatch) -> np.ndarray:
-    if batch.verdicts is None:
-        return np.full(len(batch), np.nan)
-    return batch.scatter(batch.verdicts.poc_margin, np.nan, float)
+def _reach(batch: PoseBatch):
+    """The reach margins of the analysed poses (computed once per batch),
+    or None when the batch skips them."""
+    if batch.reach is None or batch.linearisation is None:
+        return None
+    cached = batch.reach_cache
+    if cached is None:
+        from cdpm.reach import reach_margins_at
+
+        no = batch.verdicts.poc == NO
+        cached = reach_margins_at(batch.robot, batch.linearisation, batch.reach, no)
+        batch.reach_cache = cached
+    return cached
+
+
+def _reach_margin(batch: PoseBatch) -> np.ndarray:
+    r = _reach(batch)
+    return np.full(len(batch), np.nan) if r is None else batch.scatter(r.value, np.nan, float)
+
+
+def _reach_margin_error(batch: PoseBatch) -> np.ndarray:
+    r = _reach(batch)
+    return np.full(len(batch), np.nan) if r is None else batch.scatter(r.error, np.nan, float)
 
 
 def _tension_extreme(reduce) -> Callable[[PoseBatch], np.ndarray]:
@@ -301,14 +325,30 @@ register(
 )
 register(
     Criterion(
-        "poc_margin",
+        "reach_margin",
         "float64",
         np.nan,
-        "POC margin mu_T (positive iff POC; 0 when not)",
-        _poc_margin,
-        description="inradius about 0 of the outputs reachable at the horizon with unit "
-        "input impulses (cdpm.analysis POCResult.margin)",
-        plot="diverging",
+        "reach margin r_T: within T the cables move the outputs at least this far in "
+        "every direction",
+        _reach_margin,
+        units="m",
+        description="radius of the largest ball about y0 that the linearisation reaches at "
+        "time T from rest, with tension changes within the cables' bounds (+- the tension "
+        "budget where a cable has no upper bound); T and the budget are the map's "
+        "reach_horizon and tension_budget attributes (docs/analysis.md)",
+        plot="sequential",
+    )
+)
+register(
+    Criterion(
+        "reach_margin_error",
+        "float64",
+        np.nan,
+        "estimated quadrature error of reach_margin",
+        _reach_margin_error,
+        units="m",
+        description="|r(K) - r(K/2)| of Simpson's rule on K and K/2 intervals; 0 where r_T "
+        "is exact (A^2 = 0)",
     )
 )
 register(

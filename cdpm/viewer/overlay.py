@@ -17,8 +17,8 @@ from cdpm.viewer.state import COLORS
 
 __all__ = ["map_points", "check_map_spec", "color_choices", "VERDICT_CODES"]
 
-#: short names of ``color_by``: the POC verdict and the POC margin
-_ALIASES = {"verdict": "poc", "margin": "poc_margin"}
+#: short names of ``color_by``: the POC verdict and the reach margin
+_ALIASES = {"verdict": "poc", "margin": "reach_margin"}
 
 
 def color_choices() -> tuple[str, ...]:

@@ -620,11 +620,11 @@ class Viewer:
         Args:
             dataset: an ``xarray.Dataset`` map with variables ``poc`` (int8
                 codes 1 YES, 0 NO, 2 MARGINAL, -1 not analysed),
-                ``poc_margin`` and ``output_frame_position`` (dims
+                ``reach_margin`` and ``output_frame_position`` (dims
                 ``(..., "xyz")``, world position [m] of the first output's frame).
             color_by: ``"verdict"`` (green YES, red NO, amber MARGINAL, grey not
-                analysed), ``"margin"`` (red negative through white to green
-                positive, scaled by the largest |margin|; NaN grey), or any map
+                analysed), ``"margin"`` (the reach margin, light to dark blue from
+                its least to its largest value; NaN grey), or any map
                 criterion with a plot hint (:func:`cdpm.viewer.overlay.color_choices`:
                 verdicts in verdict colours, quantities light to dark blue).
             position: the position variable to plot (dims ``(..., "xyz")``).

@@ -84,7 +84,8 @@ class PoseState:
         output_frames: names of the frames the outputs measure (each once).
         output_frame_positions: their world positions [m], shape (n_frames, 3).
         verdict: POC verdict (:class:`cdpm.analysis.Verdict`) or None when unavailable.
-        margin: POC margin (positive when POC) or None.
+        margin: reach margin r_T [m] (:mod:`cdpm.reach`; positive when POC
+            within the model's horizon) or None.
         reason: why tensions or the verdict are unavailable, else None.
     """
 
@@ -153,7 +154,7 @@ class PoseState:
     def _verdict_line(self) -> str:
         if self.verdict is None:
             return f"POC: unavailable ({self.reason})"
-        margin = "" if self.margin is None else f" (margin {self.margin:.4g})"
+        margin = "" if self.margin is None else f" (reach margin {self.margin:.4g} m)"
         return f"POC: {str(self.verdict).upper()}{margin}"
 
     def __str__(self) -> str:
@@ -326,8 +327,9 @@ def _analyse(robot: CableRobot, q: np.ndarray):
     tension where that module is absent) and the input cone.
 
     Returns:
-        (tension (m,), slack mask (m,), verdict, margin, reason); the first
-        four are None when the pose cannot be linearised (reason says why).
+        (tension (m,), slack mask (m,), verdict, reach margin r_T [m] with
+        the model's horizon and budget, reason); the first four are None
+        when the pose cannot be linearised (reason says why).
     """
     try:
         lin = linearise(robot, q)
@@ -344,7 +346,11 @@ def _analyse(robot: CableRobot, q: np.ndarray):
         )
     except CdpmError as exc:
         return lin.tension, slack, None, None, str(exc)
-    return lin.tension, slack, poc.verdict, float(poc.margin), None
+    from cdpm.analysis import Verdict
+    from cdpm.reach import reach_margins_at
+
+    margin = reach_margins_at(robot, lin, None, [poc.verdict is Verdict.NO]).value[0]
+    return lin.tension, slack, poc.verdict, float(margin), None
 
 
 def pose_state(robot: CableRobot, q: Any, geometry: PoseGeometry | None = None) -> PoseState:

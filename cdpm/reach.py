@@ -1,0 +1,194 @@
+"""The reach margin of a robot's poses: horizon, tension budget, bounds.
+
+The reach margin r_T (:mod:`cdpm.analysis.reach`; docs/analysis.md) needs
+three things a linear system does not carry: the horizon T, one for a whole
+map so that margins compare across poses; the input box, which for a cable
+is its tension deviation from equilibrium within its bounds,
+``[f_min - f*, f_max - f*]``; and, for cables without an upper bound, a
+tension budget: how much harder (or softer, down to its lower bound) than at
+equilibrium such a cable may pull.
+
+Defaults derive from the model (:func:`reach_settings`): with m the
+robot's mass, g the gravity's magnitude and l its size (the largest
+distance between two cable route points at the spec's first named pose),
+the acceleration scale is ``a = max(g, 1 m/s^2)``, the budget
+``F = m a`` (the robot's weight under gravity) and the horizon
+``T = sqrt(2 (l / 10) / a)``: the time in which the budget's acceleration
+moves the robot by a tenth of its size (a linearisation is a local model),
+each to 3 significant digits.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from cdpm.errors import InputError
+from cdpm.numerics import REACH_MIN_ACCELERATION, REACH_SIZE_FRACTION
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cdpm.linearisation import Linearisation, LinearisationBatch
+    from cdpm.robot import CableRobot
+
+__all__ = ["ReachSettings", "reach_settings", "reach_bounds", "reach_margins_at"]
+
+
+@dataclass(frozen=True)
+class ReachSettings:
+    """Horizon and tension budget of the reach margin.
+
+    Attributes:
+        horizon: T [s], one for every pose.
+        tension_budget: largest tension change [N] (up or down, within
+            f >= f_min) of a cable without an upper bound.
+        horizon_default: T is the model's default (not set by the user).
+        budget_default: the budget is the model's default.
+    """
+
+    horizon: float
+    tension_budget: float
+    horizon_default: bool = True
+    budget_default: bool = True
+
+    def describe(self) -> str:
+        """One line: ``T = 0.775 s (model default); tension changes ...``."""
+        T = "model default" if self.horizon_default else "set"
+        F = "model default" if self.budget_default else "set"
+        return (
+            f"T = {self.horizon:.3g} s ({T}); tension changes within the cables' bounds, "
+            f"+-{self.tension_budget:.3g} N for cables without an upper bound ({F})"
+        )
+
+    def as_dict(self) -> dict:
+        return {
+            "horizon": self.horizon,
+            "tension_budget": self.tension_budget,
+            "horizon_default": self.horizon_default,
+            "budget_default": self.budget_default,
+        }
+
+
+def _positive(name: str, value: Any, unit: str, option: str) -> float:
+    from cdpm.expressions import parse_number
+
+    try:
+        x = parse_number(value) if isinstance(value, str) else float(value)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"{name} must be a number [{unit}], got {value!r} ({option})") from exc
+    if not (math.isfinite(x) and x > 0):
+        raise InputError(
+            f"{name} must be a positive finite number [{unit}], got {value!r} ({option})"
+        )
+    return x
+
+
+def reach_settings(
+    robot: CableRobot, horizon: Any = None, tension_budget: Any = None
+) -> ReachSettings:
+    """The reach margin's horizon and tension budget: given, or the model's
+    defaults (module docstring).
+
+    Args:
+        robot: the robot.
+        horizon: T [s] (> 0), or None for the default.
+        tension_budget: [N] (> 0), or None for the default.
+
+    Raises:
+        InputError: a value that is not a positive finite number.
+    """
+    if isinstance(horizon, ReachSettings):
+        return horizon
+    T = F = None
+    if horizon is not None:
+        T = _positive("the reach horizon", horizon, "s", "--horizon")
+    if tension_budget is not None:
+        F = _positive("the tension budget", tension_budget, "N", "--tension-budget")
+    if T is None or F is None:
+        T0, F0 = _model_scales(robot)
+        T = T0 if T is None else T
+        F = F0 if F is None else F
+    return ReachSettings(float(T), float(F), horizon is None, tension_budget is None)
+
+
+def _model_scales(robot: CableRobot) -> tuple[float, float]:
+    """(default horizon [s], default budget [N]) of the robot."""
+    cached = getattr(robot, "_reach_scales", None)
+    if cached is not None:
+        return cached
+    model = robot.model
+    mass = float(sum(model.inertias[i].mass for i in range(1, model.njoints)))
+    g = float(np.linalg.norm(robot.gravity))
+    a = max(g, REACH_MIN_ACCELERATION)
+    q = robot.configuration(next(iter(robot.poses))) if robot.poses else robot.neutral()
+    kin = robot.kinematics_batch(q[None])
+    n_route = robot.route_point_slices[-1].stop if robot.route_point_slices else 0
+    P = kin.point_positions[0, :n_route]
+    size = float(np.max(np.linalg.norm(P[:, None] - P[None], axis=2))) if n_route > 1 else 0.0
+    if not (size > 0 and math.isfinite(size)):
+        size = 1.0
+    budget = mass * a if mass > 0 else 1.0
+    scales = (_round3(math.sqrt(2 * REACH_SIZE_FRACTION * size / a)), _round3(budget))
+    robot._reach_scales = scales
+    return scales
+
+
+def _round3(x: float) -> float:
+    return float(f"{x:.3g}")
+
+
+def reach_bounds(
+    robot: CableRobot, tension: np.ndarray, tension_budget: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """The input box of the reach margin: tension changes from the
+    equilibrium ``tension`` (N, m) [N] within the cables' bounds,
+    ``[f_min - f*, f_max - f*]``; a cable without an upper bound gets the
+    budget F both ways, ``[max(f_min - f*, -F), F]`` (so that margins
+    compare across poses: what a change of F does, not what releasing the
+    huge tension of a near-singular pose does).
+
+    Returns:
+        (lower, upper), each (N, m) [N], ``lower <= 0 <= upper`` (clipped
+        there: a tension a round-off outside its bounds counts as on it).
+    """
+    fmin, fmax = robot.tension_min, robot.tension_max
+    bounded = np.isfinite(fmax)
+    lower = np.where(bounded, fmin - tension, np.maximum(fmin - tension, -tension_budget))
+    upper = np.where(bounded, fmax - tension, tension_budget)
+    return np.minimum(lower, 0.0), np.maximum(upper, 0.0)
+
+
+def reach_margins_at(
+    robot: CableRobot,
+    lin: LinearisationBatch | Linearisation,
+    settings: ReachSettings | None = None,
+    verdict_no: Any = None,
+):
+    """r_T of the linearisations ``lin`` of N poses, at their tensions f*.
+
+    Args:
+        robot: the robot.
+        lin: a :class:`~cdpm.linearisation.LinearisationBatch`, or one
+            :class:`~cdpm.linearisation.Linearisation` (N = 1).
+        settings: horizon and budget; default the model's.
+        verdict_no: (N,) bool, True where the POC verdict is NO: a certified
+            direction that no input ever reaches, so r_T = 0 there exactly
+            (the quadrature would leave round-off).
+
+    Returns:
+        :class:`cdpm.analysis.reach.ReachMargins` (value [output units],
+        error estimate, intervals), each (N,).
+    """
+    from cdpm.analysis.reach import ReachMargins, reach_margins
+
+    settings = reach_settings(robot, settings)
+    A, B, C, f = lin.A, lin.B, lin.C, np.asarray(lin.tension, dtype=float)
+    if A.ndim == 2:
+        A, B, C, f = A[None], B[None], C[None], f[None]
+    lower, upper = reach_bounds(robot, f, settings.tension_budget)
+    r = reach_margins(A, B, C, lower, upper, settings.horizon)
+    if verdict_no is None:
+        return r
+    return ReachMargins(np.where(verdict_no, 0.0, r.value), r.error, r.intervals)

@@ -1,0 +1,229 @@
+"""The reach margin r_T: hand-worked values, independent references,
+continuity, one horizon per map, and the CLI options."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+from scipy.linalg import expm
+from scipy.spatial import ConvexHull
+
+import cdpm
+from cdpm.analysis.reach import reach_margin, zonotope_inradii
+from cdpm.cli import main
+from cdpm.errors import InputError
+from cdpm.maps._evaluate import evaluate_batch
+from cdpm.reach import reach_bounds, reach_margins_at, reach_settings
+from tests.conftest import MODELS, PAPER_SPEC
+from tests.paper_model import paper_L, paper_M, paper_tip_x_gradient
+
+VERTICAL = MODELS / "two_link_vertical" / "two_link_vertical.yaml"
+
+
+@pytest.fixture(scope="module")
+def vertical():
+    return cdpm.load_robot(VERTICAL)
+
+
+# --------------------------------------------------------------------------
+# the zonotope inradius against a convex hull of its vertices
+
+
+@pytest.mark.parametrize("p", [2, 3])
+def test_zonotope_inradius_equals_the_hull_of_its_vertices(p):
+    rng = np.random.default_rng(p)
+    for _ in range(5):
+        D = rng.normal(size=(p, 6))
+        c = 0.3 * rng.normal(size=p)
+        signs = np.array(list(itertools.product([-1.0, 1.0], repeat=6)))  # (64, 6)
+        hull = ConvexHull(c + signs @ D.T)
+        # 0 inside: the least distance to a facet plane (n.x + off <= 0 inside)
+        expected = max(0.0, float(-hull.equations[:, -1].max()))
+        got = zonotope_inradii(D[None], c[None])[0]
+        assert got == pytest.approx(expected, rel=1e-10, abs=1e-12)
+
+
+def test_flat_and_shifted_zonotopes_have_zero_inradius():
+    D = np.array([[[1.0, 2.0, -1.0], [0.0, 0.0, 0.0]]])  # all on the x axis
+    assert zonotope_inradii(D, np.zeros((1, 2)))[0] == 0.0
+    D3 = np.array([[[1.0, 0.0], [0.0, 1.0], [0.0, 0.0]]])  # spans a plane only
+    assert zonotope_inradii(D3, np.zeros((1, 3)))[0] == 0.0
+    # 0 outside: the box [1, 3] x [-1, 1] does not contain 0
+    D = np.array([[[1.0, 0.0], [0.0, 1.0]]])
+    assert zonotope_inradii(D, np.array([[2.0, 0.0]]))[0] == 0.0
+
+
+# --------------------------------------------------------------------------
+# hand-worked values
+
+
+def test_double_integrator_by_hand():
+    # x'' = u, y = x, u in [-1, 2]: y(T) ranges over [-T^2/2, T^2]: r = T^2/2
+    A = np.array([[0.0, 1.0], [0.0, 0.0]])
+    B = np.array([[0.0], [1.0]])
+    C = np.array([[1.0, 0.0]])
+    r, err = reach_margin(A, B, C, [-1.0], [2.0], 3.0)
+    assert r == pytest.approx(4.5, rel=1e-12) and err == 0.0
+    # pulling only (u in [0, 2]): y(T) >= 0, no ball about 0
+    assert reach_margin(A, B, C, [0.0], [2.0], 3.0)[0] == 0.0
+
+
+def test_first_order_system_by_hand():
+    # x' = -a x + u, y = x, u in [-1, 1]: y(T) in +-(1 - e^{-aT}) / a
+    a, T = 2.0, 0.7
+    r, err = reach_margin(np.array([[-a]]), np.array([[1.0]]), np.array([[1.0]]), [-1.0], [1.0], T)
+    exact = (1 - np.exp(-a * T)) / a
+    assert abs(r - exact) <= max(err, 1e-12)
+    assert r == pytest.approx(exact, rel=1e-8)
+
+
+def test_paper_nominal_pose_equals_its_closed_form():
+    """Zero tension, A^2 = 0: r_T = (T^2/2) F min(sum c_j^+, sum c_j^-) with
+    c = d(tip x)/dq M^-1 (-L^T) of the paper's eqs 14-17 (Table I), every
+    cable pulling 0..F."""
+    robot = cdpm.load_robot(PAPER_SPEC)
+    q = np.array([np.pi / 6, np.pi / 3])
+    c = paper_tip_x_gradient(q) @ np.linalg.solve(paper_M(q), -paper_L(q).T)  # (4,)
+    settings = reach_settings(robot)
+    T, F = settings.horizon, settings.tension_budget
+    expected = T * T / 2 * F * min(c[c > 0].sum(), -c[c < 0].sum())
+    report = cdpm.analyze_pose(robot, "nominal")
+    value, error = report.reach_margin
+    assert value == pytest.approx(expected, rel=1e-6)
+    assert error == 0.0
+    # the model's defaults: 2 kg, no gravity (a = 1 m/s^2), size 3 m (anchors
+    # at y = +-1.5): F = 2 N, T = sqrt(2 * 0.3 / 1) s
+    assert (F, T) == (2.0, float(f"{np.sqrt(0.6):.3g}"))
+    assert "Reach margin r_T = 0.1501 m (exact)" in str(report)
+
+
+# --------------------------------------------------------------------------
+# an independent reference: the support function integrated on a fine grid
+
+
+def _support_min(A, B, C, lower, upper, T, directions=7200, nodes=4001):
+    """min over unit v of int_0^T sum_j max(upper_j s, lower_j s) dt,
+    s = v^T C e^{At} b_j, by the trapezoidal rule on a fine grid and many
+    directions (an upper bound of the exact minimum, close to it)."""
+    t = np.linspace(0.0, T, nodes)
+    G = np.stack([C @ expm(A * ti) @ B for ti in t])  # (nodes, p, m)
+    ang = np.linspace(0.0, 2 * np.pi, directions, endpoint=False)
+    V = np.stack([np.cos(ang), np.sin(ang)], axis=1)  # p = 2
+    S = np.einsum("dp,tpm->dtm", V, G)
+    integrand = np.maximum(S * upper, S * lower).sum(axis=2)
+    return float(np.trapezoid(integrand, t, axis=1).min())
+
+
+def test_gravity_poses_match_a_brute_force_reference(vertical):
+    settings = reach_settings(vertical)
+    rng = np.random.default_rng(5)
+    natural = vertical.poses["nominal"] + rng.uniform(-0.4, 0.4, size=(12, 2))
+    batch = evaluate_batch(vertical, natural, reach=settings)
+    lin = batch.linearisation
+    got = reach_margins_at(vertical, lin, settings)
+    lower, upper = reach_bounds(vertical, lin.tension, settings.tension_budget)
+    checked = 0
+    for i in range(min(4, lin.A.shape[0])):
+        ref = _support_min(lin.A[i], lin.B[i], lin.C[i], lower[i], upper[i], settings.horizon)
+        # the reference over-estimates the minimum by at most ~1e-4 relative
+        # (direction spacing); the quadrature estimate bounds the rest
+        tol = got.error[i] + 2e-4 * max(ref, 1e-12) + 1e-12
+        assert abs(got.value[i] - ref) <= tol, (i, got.value[i], ref, got.error[i])
+        # the estimate is not absurdly pessimistic
+        assert got.error[i] <= 0.05 * max(got.value[i], 1e-9) or got.value[i] == 0
+        checked += 1
+    assert checked >= 3
+
+
+def test_positive_exactly_when_poc_within_T_on_the_paper_map():
+    ds = cdpm.workspace_map(
+        PAPER_SPEC, {"q1": np.linspace(-3, 3, 25), "q2": np.linspace(-3, 3, 25)}, workers=1
+    )
+    poc, r = ds["poc"].values, ds["reach_margin"].values
+    assert np.array_equal(r > 0, poc == 1)
+    assert ds.attrs["reach_horizon"] == reach_settings(cdpm.load_robot(PAPER_SPEC)).horizon
+
+
+# --------------------------------------------------------------------------
+# continuity and range
+
+
+@pytest.mark.parametrize("spec,fixed", [(PAPER_SPEC, np.pi / 3), (VERTICAL, np.pi / 3)])
+def test_reach_margin_is_continuous_along_a_sweep(spec, fixed):
+    """Along q1 at fixed q2, the jump between neighbours shrinks with the step
+    (no jumps: halving the step halves the largest jump, about). The sweep
+    stops short of q1 = 1.06, where cable c2's attachment passes within
+    1 cm of its anchor and the cable's direction (so B) turns fast."""
+    robot = cdpm.load_robot(spec)
+    settings = reach_settings(robot)
+    jumps = []
+    for n in (401, 801):
+        q1 = np.linspace(-0.2, 0.9, n)
+        natural = np.stack([q1, np.full(n, fixed)], axis=1)
+        r = cdpm.evaluate_poses(robot, natural, reach=settings)["reach_margin"]
+        both = np.isfinite(r[1:]) & np.isfinite(r[:-1])  # neighbours both analysed
+        assert both.sum() > 0.3 * n and np.nanmax(r) > 0
+        jumps.append(np.abs(np.diff(r))[both].max())
+    assert jumps[1] <= 0.6 * jumps[0]
+    assert jumps[1] <= 0.01 * np.nanmax(r)
+
+
+def test_vertical_map_margins_span_fewer_than_six_orders(vertical):
+    ds = cdpm.workspace_map(
+        vertical,
+        {"q1": np.linspace(-np.pi, np.pi, 61), "q2": np.linspace(-np.pi, np.pi, 61)},
+        workers=2,
+    )
+    r = ds["reach_margin"].values
+    positive = r[r > 0]
+    assert positive.size > 0.5 * np.isfinite(r).sum()
+    assert np.log10(positive.max() / positive.min()) < 6
+    # r_T > 0 only where the verdict is YES (POC within T implies POC)
+    assert np.all(ds["poc"].values[r > 0] == 1)
+
+
+# --------------------------------------------------------------------------
+# settings and errors
+
+
+def test_settings_are_checked_and_stored(vertical):
+    s = reach_settings(vertical, "0.5", 10)
+    assert (s.horizon, s.tension_budget) == (0.5, 10.0)
+    assert not s.horizon_default and not s.budget_default
+    for bad in (0, -1, "nan", "inf", "x"):
+        with pytest.raises(InputError, match="horizon"):
+            reach_settings(vertical, bad)
+        with pytest.raises(InputError, match="budget"):
+            reach_settings(vertical, None, bad)
+    # r_T grows with the horizon and the budget
+    base = cdpm.analyze_pose(vertical, "nominal").reach_margin[0]
+    longer = cdpm.analyze_pose(vertical, "nominal", horizon=0.5).reach_margin[0]
+    richer = cdpm.analyze_pose(vertical, "nominal", tension_budget=40).reach_margin[0]
+    assert 0 < base < longer and base < richer
+
+
+def test_bounds_use_the_budget_only_without_an_upper_bound(vertical):
+    lower, upper = reach_bounds(vertical, np.array([[30.0, 0.0, 5.0, 0.0]]), 10.0)
+    np.testing.assert_array_equal(lower, [[-10.0, 0.0, -5.0, 0.0]])
+    np.testing.assert_array_equal(upper, [[10.0, 10.0, 10.0, 10.0]])
+    spatial = cdpm.load_robot(MODELS / "spatial_8cable" / "spatial_8cable.yaml")
+    lower, upper = reach_bounds(spatial, np.full((1, 8), 100.0), 10.0)
+    np.testing.assert_array_equal(lower, -100.0)
+    np.testing.assert_array_equal(upper, 620.0)  # f_max = 720 N
+
+
+def test_cli_options(tmp_path, capsys):
+    analyze = ["analyze", str(VERTICAL), "--pose", "nominal"]
+    assert main([*analyze, "--horizon", "0.5", "--tension-budget", "10"]) == 0
+    out = capsys.readouterr().out
+    assert "within T = 0.5 s" in out and "+-10 N" in out
+    assert main([*analyze, "--horizon", "-1"]) != 0
+    err = capsys.readouterr().err
+    assert "horizon must be a positive" in err and "Traceback" not in err
+    store = tmp_path / "m.zarr"
+    mapped = ["map", str(PAPER_SPEC), "--axis", "q1=0:1:3", "--out", str(store)]
+    assert main([*mapped, "--workers", "1", "--horizon", "2"]) == 0
+    assert "reach margin: T = 2 s (set)" in capsys.readouterr().out
+    assert cdpm.open_map(store).attrs["reach_horizon"] == 2.0
