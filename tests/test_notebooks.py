@@ -32,6 +32,7 @@ def test_paper_example_notebook_executes():
     )
     assert "eq 14 check: True" in text
     assert "certificate re-checks: True" in text
+    assert "r_T = 0.1501 m (error 0); closed form 0.1501 m" in text
     assert "Verdict.YES" in text or "verdict: YES" in text or "verdict: yes" in text
 
 
