@@ -69,6 +69,16 @@ _EXPORTS: dict[str, str] = {
     "evaluate_poses": "cdpm.maps",
     "VERDICT_CODES": "cdpm.maps",
     "STATUS_CODES": "cdpm.maps",
+    "label_regions": "cdpm.maps.regions",
+    "region_of": "cdpm.maps.regions",
+    "poc_path": "cdpm.paths",
+    "POCPath": "cdpm.paths",
+    "NotConnectedError": "cdpm.paths",
+    # margins with units and POC neighbourhoods
+    "ReachSettings": "cdpm.reach",
+    "reach_settings": "cdpm.reach",
+    "poc_neighbourhood": "cdpm.neighbourhood",
+    "Neighbourhood": "cdpm.neighbourhood",
     "plot_map": "cdpm.plotting",
     "save_map_plot": "cdpm.plotting",
     # viewer and pictures (extra: cdpm[viz])
@@ -146,8 +156,12 @@ if TYPE_CHECKING:  # pragma: no cover - for static type checkers only
         sample_axes,
         workspace_map,
     )
+    from cdpm.maps.regions import label_regions, region_of  # noqa: F401
+    from cdpm.neighbourhood import Neighbourhood, poc_neighbourhood  # noqa: F401
+    from cdpm.paths import NotConnectedError, POCPath, poc_path  # noqa: F401
     from cdpm.picture import render_pose  # noqa: F401
     from cdpm.plotting import plot_map, save_map_plot  # noqa: F401
+    from cdpm.reach import ReachSettings, reach_settings  # noqa: F401
     from cdpm.report import PoseReport, analyze_pose  # noqa: F401
     from cdpm.robot import CableRobot, load_robot  # noqa: F401
     from cdpm.simulation import TensionProfile, Trajectory, simulate  # noqa: F401

@@ -26,6 +26,7 @@ COMMAND_MODULES = (
     "cdpm.commands.picture",
     "cdpm.commands.map",
     "cdpm.commands.plot",
+    "cdpm.commands.path",
     "cdpm.commands.import_caspr",
 )
 

@@ -127,6 +127,18 @@ REACH_MIN_ACCELERATION = 1.0
 REACH_SIZE_FRACTION = 0.1
 
 # --------------------------------------------------------------------------
+# regions of maps
+
+#: default neighbourhood radius of a sampled map, in mean nearest-neighbour
+#: distances: in 2-D about 7 neighbours per sample, so that a uniform region
+#: stays connected, while NO bands a few samples wide still separate regions
+REGION_RADIUS_FACTOR = 3.0
+#: relative tolerance (to the step) of "evenly spaced" and of a full turn
+REGION_WRAP_RTOL = 1e-3
+#: tolerance [rad or m] of a pose's coordinates that are not on a map axis
+REGION_BASE_ATOL = 1e-6
+
+# --------------------------------------------------------------------------
 # spec
 
 #: consecutive route points on one frame within this [m] (+ allclose rtol 1e-5) coincide

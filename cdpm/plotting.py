@@ -1,19 +1,22 @@
 """Pictures of workspace maps (matplotlib, imported on first use).
 
 :func:`plot_map` draws a map made by :func:`cdpm.workspace_map` (or read
-with :func:`cdpm.maps.open_map`) as one figure:
+with :func:`cdpm.maps.open_map`) as one figure, the map's first coordinate
+on the horizontal axis of every map panel:
 
-- the verdict (categorical colours with a legend) over the first two axes,
-  with axis labels in the coordinates' names and units;
-- the POC margin with a diverging colour map centred at 0;
-- for more than two axes, small multiples: slices of the verdict along the
-  third axis (further axes at their middle value);
-- an output-space view: each pose at its outputs y (or at the position of
-  the first output's frame when p = 1), coloured by verdict.
+- the verdict (categorical colours) over the first two coordinates, with
+  the outlines and numbers of the POC regions (``poc_region``) and a path
+  when one is given;
+- the reach margin r_T [output units] within the horizon T (or, for older
+  maps, the unit-impulse POC margin mu_T) on a log colour scale; zero
+  margins in red; poses not analysed in greys by reason (``status``);
+- for more than two coordinates, small multiples: slices of the verdict
+  along the third coordinate (further coordinates at their middle value);
+- an output-space view: every pose at its outputs, coloured by verdict.
 
-A map over one axis (a grid or samples of one coordinate) is drawn as a
-coloured verdict band along that axis above a line of the margin. Random-sample
-maps of more axes are drawn as scatter plots in the first two coordinates.
+Legends sit below the panels, never over a pose. A map over one coordinate
+is drawn as a verdict band along it above a line of the margin. Maps of
+random samples are drawn as scatter plots in their first two coordinates.
 Figures are built with the object-oriented API (no pyplot state), so it
 works headless; :func:`save_map_plot` writes an image in any format
 matplotlib writes (:func:`image_formats`).
@@ -24,22 +27,38 @@ from __future__ import annotations
 import json
 import math
 import os
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from cdpm.errors import InputError, MissingExtraError
-from cdpm.verdicts import (
-    MARGINAL,
-    NO,
-    NOT_ANALYSED,
-    VERDICT_CODES,
-    VERDICT_COLORS,
-    VERDICT_LABELS,
-    VERDICT_ORDER,
-    YES,
+from cdpm._plot_common import (
+    DRAW_ORDER,
+    cell_edges,
+    coordinate_label,
+    coordinate_value,
+    legend_below,
+    matplotlib_parts,
+    verdict_cmap,
+    verdict_handles,
+    verdict_index,
+    verdict_title,
 )
+from cdpm._plot_margin import MarginScale, margin_grid, margin_line, margin_scale, margin_scatter
+from cdpm._plot_outputs import OutputChoice, choose_outputs, output_panel
+from cdpm._plot_overlays import (
+    check_path,
+    draw_path,
+    draw_regions_band,
+    draw_regions_grid,
+    draw_regions_samples,
+    path_handles,
+    region_count,
+    region_handle,
+)
+from cdpm.errors import InputError
+from cdpm.verdicts import VERDICT_COLORS
 
 __all__ = [
     "plot_map",
@@ -50,22 +69,10 @@ __all__ = [
     "VERDICT_COLORS",
 ]
 
-# verdict codes, labels, colours and colour-map order come from cdpm.verdicts;
-# VERDICT_COLORS (code -> hex colour) stays importable from here
+# VERDICT_COLORS (code -> hex colour, from cdpm.verdicts) stays importable from here
 
-#: legends list yes, no, marginal, not analysed (the order of VERDICT_CODES)
-_LEGEND_ORDER = tuple(VERDICT_CODES.values())
-#: scatter plots draw the rarer verdicts on top
-_DRAW_ORDER = (YES, NOT_ANALYSED, MARGINAL, NO)
-
-
-def _matplotlib():
-    try:
-        import matplotlib
-        from matplotlib.figure import Figure
-    except ImportError as exc:
-        raise MissingExtraError("plots need matplotlib: pip install 'cdpm[maps]'") from exc
-    return matplotlib, Figure
+#: ``(matplotlib, Figure)`` with an install hint when matplotlib is missing
+_matplotlib = matplotlib_parts
 
 
 def image_formats() -> list[str]:
@@ -139,104 +146,25 @@ def _load(ds_or_path):
     return ds_or_path
 
 
-def _label(ds, name: str) -> str:
-    units = ds[name].attrs.get("units")
-    return f"{name} [{units}]" if units else name
+def _pose_dims(ds, variable: str) -> list[str]:
+    return [d for d in ds[variable].dims if d not in ("output", "xyz")]
 
 
-def _verdict_cmap(matplotlib):
-    from matplotlib.colors import BoundaryNorm, ListedColormap
-
-    cmap = ListedColormap([VERDICT_COLORS[c] for c in VERDICT_ORDER])
-    norm = BoundaryNorm(np.arange(len(VERDICT_ORDER) + 1) - 0.5, len(VERDICT_ORDER))
-    return cmap, norm
-
-
-def _verdict_index(codes: np.ndarray) -> np.ndarray:
-    index = np.zeros(codes.shape, dtype=int)
-    for k, c in enumerate(VERDICT_ORDER):
-        index[codes == c] = k
-    return index
+def _sampled_axes(ds) -> list[str]:
+    """The coordinates of a sampled map: its ``axes`` attribute, else every
+    coordinate along ``sample``."""
+    axes = ds.attrs.get("axes")
+    if axes is None:
+        axes = [str(c) for c in ds.coords if ds[c].dims == ("sample",)]
+    return list(axes)
 
 
-def _legend(ax, codes: np.ndarray, variable: str) -> None:
-    from matplotlib.patches import Patch
-
-    present = [c for c in _LEGEND_ORDER if np.any(codes == c)]
-    handles = [
-        Patch(facecolor=VERDICT_COLORS[c], edgecolor="0.3", label=VERDICT_LABELS[c])
-        for c in present
-    ]
-    ax.legend(
-        handles=handles,
-        title=variable,
-        loc="upper right",
-        fontsize=8,
-        title_fontsize=8,
-        framealpha=0.85,
-    )
-
-
-def _pose_dims(ds) -> list[str]:
-    return [d for d in ds["poc"].dims if d not in ("output", "xyz")]
-
-
-def _grid_panel(ax, ds, variable: str, x: str, y: str, index: dict, kind: str, fig):
-    da = ds[variable].isel(index).transpose(y, x)
-    xv, yv = ds[x].values, ds[y].values
-    values = np.asarray(da.values)
-    if kind == "verdict":
-        matplotlib, _ = _matplotlib()
-        cmap, norm = _verdict_cmap(matplotlib)
-        ax.pcolormesh(xv, yv, _verdict_index(values), cmap=cmap, norm=norm, shading="nearest")
-    else:
-        from matplotlib.colors import TwoSlopeNorm
-
-        finite = values[np.isfinite(values)]
-        span = float(np.max(np.abs(finite))) if finite.size else 1.0
-        span = span if span > 0 else 1.0
-        mesh = ax.pcolormesh(
-            xv, yv, values, cmap="RdBu", norm=TwoSlopeNorm(0.0, -span, span), shading="nearest"
-        )
-        fig.colorbar(mesh, ax=ax, shrink=0.85, label=variable)
-    ax.set_xlabel(_label(ds, x))
-    ax.set_ylabel(_label(ds, y))
-    return values
-
-
-def _output_view(ax, ds, variable: str) -> None:
-    codes = np.asarray(ds[variable].values).reshape(-1)
-    if ds.sizes.get("output", 0) >= 2:
-        pts = np.asarray(ds["y"].values).reshape(-1, ds.sizes["output"])[:, :2]
-        names = [str(n) for n in ds["output"].values[:2]]
-        xlabel, ylabel = f"{names[0]} [m]", f"{names[1]} [m]"
-    else:
-        pts = np.asarray(ds["output_frame_position"].values).reshape(-1, 3)
-        frame = ds["output_frame_position"].attrs.get("frame", "frame")
-        spread = np.nanstd(pts, axis=0)
-        axes = np.argsort(spread)[::-1][:2]
-        axes.sort()
-        pts = pts[:, axes]
-        xlabel = f"{frame} {'xyz'[axes[0]]} [m]"
-        ylabel = f"{frame} {'xyz'[axes[1]]} [m]"
-    size = max(1.0, min(30.0, 12000.0 / max(len(codes), 1)))
-    for c in _DRAW_ORDER:
-        sel = codes == c
-        if sel.any():
-            ax.scatter(
-                pts[sel, 0],
-                pts[sel, 1],
-                s=size,
-                c=VERDICT_COLORS[int(c)],
-                linewidths=0,
-                label=VERDICT_LABELS[int(c)],
-                rasterized=True,
-            )
-    ax.set_xlabel(xlabel)
-    ax.set_ylabel(ylabel)
-    ax.set_aspect("equal", adjustable="datalim")
-    ax.set_title(f"output space, coloured by {variable}", fontsize=10)
-    _legend(ax, codes, variable)
+def _status(ds, index: dict | None = None, dims: Sequence[str] | None = None):
+    """``status`` codes (of a slice, transposed to ``dims``), or None."""
+    if "status" not in ds:
+        return None
+    da = ds["status"].isel(index or {})
+    return np.asarray(da.transpose(*dims).values if dims else da.values)
 
 
 def plot_map(
@@ -245,6 +173,8 @@ def plot_map(
     variable: str = "poc",
     margin: bool = True,
     output_view: bool = True,
+    outputs: Sequence[str] | str | None = None,
+    path: Mapping[str, Any] | None = None,
     max_slices: int = 6,
     title: str | None = None,
 ):
@@ -255,27 +185,60 @@ def plot_map(
             the path of its zarr store.
         variable: verdict variable to colour by (``poc``, ``wrench_closure``,
             ``positive_controllable``, ``output_controllable``, ``static_feasible``).
-        margin: add the ``poc_margin`` panel.
+        margin: add the margin panel: ``reach_margin`` r_T [output units]
+            within the horizon T, or ``poc_margin`` mu_T (unitless) on maps
+            without it; positive margins on a log colour scale, zero margins
+            red, poses not analysed grey by reason. Maps with neither
+            variable get no margin panel.
         output_view: add the output-space panel.
+        outputs: what the output-space panel plots: one or two names of the
+            map's outputs (the ``output`` coordinate of ``y``) or
+            ``FRAME.x|y|z`` (world position of the first output's frame).
+            One name is plotted against the map's first coordinate. Default:
+            the map's outputs (one: against the first coordinate; two or
+            more: the first two).
+        path: coordinate name -> values along a path of map poses, each of
+            shape (k,) [the coordinates' units]; it must give the plotted
+            coordinates (the first two, or the one of a one-axis map). It is
+            drawn over the verdict panels as a line from a start circle to a
+            goal star. Coordinates not plotted are projected out: on the
+            slices of a map of more than two axes, the poses whose third
+            coordinate is nearest the slice's value are drawn solid and the
+            rest dashed (all solid without a third coordinate in ``path``);
+            further coordinates are ignored. A step across the seam of a
+            full-turn angle (pi to -pi) is drawn the short way, out through
+            one edge of the panel and back through the other.
         max_slices: most slices drawn for maps of more than two axes.
-        title: figure title (default: spec name and settings).
+        title: figure title (default: spec name, poses and tension).
 
     Returns:
         ``matplotlib.figure.Figure``.
+
+    Raises:
+        InputError: ``variable`` is not a verdict of the map, an unknown
+            output name (the message lists the map's), a malformed ``path``
+            (not a mapping, a name not of the map, a plotted coordinate
+            missing, arrays not 1-D finite numbers of one length).
     """
     _, Figure = _matplotlib()
     ds = _load(ds_or_path)
     if variable not in ds or "flag_values" not in ds[variable].attrs or variable == "status":
         choices = [v for v in ds.data_vars if "flag_values" in ds[v].attrs and v != "status"]
         raise InputError(f"{variable!r} is not a verdict of this map; choose one of {choices}")
-    dims = _pose_dims(ds)
+    dims = _pose_dims(ds, variable)
     sample = dims == ["sample"]
-    axes_names = list(ds.attrs.get("axes", dims))
+    axes_names = _sampled_axes(ds) if sample else list(dims)
+    plotted = axes_names[:2]
+    # names are checked even when the panel is left out, so that a typo shows
+    choice = choose_outputs(ds, outputs) if output_view or outputs is not None else None
+    choice = choice if output_view else None
+    if path is not None:
+        path = check_path(path, axes_names, plotted)
+    scale = margin_scale(ds) if margin else None
     if len(axes_names) == 1:
-        fig = _plot_one_axis(ds, variable, axes_names[0], margin, output_view)
+        fig = _plot_one_axis(ds, variable, axes_names[0], scale, choice, path)
         _suptitle(fig, ds, title)
         return fig
-    panels: list[str] = []
     slices: list[dict] = [{}]
     if not sample and len(dims) > 2:
         third = dims[2]
@@ -283,183 +246,257 @@ def plot_map(
         picks = np.unique(np.linspace(0, n3 - 1, min(max_slices, n3)).round().astype(int))
         rest = {d: ds.sizes[d] // 2 for d in dims[3:]}
         slices = [{third: int(k), **rest} for k in picks]
-    panels += ["verdict"] * len(slices)
-    if margin:
+    panels = ["verdict"] * len(slices)
+    if scale is not None:
         panels.append("margin")
-    if output_view:
+    if choice is not None:
         panels.append("output")
     ncols = min(len(panels), 3)
     nrows = -(-len(panels) // ncols)
-    fig = Figure(figsize=(4.6 * ncols, 4.0 * nrows), layout="constrained")
+    fig = Figure(figsize=(5.0 * ncols, 4.9 * nrows), layout="constrained")
     axs = [fig.add_subplot(nrows, ncols, k + 1) for k in range(len(panels))]
-    mid = slices[len(slices) // 2]
+    regions = region_count(ds)
     for k, (ax, kind) in enumerate(zip(axs, panels, strict=True)):
         if kind == "output":
-            _output_view(ax, ds, variable)
-            continue
-        if sample:
-            _sample_panel(
-                ax, ds, variable if kind == "verdict" else "poc_margin", dims, axes_names, kind, fig
-            )
-            continue
-        x, y = dims[1], dims[0]
-        index = slices[k] if kind == "verdict" else mid
-        _grid_panel(ax, ds, variable if kind == "verdict" else "poc_margin", x, y, index, kind, fig)
-        where = ", ".join(f"{d} = {float(ds[d].values[i]):.3g}" for d, i in index.items())
-        name = variable if kind == "verdict" else "POC margin"
-        ax.set_title(name + (f" ({where})" if where else ""), fontsize=10)
-        if kind == "verdict" and k == 0:
-            _legend(ax, np.asarray(ds[variable].values), variable)
+            output_panel(ax, ds, variable, choice, axes_names[0])
+        elif sample:
+            _sample_panel(ax, fig, ds, variable, axes_names, kind, scale, path, regions)
+        elif kind == "margin":
+            _margin_grid_panel(ax, fig, ds, variable, dims, slices[len(slices) // 2], scale)
+        else:
+            _verdict_grid_panel(ax, ds, variable, dims, slices, k, path, regions)
     _suptitle(fig, ds, title)
     return fig
 
 
+def _period(ds, name: str) -> float | None:
+    """2 pi for an angle coordinate (units rad), else None: a path step of
+    more than half of it crosses the seam where -pi meets pi."""
+    return 2.0 * math.pi if ds[name].attrs.get("units") == "rad" else None
+
+
+def _where(ds, index: dict) -> str:
+    return ", ".join(coordinate_value(ds, d, float(ds[d].values[i])) for d, i in index.items())
+
+
+def _verdict_grid_panel(ax, ds, variable, dims, slices, k, path, regions) -> None:
+    """Verdict slice ``k`` over the first two grid coordinates, with the
+    region outlines and the path; the legend below the first slice."""
+    x, y = dims[0], dims[1]
+    index = slices[k]
+    x_edges, y_edges = cell_edges(ds[x].values), cell_edges(ds[y].values)
+    X, Y = np.meshgrid(x_edges, y_edges, indexing="ij")
+    # the mesh keeps the map's (x, y) order: cell (i, j) is pose (i, j)
+    codes = np.asarray(ds[variable].isel(index).transpose(x, y).values)
+    cmap, norm = verdict_cmap()
+    ax.pcolormesh(X, Y, verdict_index(codes), cmap=cmap, norm=norm, shading="flat", gid="verdict")
+    all_numbered = True
+    if regions:
+        ids = ds["poc_region"].isel(index).transpose(x, y).values
+        _, all_numbered = draw_regions_grid(ax, ids, x_edges, y_edges)
+    sliced = bool(index) and path is not None and dims[2] in path
+    if path is not None:
+        near = _near_slice(ds, dims[2], path[dims[2]], slices, k) if sliced else None
+        draw_path(ax, path[x], path[y], near, (_period(ds, x), _period(ds, y)))
+    ax.set_xlabel(coordinate_label(ds, x))
+    ax.set_ylabel(coordinate_label(ds, y))
+    ax.set_box_aspect(1)
+    where = _where(ds, index)
+    ax.set_title(verdict_title(variable) + (f" ({where})" if where else ""), fontsize=10)
+    if k == 0:
+        handles = verdict_handles(np.asarray(ds[variable].values))
+        if regions:
+            handles.append(region_handle(regions, all_numbered))
+        if path is not None:
+            handles += path_handles(next(iter(path.values())).size, sliced)
+        legend_below(ax, handles, ncol=3)
+
+
+def _near_slice(ds, third: str, values: np.ndarray, slices: list[dict], k: int) -> np.ndarray:
+    """Which path poses have slice ``k`` as their nearest drawn slice."""
+    drawn = np.asarray(ds[third].values, dtype=float)[[s[third] for s in slices]]
+    nearest = np.argmin(np.abs(values[:, None] - drawn[None, :]), axis=1)
+    return nearest == k
+
+
+def _margin_grid_panel(ax, fig, ds, variable, dims, index, scale: MarginScale) -> None:
+    x, y = dims[0], dims[1]
+    values = ds[scale.variable].isel(index).transpose(x, y).values
+    codes = ds[variable].isel(index).transpose(x, y).values
+    x_edges, y_edges = cell_edges(ds[x].values), cell_edges(ds[y].values)
+    status = _status(ds, index, (x, y))
+    note = margin_grid(ax, fig, x_edges, y_edges, values, status, codes, scale)
+    ax.set_xlabel(coordinate_label(ds, x))
+    ax.set_ylabel(coordinate_label(ds, y))
+    ax.set_box_aspect(1)
+    where = _where(ds, index)
+    lines = [scale.title] + [f"({where})"] * bool(where) + [note] * bool(note)
+    ax.set_title("\n".join(lines), fontsize=10)
+
+
+def _sample_panel(ax, fig, ds, variable, axes_names, kind, scale, path, regions) -> None:
+    """A scatter of the samples in their first two coordinates: verdicts
+    (with regions and the path) or margins."""
+    xn, yn = axes_names[0], axes_names[1]
+    xv = np.asarray(ds[xn].values, dtype=float)
+    yv = np.asarray(ds[yn].values, dtype=float)
+    values = np.asarray(ds[variable].values).reshape(-1)
+    size = max(3.0, min(40.0, 30000.0 / max(values.size, 1)))
+    projected = f" ({values.size} samples, projected)" if len(axes_names) > 2 else ""
+    if kind == "verdict":
+        for c in DRAW_ORDER:
+            sel = values == c
+            if sel.any():
+                ax.scatter(
+                    xv[sel],
+                    yv[sel],
+                    s=size,
+                    c=VERDICT_COLORS[c],
+                    linewidths=0,
+                    rasterized=True,
+                    gid="verdict",
+                )
+        handles = verdict_handles(values)
+        if regions:
+            ids = np.asarray(ds["poc_region"].values)
+            _, all_numbered = draw_regions_samples(ax, ids, xv, yv, len(axes_names) == 2)
+            handles.append(region_handle(regions, all_numbered))
+        if path is not None:
+            draw_path(ax, path[xn], path[yn], periods=(_period(ds, xn), _period(ds, yn)))
+            handles += path_handles(path[xn].size)
+        legend_below(ax, handles, ncol=3)
+        ax.set_title(verdict_title(variable) + projected, fontsize=10)
+    else:
+        margins = np.asarray(ds[scale.variable].values, dtype=float)
+        note = margin_scatter(ax, fig, xv, yv, margins, _status(ds), values, scale, size)
+        ax.set_title(scale.title + projected + (f"\n{note}" if note else ""), fontsize=10)
+    ax.set_xlabel(coordinate_label(ds, xn))
+    ax.set_ylabel(coordinate_label(ds, yn))
+    ax.set_box_aspect(1)
+
+
 def _suptitle(fig, ds, title: str | None) -> None:
-    tension = ds.attrs.get("tension", "?")
-    try:
-        tension = json.loads(tension)
-    except (TypeError, ValueError):
-        pass
-    spec = Path(str(ds.attrs.get("spec", "map"))).name
-    fig.suptitle(title or f"{spec}: equilibrium tension {tension}", fontsize=11)
+    if title is None:
+        tension = ds.attrs.get("tension", "?")
+        try:
+            tension = json.loads(tension)
+        except (TypeError, ValueError):
+            pass
+        spec = Path(str(ds.attrs.get("spec", "map"))).name
+        sizes = [ds.sizes[d] for d in ds.dims if d not in ("output", "xyz")]
+        if "sample" in ds.dims:
+            poses = f"{ds.sizes['sample']} random poses"
+        else:
+            poses = " x ".join(str(n) for n in sizes) + " grid"
+        title = f"{spec}: {poses}, equilibrium tension {tension}"
+    fig.suptitle(title, fontsize=11)
 
 
-def _cell_edges(x: np.ndarray) -> np.ndarray:
-    """Edges of cells centred on sorted values x (half-way between neighbours)."""
-    if x.size == 1:
-        half = 0.5 * max(abs(float(x[0])), 1.0)
-        return np.array([x[0] - half, x[0] + half])
-    mid = 0.5 * (x[1:] + x[:-1])
-    return np.concatenate([[2 * x[0] - mid[0]], mid, [2 * x[-1] - mid[-1]]])
-
-
-def _plot_one_axis(ds, variable: str, name: str, margin: bool, output_view: bool):
-    """A map over one coordinate: the verdict as a coloured band along it,
-    the margin as a line over it (same x axis), the output-space view beside."""
+def _plot_one_axis(ds, variable, name, scale, choice: OutputChoice | None, path):
+    """A map over one coordinate: the verdict as a coloured band along it
+    (regions and path on it), the margin as a line over it on a log axis
+    (same x axis), the output-space view beside."""
     matplotlib, Figure = _matplotlib()
     x = np.asarray(ds[name].values, dtype=float).reshape(-1)
     order = np.argsort(x, kind="stable")
     x = x[order]
     codes = np.asarray(ds[variable].values).reshape(-1)[order]
-    tall = margin or output_view
-    fig = Figure(figsize=(10.6 if output_view else 6.4, 4.0 if tall else 1.9), layout="constrained")
-    widths = [1.4, 1.0] if output_view else [1.0]
+    tall = scale is not None or choice is not None
+    width = 11.5 if choice is not None else 6.8
+    fig = Figure(figsize=(width, 4.6 if tall else 2.2), layout="constrained")
+    widths = [1.35, 1.0] if choice is not None else [1.0]
     grid = fig.add_gridspec(1, len(widths), width_ratios=widths)
-    if margin:
+    if scale is not None:
         left = grid[0, 0].subgridspec(2, 1, height_ratios=[1, 4])
-    elif output_view:  # the band alone, at mid height beside the output view
+    elif choice is not None:  # the band alone, at mid height beside the output view
         left = grid[0, 0].subgridspec(3, 1, height_ratios=[3, 2, 3])
         left = [left[1]]
     else:
         left = [grid[0, 0]]
     strip = fig.add_subplot(left[0])
-    cmap, norm = _verdict_cmap(matplotlib)
+    edges = cell_edges(x)
+    cmap, norm = verdict_cmap()
     strip.pcolormesh(
-        _cell_edges(x), [0.0, 1.0], _verdict_index(codes)[None, :], cmap=cmap, norm=norm
+        edges, [0.0, 1.0], verdict_index(codes)[None, :], cmap=cmap, norm=norm, gid="verdict"
     )
     strip.set_ylim(0.0, 1.0)
     strip.set_yticks([])
-    strip.set_title(f"{variable} along {name}", fontsize=10, loc="left")
-    from matplotlib.patches import Patch
-
-    present = [c for c in _LEGEND_ORDER if np.any(codes == c)]
+    strip.set_ylabel(verdict_title(variable).replace(" verdict", "\nverdict"), fontsize=9)
+    handles = verdict_handles(codes)
+    if "poc_region" in ds:
+        ids = np.asarray(ds["poc_region"].values).reshape(-1)[order]
+        count, all_numbered = draw_regions_band(strip, ids, edges)
+        if count:
+            handles.append(region_handle(region_count(ds), all_numbered))
+    if path is not None:
+        draw_path(
+            strip, path[name], np.full(path[name].size, 0.5), periods=(_period(ds, name), None)
+        )
+        handles += path_handles(path[name].size)
     strip.legend(
-        handles=[
-            Patch(facecolor=VERDICT_COLORS[c], edgecolor="0.3", label=VERDICT_LABELS[c])
-            for c in present
-        ],
-        loc="lower right",
-        bbox_to_anchor=(1.0, 1.0),
-        ncol=len(present),
+        handles=handles,
+        loc="lower left",
+        bbox_to_anchor=(0.0, 1.02),
+        ncol=min(len(handles), 4),
         fontsize=8,
         frameon=False,
-        borderaxespad=0.1,
+        borderaxespad=0.0,
         handlelength=1.2,
         columnspacing=1.0,
     )
-    axis_label = _label(ds, name)
-    if margin:
+    axis_label = coordinate_label(ds, name)
+    if scale is not None:
         line = fig.add_subplot(left[1], sharex=strip)
         strip.tick_params(labelbottom=False)
-        values = np.asarray(ds["poc_margin"].values, dtype=float).reshape(-1)[order]
-        line.axhline(0.0, color="0.55", lw=0.8, ls="--")
-        line.fill_between(
-            x, 0.0, values, where=values > 0, color=VERDICT_COLORS[YES], alpha=0.25, lw=0
-        )
-        line.plot(x, values, color="0.15", lw=1.4, label="POC margin")
-        # a value between two gaps draws no line segment: mark it
-        finite = np.isfinite(values)
-        padded = np.concatenate([[False], finite, [False]])
-        alone = finite & ~padded[:-2] & ~padded[2:]
-        line.plot(x[alone], values[alone], ".", color="0.15", ms=4)
-        if not np.isfinite(values).any():
-            line.text(
-                0.5,
-                0.5,
-                "no margin in this map (made with --no-margin)",
-                transform=line.transAxes,
-                ha="center",
-                va="center",
-                color="0.4",
-            )
-        line.set_ylabel("POC margin")
+        values = np.asarray(ds[scale.variable].values, dtype=float).reshape(-1)[order]
+        status = _status(ds)
+        status = None if status is None else status.reshape(-1)[order]
+        margin_handles, note = margin_line(line, x, values, status, codes, scale)
         line.set_xlabel(axis_label)
-        line.grid(True, color="0.9", lw=0.6)
+        line.set_title(scale.title + (f"\n{note}" if note else ""), fontsize=10)
+        legend_below(line, margin_handles, ncol=2)
     else:
         strip.set_xlabel(axis_label)
-    if output_view:
-        _output_view(fig.add_subplot(grid[0, 1]), ds, variable)
+    if choice is not None:
+        output_panel(fig.add_subplot(grid[0, 1]), ds, variable, choice, name)
     return fig
 
 
-def _sample_panel(ax, ds, variable, dims, axes_names, kind, fig):
-    xn, yn = axes_names[0], axes_names[1]
-    xv, yv = np.asarray(ds[xn].values), np.asarray(ds[yn].values)
-    values = np.asarray(ds[variable].values).reshape(-1)
-    size = max(3.0, min(40.0, 30000.0 / max(values.size, 1)))
-    if kind == "verdict":
-        for c in _DRAW_ORDER:
-            sel = values == c
-            if sel.any():
-                ax.scatter(
-                    xv[sel], yv[sel], s=size, c=VERDICT_COLORS[c], linewidths=0, rasterized=True
-                )
-        _legend(ax, values, variable)
-        ax.set_title(variable, fontsize=10)
-    else:
-        from matplotlib.colors import TwoSlopeNorm
-
-        finite = values[np.isfinite(values)]
-        span = float(np.max(np.abs(finite))) if finite.size else 1.0
-        span = span if span > 0 else 1.0
-        sc = ax.scatter(
-            xv,
-            yv,
-            s=size,
-            c=values,
-            cmap="RdBu",
-            norm=TwoSlopeNorm(0.0, -span, span),
-            linewidths=0,
-            rasterized=True,
-        )
-        fig.colorbar(sc, ax=ax, shrink=0.85, label=variable)
-        ax.set_title("POC margin", fontsize=10)
-    ax.set_xlabel(_label(ds, xn))
-    ax.set_ylabel(_label(ds, yn))
-
-
-def save_map_plot(ds_or_path: Any, path: str | os.PathLike, *, dpi: float = 100, **kwargs) -> Path:
-    """Draw a map with :func:`plot_map` and write it as an image in the
-    format of the file extension (PNG without one); returns the path written.
+def save_map_plot(
+    ds_or_path: Any,
+    image: str | os.PathLike,
+    *,
+    dpi: float = 100,
+    variable: str = "poc",
+    margin: bool = True,
+    output_view: bool = True,
+    outputs: Sequence[str] | str | None = None,
+    path: Mapping[str, Any] | None = None,
+    max_slices: int = 6,
+    title: str | None = None,
+) -> Path:
+    """Draw a map with :func:`plot_map` and write it to the file ``image``
+    in the format of its extension (PNG without one); returns the file
+    written. The keywords are :func:`plot_map`'s (``path``: coordinate name
+    -> (k,) values along a path of map poses), and ``dpi`` the resolution.
 
     Raises:
         InputError: matplotlib cannot write the extension, ``dpi`` is not
-            positive (both checked before any drawing), or the store is not
-            a cdpm map.
+            positive (both checked before any drawing), the store is not a
+            cdpm map, or a keyword is wrong (see :func:`plot_map`).
     """
-    out = check_image_path(path)
+    out = check_image_path(image)
     dpi = check_dpi(dpi)
-    fig = plot_map(ds_or_path, **kwargs)
+    fig = plot_map(
+        ds_or_path,
+        variable=variable,
+        margin=margin,
+        output_view=output_view,
+        outputs=outputs,
+        path=path,
+        max_slices=max_slices,
+        title=title,
+    )
     out.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out, dpi=dpi)
     return out

@@ -35,9 +35,11 @@ def test_grid_map_plot(paper_robot, tmp_path):
         paper_robot, {"q1": np.linspace(-3, 3, 61), "q2": np.linspace(-3, 3, 61)}, workers=1
     )
     fig = plot_map(ds)
-    labels = [ax.get_xlabel() for ax in fig.axes]
-    assert "q2 [rad]" in labels and "tip x [m]" in labels
-    assert any(ax.get_legend() is not None for ax in fig.axes)
+    verdict, margin, output = fig.axes
+    assert verdict.get_xlabel() == "q1 [rad]" and verdict.get_ylabel() == "q2 [rad]"
+    # one output (tip_x): plotted against the first joint
+    assert output.get_xlabel() == "q1 [rad]" and output.get_ylabel() == "output tip_x [m]"
+    assert verdict.get_legend() is not None
     _check_image(save_map_plot(ds, tmp_path / "map.png"))
 
 
@@ -211,8 +213,15 @@ def test_map_command_without_margin_keeps_verdicts(tmp_path):
     fast = xr.open_zarr(tmp_path / "fast.zarr")
     np.testing.assert_array_equal(full["poc"].values, fast["poc"].values)
     assert (full["poc"].values == 1).any() and (full["poc"].values == 0).any()
-    assert np.isnan(fast["poc_margin"].values).all()
-    assert np.isfinite(full["poc_margin"].values[full["status"].values == 0]).all()
+    margin = "reach_margin" if "reach_margin" in full else "poc_margin"
+    assert np.isnan(fast[margin].values).all()
+    assert np.isfinite(full[margin].values[full["status"].values == 0]).all()
+    # the picture of the map without margins says so in the margin panel's title
+    from cdpm.plotting import plot_map
+
+    panel = plot_map(fast).axes[1]
+    assert "not computed: map made with margin=False" in panel.get_title()
+    assert not panel.child_axes  # no colour bar for margins that are not there
 
 
 def test_plot_legend_takes_verdict_labels_and_colours_from_cdpm_verdicts():
@@ -336,6 +345,7 @@ def test_plot_and_picture_reject_a_dpi_that_is_not_positive(dpi, tmp_path, capsy
 @pytest.mark.parametrize("sample", [False, True])
 def test_one_axis_map_is_a_strip_and_a_margin_line(paper_robot, tmp_path, sample):
     from matplotlib.collections import PathCollection, QuadMesh
+    from matplotlib.colors import to_rgb
 
     from cdpm.plotting import VERDICT_COLORS, plot_map, save_map_plot
 
@@ -343,28 +353,386 @@ def test_one_axis_map_is_a_strip_and_a_margin_line(paper_robot, tmp_path, sample
         ds = workspace_map(paper_robot, {"q1": (-3, 3)}, samples=80, seed=1, workers=1)
     else:
         ds = workspace_map(paper_robot, {"q1": np.linspace(-3, 3, 61)}, workers=1)
+    ds = _with_regions(ds)
     order = np.argsort(ds["q1"].values)
-    fig = plot_map(ds)
+    path = {"q1": [-2.0, -1.0, 0.5]}
+    fig = plot_map(ds, path=path)
     strip, line, output = fig.axes[:3]
     # the verdict: one coloured band along q1, cell k in the verdict colour of pose k
     (mesh,) = [c for c in strip.collections if isinstance(c, QuadMesh)]
     colors = mesh.to_rgba(np.asarray(mesh.get_array()).reshape(-1))[:, :3]
     assert colors.shape == (ds.sizes[ds["poc"].dims[0]], 3)
     expected = [VERDICT_COLORS[int(c)] for c in ds["poc"].values[order]]
-    from matplotlib.colors import to_rgb
-
     np.testing.assert_allclose(colors, [to_rgb(c) for c in expected], atol=1e-6)
     assert not [c for c in strip.collections if isinstance(c, PathCollection)]  # no dots
     assert strip.get_yticks().size == 0 and strip.get_legend() is not None
-    assert strip.get_title(loc="left") == "poc along q1"
-    # the margin: a line over q1, on the same x axis
-    (margin,) = [ln for ln in line.get_lines() if ln.get_label() == "POC margin"]
+    assert strip.get_ylabel() == "POC\nverdict"
+    # the regions and the path on the band
+    assert "1" in _region_numbers(strip)
+    (drawn,) = [ln for ln in strip.get_lines() if ln.get_gid() == "path"]
+    np.testing.assert_allclose(drawn.get_xdata(), path["q1"])
+    # the margin: a line of the positive margins over q1 on a log axis, same x axis
+    (margin,) = [ln for ln in line.get_lines() if ln.get_gid() == "margin"]
+    values = ds[_margin_name(ds)].values[order]
     np.testing.assert_allclose(margin.get_xdata(), ds["q1"].values[order])
-    np.testing.assert_allclose(margin.get_ydata(), ds["poc_margin"].values[order])
-    assert line.get_xlabel() == "q1 [rad]" and line.get_ylabel() == "POC margin"
+    np.testing.assert_allclose(margin.get_ydata(), np.where(values > 0, values, np.nan))
+    assert line.get_yscale() == "log" and "log scale" in line.get_ylabel()
+    assert line.get_xlabel() == "q1 [rad]" and "[m]" in line.get_ylabel()
     assert strip.get_shared_x_axes().joined(strip, line)
-    assert output.get_xlabel() == "tip x [m]"
+    # the paper's one output against the axis
+    assert output.get_xlabel() == "q1 [rad]" and output.get_ylabel() == "output tip_x [m]"
+    _assert_legends_outside(fig)
     _check_image(save_map_plot(ds, tmp_path / "line.png"))
     # without the margin panel the band carries the axis label itself
     fig = plot_map(ds, margin=False, output_view=False)
     assert len(fig.axes) == 1 and fig.axes[0].get_xlabel() == "q1 [rad]"
+
+
+def test_one_axis_margin_line_splits_poses_without_a_margin(tmp_path):
+    """two_link_vertical along q1: zero margins as red ticks, poses without
+    an equilibrium as grey spans, each in the legend."""
+    from matplotlib.colors import to_rgb
+
+    from cdpm._plot_common import STATUS_COLORS, ZERO_MARGIN_COLOR
+    from cdpm.plotting import plot_map, save_map_plot
+    from tests.conftest import MODELS
+
+    spec = MODELS / "two_link_vertical" / "two_link_vertical.yaml"
+    q1 = {"q1": np.linspace(-np.pi, np.pi, 91)}
+    ds = workspace_map(spec, q1, base={"q2": 0.0}, workers=1)
+    status = ds["status"].values
+    assert (status == 3).any() and (status == 0).any()
+    margin_values = ds[_margin_name(ds)].values
+    assert (margin_values[status == 0] <= 0).any()  # q2 = 0: the arm stretched, no POC
+    line = plot_map(ds).axes[1]
+    (ticks,) = [ln for ln in line.get_lines() if ln.get_gid() == "zero margin"]
+    assert ticks.get_xdata().size == int(np.sum(margin_values[status == 0] <= 0))
+    assert to_rgb(ticks.get_color()) == pytest.approx(to_rgb(ZERO_MARGIN_COLOR))
+    spans = [p for p in line.patches if p.get_facecolor()[:3] == to_rgb(STATUS_COLORS[3])]
+    assert spans  # no equilibrium: grey spans behind the line
+    labels = [t.get_text() for t in line.get_legend().get_texts()]
+    assert any("not POC" in t for t in labels)
+    assert "not analysed: no equilibrium" in labels
+    assert save_map_plot(ds, tmp_path / "vertical_line.png").stat().st_size > 5_000
+    # a bent elbow: POC regions end where poses without an equilibrium begin
+    ds = _with_regions(workspace_map(spec, q1, base={"q2": 0.8}, workers=1))
+    strip = plot_map(ds).axes[0]
+    assert _gids(strip, "region outlines") is not None
+    assert {"1", "2"} <= set(_region_numbers(strip))
+
+
+# ------------------------------------------------- pictures that read at a glance
+
+
+def _margin_name(ds) -> str:
+    return "reach_margin" if "reach_margin" in ds else "poc_margin"
+
+
+def _with_regions(ds):
+    """The map with its POC regions (cdpm.maps.regions) attached."""
+    from cdpm.maps.regions import attach_regions
+
+    return attach_regions(ds)
+
+
+def _grid(spec, n=41):
+    """A map over full turns of q1 and q2, with reach_margin and poc_region."""
+    turn = np.linspace(-np.pi, np.pi, n)
+    ds = _with_regions(workspace_map(spec, {"q1": turn, "q2": turn}, workers=1).load())
+    assert "reach_margin" in ds, "maps carry the reach margin r_T"
+    return ds
+
+
+@pytest.fixture(scope="module")
+def paper_map():
+    return _grid(PAPER_SPEC)
+
+
+@pytest.fixture(scope="module")
+def vertical_map():
+    from tests.conftest import MODELS
+
+    return _grid(MODELS / "two_link_vertical" / "two_link_vertical.yaml")
+
+
+def _gids(ax, gid):
+    """The first artist of ``ax`` with this gid, or None."""
+    for artist in ax.get_children():
+        if artist.get_gid() == gid:
+            return artist
+    return None
+
+
+def _region_numbers(ax) -> list[str]:
+    return [t.get_text() for t in ax.texts if t.get_gid() == "region number"]
+
+
+def _render(fig) -> np.ndarray:
+    """The figure's pixels, (H, W, 4) uint8, top row first."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    canvas = FigureCanvasAgg(fig)
+    canvas.draw()
+    return np.asarray(canvas.buffer_rgba())
+
+
+def _inked_fraction(pixels: np.ndarray, ax) -> float:
+    """Fraction of the pixels inside ``ax``'s frame that are not white."""
+    box = ax.get_window_extent()
+    height = pixels.shape[0]
+    inside = pixels[
+        int(height - box.y1) + 2 : int(height - box.y0) - 2, int(box.x0) + 2 : int(box.x1) - 2, :3
+    ]
+    return float(np.mean(np.any(inside < 245, axis=-1)))
+
+
+def _assert_legends_outside(fig) -> None:
+    """No legend overlaps the data area of any panel."""
+    _render(fig)
+    renderer = fig.canvas.get_renderer()
+    legends = [ax.get_legend() for ax in fig.axes if ax.get_legend() is not None]
+    assert legends
+    for legend in legends:
+        box = legend.get_window_extent(renderer)
+        for ax in fig.axes:
+            assert not box.overlaps(ax.get_window_extent(renderer)), (legend, ax)
+
+
+@pytest.mark.parametrize("which", ["paper", "vertical"])
+def test_map_panels_read_at_a_glance(which, paper_map, vertical_map, tmp_path):
+    from matplotlib.colors import LogNorm, to_rgb
+
+    from cdpm._plot_common import STATUS_COLORS, ZERO_MARGIN_COLOR
+    from cdpm.plotting import plot_map, save_map_plot
+
+    ds = paper_map if which == "paper" else vertical_map
+    path = {"q1": np.linspace(-2.5, 1.0, 25), "q2": np.linspace(0.5, 2.4, 25)}
+    fig = plot_map(ds, path=path)
+    verdict, margin, output = fig.axes
+    pixels = _render(fig)
+    # every panel shows data (the vertical margin panel used to be blank)
+    assert _inked_fraction(pixels, verdict) > 0.95
+    assert _inked_fraction(pixels, margin) > 0.95
+    assert _inked_fraction(pixels, output) > 0.05
+    # the first joint on x, titles and labels in words with units
+    for ax in (verdict, margin):
+        assert ax.get_xlabel() == "q1 [rad]" and ax.get_ylabel() == "q2 [rad]"
+    mesh = _gids(verdict, "verdict")
+    q1_edges = mesh.get_coordinates()[:, 0, 0]
+    assert q1_edges[0] < ds["q1"].values[0] < q1_edges[1] < ds["q1"].values[1]
+    assert verdict.get_title() == "POC verdict"
+    horizon = ds.attrs["reach_horizon"]
+    assert "reach margin" in margin.get_title() and "[m]" in margin.get_title()
+    assert f"= {horizon:.3g} s" in margin.get_title() and "log scale" in margin.get_title()
+    # margins on a log scale spanning their positive range
+    positive_mesh = _gids(margin, "margin")
+    norm = positive_mesh.norm
+    assert isinstance(norm, LogNorm)
+    values = ds["reach_margin"].values
+    positive = values[values > 0]
+    assert np.isfinite(np.asarray(positive_mesh.get_array())).sum() == positive.size
+    (colorbar,) = margin.child_axes
+    assert "log scale" in colorbar.get_ylabel() and "[m]" in colorbar.get_ylabel()
+    assert norm.vmax >= positive.max()
+    if norm.vmin > positive.min():  # a few round-off stragglers clipped, and said so
+        assert "clipped" in colorbar.get_ylabel() and colorbar.get_label() != ""
+        stragglers = positive[positive < norm.vmin]
+        assert stragglers.size <= 0.02 * positive.size
+        assert stragglers.max() * 1e3 <= positive[positive >= norm.vmin].min()
+    else:
+        assert norm.vmin <= positive.min()
+    # zero margins and poses not analysed: cells of their own colours, not in the colour map
+    categories = _gids(margin, "margin categories")
+    cells = np.asarray(categories.get_array())
+    rgb = categories.to_rgba(cells.reshape(-1))[:, :3].reshape(*cells.shape, 3)
+    status = ds["status"].values
+    zero = (status == 0) & (values <= 0)
+    assert zero.any()
+    np.testing.assert_allclose(rgb[zero], [to_rgb(ZERO_MARGIN_COLOR)] * int(zero.sum()))
+    ramp = positive_mesh.cmap(np.linspace(0, 1, 256))[:, :3]
+    assert np.min(np.linalg.norm(ramp - to_rgb(ZERO_MARGIN_COLOR), axis=1)) > 0.3
+    legend_texts = [t.get_text() for t in margin.get_legend().get_texts()]
+    assert "$r_T$ = 0 (not POC, or $T$ too short)" in legend_texts
+    if which == "vertical":  # poses without an equilibrium, grey, named by reason
+        unanalysed = status == 3
+        assert unanalysed.any()
+        expected = to_rgb(STATUS_COLORS[3])
+        np.testing.assert_allclose(rgb[unanalysed], [expected] * int(unanalysed.sum()))
+        assert np.linalg.norm(np.subtract(expected, to_rgb(ZERO_MARGIN_COLOR))) > 0.3
+        assert "not analysed: no equilibrium" in legend_texts
+    # the regions: outlined and numbered, the largest first
+    assert _gids(verdict, "region outlines") is not None
+    assert "1" in _region_numbers(verdict)
+    # the path, from its start to its goal
+    (line,) = [ln for ln in verdict.get_lines() if ln.get_gid() == "path"]
+    np.testing.assert_allclose(line.get_xdata(), path["q1"])
+    np.testing.assert_allclose(line.get_ydata(), path["q2"])
+    (start,) = [ln for ln in verdict.get_lines() if ln.get_gid() == "start"]
+    (goal,) = [ln for ln in verdict.get_lines() if ln.get_gid() == "goal"]
+    assert start.get_xdata()[0] == path["q1"][0] and goal.get_ydata()[0] == path["q2"][-1]
+    labels = [t.get_text() for t in verdict.get_legend().get_texts()]
+    assert {"start", "goal", "path (25 poses)"} <= set(labels)
+    assert any(t.startswith("POC regions") for t in labels)
+    _assert_legends_outside(fig)
+    save_map_plot(ds, tmp_path / f"{which}.png", path=path)
+    _check_image(tmp_path / f"{which}.png")
+
+
+def test_maps_made_before_the_reach_margin_show_the_unit_impulse_index(paper_map):
+    from cdpm.plotting import plot_map
+
+    old = paper_map.drop_vars(["reach_margin", "poc_region"])
+    old.attrs = {k: v for k, v in old.attrs.items() if k not in ("reach_horizon", "tension_budget")}
+    # an old map's poc_margin: > 0 where POC, <= 0 elsewhere (unitless)
+    old["poc_margin"] = (("q1", "q2"), np.where(old["poc"].values == 1, 0.3, -1e-17))
+    margin = plot_map(old).axes[1]
+    title = margin.get_title()
+    assert "POC margin" in title and "unit-impulse index, unitless" in title
+    assert "log scale" in title and "[m]" not in title
+    assert "unitless" in margin.child_axes[0].get_ylabel()
+
+
+def test_output_panel_plots_the_outputs_asked_for(paper_map, vertical_map, tmp_path, capsys):
+    import xarray as xr
+
+    from cdpm.plotting import plot_map
+
+    def output_axes(ds, **kw):
+        return plot_map(ds, margin=False, **kw).axes[-1]
+
+    # defaults: the paper's one output against q1; two outputs against each other
+    ax = output_axes(paper_map)
+    assert (ax.get_xlabel(), ax.get_ylabel()) == ("q1 [rad]", "output tip_x [m]")
+    assert "output tip_x against q1" in ax.get_title()
+    ax = output_axes(vertical_map)
+    assert (ax.get_xlabel(), ax.get_ylabel()) == ("output tip_x [m]", "output tip_z [m]")
+    points = np.vstack([c.get_offsets() for c in ax.collections if c.get_gid() == "outputs"])
+    assert len(points) == vertical_map["poc"].size and np.isfinite(points).all()
+    # one chosen output against the first joint; the frame's position, named as such
+    ax = output_axes(vertical_map, outputs=["tip_z"])
+    assert (ax.get_xlabel(), ax.get_ylabel()) == ("q1 [rad]", "output tip_z [m]")
+    ax = output_axes(paper_map, outputs=("tip.x", "tip.y"))
+    assert ax.get_xlabel() == "x of frame 'tip' (world) [m]"
+    assert "world position (x, y) of frame 'tip'" in ax.get_title()
+    # three outputs: the first two, stated
+    y = vertical_map["y"]
+    y = xr.concat([y, y.isel(output=[0]).assign_coords(output=["tip_w"])], "output")
+    three = vertical_map.drop_vars(["y", "output"]).assign(y=y)
+    assert three.sizes["output"] == 3
+    ax = output_axes(three)
+    assert "first 2 of 3 outputs" in ax.get_title()
+    # bad names: the message lists the map's outputs
+    with pytest.raises(
+        cdpm.InputError, match=r"'tip_y' is not an output of this map; its outputs: tip_x \("
+    ):
+        plot_map(paper_map, outputs=["tip_y"])
+    with pytest.raises(cdpm.InputError, match="one or two names"):
+        plot_map(three, outputs=["tip_x", "tip_z", "tip_w"])
+    with pytest.raises(cdpm.InputError, match="twice"):
+        plot_map(three, outputs=["tip_x", "tip_x"])
+    # the command line
+    from tests.conftest import MODELS
+
+    store = tmp_path / "v.zarr"
+    spec = MODELS / "two_link_vertical" / "two_link_vertical.yaml"
+    workspace_map(spec, {"q1": np.linspace(-3, 3, 15), "q2": [0.5, 1.0]}, store=store, workers=1)
+    png = tmp_path / "v.png"
+    assert main(["plot", str(store), "-o", str(png), "--outputs", "tip_z"]) == 0
+    _check_image(png)
+    capsys.readouterr()
+    assert main(["plot", str(store), "-o", str(png), "--outputs", "tip_q"]) == 1
+    assert "'tip_q' is not an output of this map; its outputs: tip_x, tip_z" in (
+        capsys.readouterr().err
+    )
+
+
+def test_plot_path_errors_name_the_fix(paper_map):
+    from cdpm.plotting import plot_map
+
+    with pytest.raises(cdpm.InputError, match="path lacks q2"):
+        plot_map(paper_map, path={"q1": [0.0, 1.0]})
+    with pytest.raises(cdpm.InputError, match=r"\['q9'\] are not coordinates of this map"):
+        plot_map(paper_map, path={"q1": [0.0], "q2": [0.0], "q9": [1.0]})
+    with pytest.raises(cdpm.InputError, match="differ in length"):
+        plot_map(paper_map, path={"q1": [0.0, 1.0], "q2": [0.0]})
+    with pytest.raises(cdpm.InputError, match="finite numbers"):
+        plot_map(paper_map, path={"q1": [0.0, np.nan], "q2": [0.0, 1.0]})
+    with pytest.raises(cdpm.InputError, match="must map coordinate names"):
+        plot_map(paper_map, path=[0.0, 1.0])
+
+
+def test_slices_of_a_three_axis_map_carry_regions_and_the_path(paper_map):
+    import xarray as xr
+
+    from cdpm.plotting import plot_map
+
+    ds = paper_map.drop_vars("poc_region")
+    stacked = xr.concat([ds, ds, ds], dim=xr.DataArray([0.0, 1.0, 2.0], dims="z", name="z"))
+    stacked = stacked.transpose("q1", "q2", "z", ...)
+    stacked.attrs["axes"] = ["q1", "q2", "z"]
+    stacked = _with_regions(stacked)
+    path = {"q1": [-1.0, 0.0, 1.0], "q2": [0.5, 1.0, 1.5], "z": [0.0, 0.1, 2.0]}
+    fig = plot_map(stacked, path=path, max_slices=3)
+    slices = [ax for ax in fig.axes if ax.get_title().startswith("POC verdict (z = ")]
+    assert len(slices) == 3
+    for k, ax in enumerate(slices):
+        assert ax.get_xlabel() == "q1 [rad]"
+        assert _region_numbers(ax) == ["1"]
+        (line,) = [ln for ln in ax.get_lines() if ln.get_gid() == "path"]
+        # solid where the path is nearest this slice: z = 0 (twice), z = 2
+        solid = np.isfinite(np.asarray(line.get_xdata(), dtype=float))
+        np.testing.assert_array_equal(
+            solid, [[True, True, False], [False] * 3, [False, False, True]][k]
+        )
+    labels = [t.get_text() for t in slices[0].get_legend().get_texts()]
+    assert "path (3 poses); dashed: away from this slice" in labels
+    _assert_legends_outside(fig)
+
+
+def test_sampled_map_gets_regions_path_and_log_margin(tmp_path):
+    from matplotlib.colors import LogNorm
+
+    from cdpm.plotting import plot_map, save_map_plot
+    from tests.conftest import MODELS
+
+    spec = MODELS / "two_link_vertical" / "two_link_vertical.yaml"
+    ds = workspace_map(
+        spec, {"q1": (-np.pi, np.pi), "q2": (-np.pi, np.pi)}, samples=1500, seed=4, workers=1
+    )
+    ds = _with_regions(ds)
+    path = {"q1": [-2.5, 1.0], "q2": [0.5, 2.4]}
+    fig = plot_map(ds, path=path)
+    verdict, margin, output = fig.axes
+    assert verdict.get_xlabel() == "q1 [rad]" and verdict.get_ylabel() == "q2 [rad]"
+    assert "1" in _region_numbers(verdict) and _gids(verdict, "region outlines") is not None
+    assert [ln for ln in verdict.get_lines() if ln.get_gid() == "path"]
+    points = _gids(margin, "margin")
+    assert isinstance(points.norm, LogNorm)
+    values = ds["reach_margin"].values
+    assert np.asarray(points.get_array()).size == np.sum(values > 0)
+    assert points.norm.vmax >= values[values > 0].max()
+    colours = {
+        tuple(np.round(c.get_facecolor()[0][:3], 3))
+        for c in margin.collections
+        if c.get_gid() == "margin categories"
+    }
+    assert len(colours) >= 1  # poses without an equilibrium
+    _assert_legends_outside(fig)
+    _check_image(save_map_plot(ds, tmp_path / "samples.png", path=path))
+
+
+def test_path_across_the_seam_of_a_full_turn_goes_the_short_way(paper_map):
+    """-pi and pi are one pose: a step across the seam leaves the panel at
+    one edge and comes back at the other, it does not cross the map."""
+    from cdpm.plotting import plot_map
+
+    path = {"q1": [2.9, 3.1, -3.05, -2.8], "q2": [1.0, 1.0, 1.0, 1.0]}
+    ax = plot_map(paper_map, path=path, margin=False, output_view=False).axes[0]
+    limits = ax.get_xlim()
+    (line,) = [ln for ln in ax.get_lines() if ln.get_gid() == "path"]
+    x = np.asarray(line.get_xdata(), dtype=float)
+    np.testing.assert_allclose(x, [2.9, 3.1, np.nan, -3.05, -2.8])
+    (stubs,) = [c for c in ax.collections if c.get_gid() == "path seam"]
+    (out, back) = [seg[:, 0] for seg in stubs.get_segments()]
+    assert out[1] > np.pi and back[0] < -np.pi  # through the right edge, back at the left
+    assert ax.get_xlim() == limits and limits[1] < 3.3  # the stubs do not widen the panel

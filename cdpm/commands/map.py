@@ -243,6 +243,16 @@ def _interrupted(args: argparse.Namespace) -> int:
     return 130
 
 
+def _regions_line(labels) -> str:
+    """``POC regions: 4 (sizes 1191, 1034, ...)`` from a map's poc_region."""
+    import json
+
+    listed = json.loads(labels.attrs.get("regions", "[]"))
+    n = int(labels.attrs.get("n_regions", len(listed)))
+    sizes = ", ".join(str(r["size"]) for r in listed[:5]) + (", ..." if n > 5 else "")
+    return f"POC regions (connected YES poses): {n}" + (f" of {sizes} poses" if n else "")
+
+
 def run(args: argparse.Namespace) -> int:
     import numpy as np
 
@@ -296,6 +306,8 @@ def run(args: argparse.Namespace) -> int:
         if (poc == code).any()
     )
     print(f"{robot.spec.path.name}: {total} poses; positive output controllable: {words}")
+    if "poc_region" in ds:
+        print(_regions_line(ds["poc_region"]))
     flagged = {n: int((status == c).sum()) for n, c in STATUS_CODES.items() if c > 0}
     flagged = {n: k for n, k in flagged.items() if k}
     if flagged:

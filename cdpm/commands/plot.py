@@ -7,13 +7,24 @@ import argparse
 NAME = "plot"
 HELP = "draw a workspace map (zarr store) into an image"
 DESCRIPTION = """\
-Read a map written by `cdpm map ... --out STORE` and draw it: the verdict over
-the first two axes (slices for more axes), the POC margin, and the poses in
-output space coloured by verdict. A map over one axis is drawn as a verdict
-band along that axis above a line of the margin."""
+Read a map written by `cdpm map ... --out STORE` and draw it, the map's first
+axis horizontal:
+  - the verdict over the first two axes (slices along the third for more
+    axes), with the outlines and numbers of the POC regions when the map has
+    them;
+  - the reach margin r_T [output units] within the map's horizon T on a log
+    colour scale (maps without it: the unit-impulse POC margin); zero margins
+    in red, poses not analysed in greys by reason;
+  - the poses in output space, coloured by verdict: by default the map's
+    outputs (one output: against the first axis; two or more: the first two),
+    or those named with --outputs.
+A map over one axis is drawn as a verdict band along that axis above a line
+of the margin. Maps of random samples are drawn as scatter plots."""
 EPILOG = """\
 examples:
   cdpm plot map.zarr -o map.png
+  cdpm plot map.zarr -o map.png --outputs tip_x tip_z
+  cdpm plot map.zarr -o workspace.png --outputs tip.x tip.y   # the output frame's position
   cdpm plot map.zarr -o closure.pdf --variable wrench_closure --no-margin"""
 
 
@@ -65,6 +76,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default="poc",
         help=f"verdict to colour by: {', '.join(verdict_criteria())} (default poc)",
     )
+    parser.add_argument(
+        "--outputs",
+        nargs="+",
+        metavar="NAME",
+        help="one or two quantities for the output-space panel: names of the map's outputs, "
+        "or FRAME.x, FRAME.y, FRAME.z for the world position of the first output's frame; "
+        "one is plotted against the first axis (default: the map's outputs; the first two "
+        "of three or more)",
+    )
     parser.add_argument("--no-margin", action="store_true", help="leave out the margin panel")
     parser.add_argument(
         "--no-output-view", action="store_true", help="leave out the output-space panel"
@@ -84,6 +104,7 @@ def run(args: argparse.Namespace) -> int:
         variable=args.variable,
         margin=not args.no_margin,
         output_view=not args.no_output_view,
+        outputs=args.outputs,
     )
     print(f"plot written to {path}")
     return 0

@@ -5,11 +5,11 @@ from __future__ import annotations
 import argparse
 import json
 
+from cdpm.commands._play import add_play_arguments, check_play_arguments
 from cdpm.commands._pose import Q_HELP, add_pose_arguments, pose_from_args
 from cdpm.commands._tension import add_tension_arguments, cli_equilibrium, tension_from_args
 from cdpm.commands.plot import argument_type
 from cdpm.commands.verify import _duration, _image
-from cdpm.commands.view import _port
 
 NAME = "steer"
 HELP = "find pull-only tensions that move the output to a target, and simulate them"
@@ -46,15 +46,6 @@ def _number(text: str) -> float:
     return value
 
 
-def _seconds(text: str) -> float:
-    from cdpm.errors import InputError
-
-    value = _number(text)
-    if not (0 <= value < float("inf")):
-        raise InputError(f"--seconds must be a non-negative time [s], got {text!r}")
-    return value
-
-
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_pose_arguments(parser)
     add_tension_arguments(parser)
@@ -83,22 +74,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--plot", type=argument_type(_image), metavar="IMAGE", help="draw y(t) and f(t) to IMAGE"
     )
-    parser.add_argument(
-        "--view", action="store_true", help="play the motion in the 3-D viewer (127.0.0.1)"
-    )
-    parser.add_argument(
-        "--port",
-        type=argument_type(_port),
-        default=None,
-        help="viewer web port, 1-65535 (default: first free from 7000)",
-    )
-    parser.add_argument(
-        "--seconds",
-        type=argument_type(_seconds),
-        default=None,
-        metavar="S",
-        help="with --view: play in a loop for S seconds, then exit (default: until Ctrl-C)",
-    )
+    add_play_arguments(parser, "the motion")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -117,10 +93,7 @@ def run(args: argparse.Namespace) -> int:
             f"{option} takes {robot.n_outputs} value(s), one per output "
             f"({', '.join(robot.output_names)}); got {values.size}"
         )
-    if args.seconds is not None and not args.view:
-        raise InputError("--seconds goes with --view (how long to play the motion)")
-    if args.port is not None and not args.view:
-        raise InputError("--port goes with --view (the viewer's web port)")
+    check_play_arguments(args, "the motion")
     if not 1 <= args.intervals <= STEER_MAX_INTERVALS:
         raise InputError(
             f"--intervals must be from 1 to {STEER_MAX_INTERVALS}, got {args.intervals}"

@@ -7,6 +7,7 @@ import signal
 import sys
 import time
 
+from cdpm.commands._play import _port
 from cdpm.commands._pose import Q_HELP, add_pose_arguments, pose_from_args
 from cdpm.commands.plot import argument_type
 
@@ -33,12 +34,6 @@ examples:
 """
     + Q_HELP
 )
-
-
-def _port(text: str) -> int:
-    from cdpm.viewer import check_port
-
-    return check_port(text)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

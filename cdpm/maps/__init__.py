@@ -138,6 +138,7 @@ def workspace_map(
     from cdpm.maps._plan import make_plan
     from cdpm.maps._runner import ProgressPrinter, prestart_workers, run_chunks
     from cdpm.maps._store import MemorySink, ZarrSink
+    from cdpm.maps.regions import attach_regions
     from cdpm.reach import reach_settings
     from cdpm.robot import CableRobot, load_robot
 
@@ -174,7 +175,7 @@ def workspace_map(
         progress = None
     job = MapJob(setting, bool(margin), float(tol), tuple(plan.settings["variables"]), reach)
     run_chunks(robot, plan, job, todo, sink, workers, scheduler, progress)
-    return sink.dataset()
+    return attach_regions(sink.dataset(), store)
 
 
 def _refuse_in_worker_bootstrap() -> None:

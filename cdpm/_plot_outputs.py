@@ -1,0 +1,165 @@
+"""The output-space panel of a map picture: every pose at its outputs,
+coloured by verdict.
+
+What is plotted (:func:`choose_outputs`):
+
+- one output: that output against the map's first coordinate;
+- two outputs: the first against the second;
+- ``FRAME.x`` / ``FRAME.y`` / ``FRAME.z``: a world coordinate of the first
+  output's frame (``output_frame_position``), labelled as a frame position.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from cdpm._plot_common import (
+    DRAW_ORDER,
+    coordinate_label,
+    legend_below,
+    verdict_handles,
+    verdict_title,
+)
+from cdpm.errors import InputError
+from cdpm.verdicts import VERDICT_COLORS, VERDICT_LABELS
+
+
+@dataclass(frozen=True)
+class OutputChoice:
+    """The quantities of the output-space panel.
+
+    Attributes:
+        names: one or two names: outputs of the map or ``FRAME.c``.
+        note: what the default left out (e.g. "first 2 of 3 outputs"), or "".
+    """
+
+    names: tuple[str, ...]
+    note: str = ""
+
+
+def _output_names(ds) -> list[str]:
+    if "y" not in ds or "output" not in ds["y"].dims:
+        return []
+    return [str(n) for n in ds["output"].values]
+
+
+def _frame_names(ds) -> list[str]:
+    if "output_frame_position" not in ds:
+        return []
+    frame = ds["output_frame_position"].attrs.get("frame", "frame")
+    return [f"{frame}.{c}" for c in "xyz"]
+
+
+def choose_outputs(ds, outputs) -> OutputChoice | None:
+    """The quantities the output-space panel plots.
+
+    Args:
+        ds: the map.
+        outputs: None for the default (one output: it against the first
+            coordinate; two or more: the first two), else one or two names
+            of the map's outputs (the ``output`` coordinate of ``y``) or
+            ``FRAME.x|y|z`` for the world position of the first output's
+            frame.
+
+    Returns:
+        The choice, or None when the map has neither outputs nor frame
+        positions (and none were asked for).
+
+    Raises:
+        InputError: an unknown name (the message lists the available ones),
+            none or more than two names, a name twice.
+    """
+    outs, frames = _output_names(ds), _frame_names(ds)
+    if outputs is None:
+        if len(outs) >= 2:
+            note = f"first 2 of {len(outs)} outputs" if len(outs) > 2 else ""
+            return OutputChoice(tuple(outs[:2]), note)
+        if outs:
+            return OutputChoice((outs[0],))
+        return OutputChoice(tuple(frames[:2])) if frames else None
+    names = [outputs] if isinstance(outputs, str) else [str(n) for n in outputs]
+    available = f"its outputs: {', '.join(outs) or 'none'}"
+    if frames:
+        available += f" (or the output frame's world position: {', '.join(frames)})"
+    if not 1 <= len(names) <= 2:
+        raise InputError(
+            f"outputs takes one or two names (one is plotted against the first map "
+            f"coordinate), got {len(names)}; {available}"
+        )
+    if len(set(names)) != len(names):
+        raise InputError(f"outputs names {names[0]!r} twice; give two different names")
+    for name in names:
+        if name not in outs and name not in frames:
+            raise InputError(f"{name!r} is not an output of this map; {available}")
+    return OutputChoice(tuple(names))
+
+
+def _values(ds, name: str, pose_dims: tuple) -> tuple[np.ndarray, str]:
+    """Values (flattened over the poses in the order of ``pose_dims``) and
+    axis label of an output or a frame coordinate."""
+    if name in _output_names(ds):
+        values = ds["y"].sel(output=name).transpose(*pose_dims).values
+        units = ds["y"].attrs.get("units")
+        label = f"output {name}" + (f" [{units}]" if units else "")
+    else:
+        frame, _, component = name.rpartition(".")
+        values = ds["output_frame_position"].sel(xyz=component).transpose(*pose_dims).values
+        units = ds["output_frame_position"].attrs.get("units", "m")
+        label = f"{component} of frame '{frame}' (world) [{units}]"
+    return np.asarray(values, dtype=float).reshape(-1), label
+
+
+def _describe(ds, name: str) -> str:
+    """``output tip_x`` or ``world x of frame 'tip'``."""
+    if name in _output_names(ds):
+        return f"output {name}"
+    frame, _, component = name.rpartition(".")
+    return f"world {component} of frame '{frame}'"
+
+
+def output_panel(ax, ds, variable: str, choice: OutputChoice, first_axis: str) -> None:
+    """Scatter every pose at the chosen outputs, coloured by ``variable``,
+    rarer verdicts on top; the legend goes below the axes."""
+    verdict = ds[variable]
+    codes = np.asarray(verdict.values).reshape(-1)
+    y_values, y_label = _values(ds, choice.names[-1], verdict.dims)
+    if len(choice.names) == 1:
+        x_values = ds[first_axis].broadcast_like(verdict).transpose(*verdict.dims).values
+        x_values = np.asarray(x_values, dtype=float).reshape(-1)
+        x_label = coordinate_label(ds, first_axis)
+        what = f"{_describe(ds, choice.names[0])} against {first_axis}"
+    else:
+        x_values, x_label = _values(ds, choice.names[0], verdict.dims)
+        outs = _output_names(ds)
+        if all(n in outs for n in choice.names):
+            what = f"outputs {choice.names[0]}, {choice.names[1]}"
+        elif not any(n in outs for n in choice.names):
+            frame = choice.names[0].rpartition(".")[0]
+            components = ", ".join(n.rpartition(".")[2] for n in choice.names)
+            what = f"world position ({components}) of frame '{frame}'"
+        else:
+            what = f"{_describe(ds, choice.names[0])} and {_describe(ds, choice.names[1])}"
+    if choice.note:
+        what += f" ({choice.note})"
+    size = max(1.0, min(30.0, 12000.0 / max(codes.size, 1)))
+    for c in DRAW_ORDER:
+        sel = codes == c
+        if sel.any():
+            ax.scatter(
+                x_values[sel],
+                y_values[sel],
+                s=size,
+                c=VERDICT_COLORS[int(c)],
+                linewidths=0,
+                label=VERDICT_LABELS[int(c)],
+                rasterized=True,
+                gid="outputs",
+            )
+    ax.set_xlabel(x_label)
+    ax.set_ylabel(y_label)
+    if len(choice.names) == 2:
+        ax.set_aspect("equal", adjustable="datalim")
+    ax.set_title(f"{what},\ncoloured by {verdict_title(variable)}", fontsize=10)
+    legend_below(ax, verdict_handles(codes), ncol=4)

@@ -1,0 +1,530 @@
+"""Paths of POC poses through a workspace map.
+
+Seed paper Lemma 1 / Remark 10: along a connected set of equilibria whose
+linearisations are all positive output controllable (POC), pull-only
+cables can drive the output from pose to pose. :func:`poc_path` finds such
+a path on a map: a chain of map poses with ``poc == YES``, each the
+neighbour of the next (the adjacency of :func:`cdpm.maps.regions.label_regions`:
+face-adjacent grid poses, wrapping around axes of angles that span a full
+turn, or samples within the neighbourhood radius), from the map pose
+nearest the start to the one nearest the goal.
+
+- shortest: fewest steps on a grid, least length (sum of the distances in
+  the sampled coordinates) on a sampled map (``scipy.sparse.csgraph``);
+- ``maximise_margin=True``: the path whose smallest margin (``reach_margin``,
+  else ``poc_margin``) is largest (the bottleneck), shortest among those.
+  The bottleneck is found by bisection over the edges' margins (an edge's
+  margin is the smaller of its two poses'): the largest threshold t for
+  which the edges with margin >= t still join start and goal (connected
+  components); then the shortest path on those edges.
+"""
+
+from __future__ import annotations
+
+import html
+import json
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from cdpm.errors import InputError
+from cdpm.maps.regions import (
+    as_dataset,
+    distinct,
+    grid_index,
+    map_layout,
+    nearest_index,
+    region_labels,
+    sample_edges,
+)
+from cdpm.verdicts import STATUS_LABELS, VERDICT_LABELS, YES
+
+__all__ = ["POCPath", "NotConnectedError", "poc_path", "MARGIN_VARIABLES"]
+
+#: margin variables a path reads, in order of preference
+MARGIN_VARIABLES = ("reach_margin", "poc_margin")
+
+#: waypoints printed in full; longer paths print the first and last halves
+PRINT_WAYPOINTS = 16
+
+
+class NotConnectedError(InputError):
+    """No path of POC poses joins the start and the goal.
+
+    Attributes:
+        start_region, goal_region: labels of the map poses nearest the start
+            and the goal (0: in no region).
+        start_pose, goal_pose: those map poses, {axis: value}.
+        start_size, goal_size: their regions' sizes [poses] (0 for none).
+    """
+
+    def __init__(self, message: str, start_region: int, goal_region: int, **info: Any):
+        super().__init__(message)
+        self.start_region, self.goal_region = int(start_region), int(goal_region)
+        self.start_pose = info.get("start_pose", {})
+        self.goal_pose = info.get("goal_pose", {})
+        self.start_size = int(info.get("start_size", 0))
+        self.goal_size = int(info.get("goal_size", 0))
+
+
+@dataclass(frozen=True)
+class POCPath:
+    """A path of POC map poses inside one region.
+
+    Attributes:
+        dims: the map's pose dimensions (axis names, or ``("sample",)``).
+        axes: the map's axes (coordinate names), the keys of ``coordinates``.
+        indices: dataset index of each waypoint, shape (k, len(dims)).
+        coordinates: axis -> values along the path (k,) [rad or m]; on a
+            closed full-turn axis the seam pose is shown at the end nearer
+            the previous waypoint.
+        natural: the robot's natural coordinates of each waypoint (k, nv):
+            the map's base pose with the axis values filled in.
+        natural_names: names of the columns of ``natural``.
+        region: the region label (``poc_region``).
+        region_size: poses in that region.
+        margins: margin at each waypoint (k,) (NaN when the map has none).
+        margin_variable: the map variable ``margins`` come from, or None.
+        length: the sum of the step lengths in axis units (angles across a
+            seam the short way).
+        maximise_margin: the path maximises its smallest margin.
+        units: axis -> unit (``"rad"``, ``"m"``).
+        seam_crossings: steps i (waypoint i to i+1) that cross the seam of an
+            axis that wraps (the coordinates jump there by about a turn).
+    """
+
+    dims: tuple[str, ...]
+    axes: tuple[str, ...]
+    indices: np.ndarray
+    coordinates: dict[str, np.ndarray]
+    natural: np.ndarray
+    natural_names: tuple[str, ...]
+    region: int
+    region_size: int
+    margins: np.ndarray
+    margin_variable: str | None
+    length: float
+    maximise_margin: bool = False
+    units: dict[str, str] = field(default_factory=dict)
+    seam_crossings: tuple[int, ...] = ()
+
+    @property
+    def n_waypoints(self) -> int:
+        """Number of waypoints k (start and goal included)."""
+        return int(self.indices.shape[0])
+
+    @property
+    def steps(self) -> int:
+        """Number of steps, k - 1."""
+        return self.n_waypoints - 1
+
+    @property
+    def min_margin(self) -> float:
+        """Smallest margin along the path (NaN without margins)."""
+        m = self.margins
+        return float(np.nanmin(m)) if np.any(np.isfinite(m)) else float("nan")
+
+    def as_dict(self) -> dict:
+        """JSON-serialisable content."""
+        return {
+            "region": self.region,
+            "region_size": self.region_size,
+            "waypoints": self.n_waypoints,
+            "steps": self.steps,
+            "length": self.length,
+            "maximise_margin": self.maximise_margin,
+            "margin_variable": self.margin_variable,
+            "min_margin": _json_float(self.min_margin),
+            "dims": list(self.dims),
+            "axes": list(self.axes),
+            "units": dict(self.units),
+            "indices": self.indices.tolist(),
+            "coordinates": {a: v.tolist() for a, v in self.coordinates.items()},
+            "natural_names": list(self.natural_names),
+            "natural": self.natural.tolist(),
+            "margins": [_json_float(x) for x in self.margins],
+            "seam_crossings": list(self.seam_crossings),
+        }
+
+    def _unit_text(self) -> str:
+        units = {self.units.get(a, "") for a in self.axes}
+        if len(units) == 1:
+            return next(iter(units)) or "axis units"
+        return "axis units: " + ", ".join(f"{a} {self.units.get(a, '?')}" for a in self.axes)
+
+    def __str__(self) -> str:
+        kind = "largest smallest margin" if self.maximise_margin else "shortest"
+        lines = [
+            f"POC path ({kind}) in region {self.region} ({self.region_size} poses): "
+            f"{self.n_waypoints} waypoints, {self.steps} steps, length {self.length:.4g} "
+            f"[{self._unit_text()}]"
+        ]
+        if self.margin_variable is not None and np.any(np.isfinite(self.margins)):
+            k = int(np.nanargmin(self.margins))
+            lines.append(
+                f"  smallest {self.margin_variable} along it: {self.min_margin:.4g} (waypoint {k})"
+            )
+        else:
+            lines.append("  no margins in this map")
+        if self.seam_crossings:
+            lines.append(
+                f"  crosses the seam of a full-turn axis after waypoint(s) "
+                f"{', '.join(map(str, self.seam_crossings))}"
+            )
+        head = "  waypoints:  #  " + " ".join(f"{a:>10}" for a in self.axes)
+        lines.append(head + ("  margin" if self.margin_variable else ""))
+        k = self.n_waypoints
+        show = list(range(k))
+        if k > PRINT_WAYPOINTS:
+            half = PRINT_WAYPOINTS // 2
+            show = list(range(half)) + [-1] + list(range(k - half, k))
+        for i in show:
+            if i < 0:
+                lines.append(f"{'':>14}... ({k - PRINT_WAYPOINTS} more)")
+                continue
+            row = " ".join(f"{self.coordinates[a][i]:>10.4g}" for a in self.axes)
+            margin = f"  {self.margins[i]:.4g}" if self.margin_variable else ""
+            lines.append(f"  {'':>10}{i:>3}  {row}{margin}")
+        return "\n".join(lines)
+
+    def _repr_html_(self) -> str:
+        return f"<pre>{html.escape(str(self))}</pre>"
+
+
+def _json_float(x: float):
+    return float(x) if math.isfinite(float(x)) else None
+
+
+# ------------------------------------------------------------------ graph
+
+
+def _margin_values(ds, dims: tuple[str, ...]) -> tuple[np.ndarray | None, str | None]:
+    """The map's margin over the pose dims (reach_margin, else poc_margin)."""
+    for name in MARGIN_VARIABLES:
+        if name in ds.data_vars and tuple(ds[name].dims) and set(ds[name].dims) == set(dims):
+            return np.asarray(ds[name].transpose(*dims).values, dtype=float), name
+    return None, None
+
+
+def _grid_graph(layout, index, yes: np.ndarray):
+    """Edges (2, E) between face-adjacent YES poses of the distinct grid
+    (flat C-order ids), wrap edges included, and their lengths (E,)."""
+    shape = index.shape
+    ids = np.arange(int(np.prod(shape))).reshape(shape)
+    flat_yes = yes.reshape(-1)
+    edges, lengths = [], []
+    for axis, m in enumerate(shape):
+        vals = layout.values[axis][index.order[axis]]
+        if m >= 2:
+            a = np.take(ids, np.arange(m - 1), axis=axis)
+            b = np.take(ids, np.arange(1, m), axis=axis)
+            step = np.diff(vals).reshape([-1 if k == axis else 1 for k in range(len(shape))])
+            edges.append(np.stack([a.reshape(-1), b.reshape(-1)]))
+            lengths.append(np.broadcast_to(step, a.shape).reshape(-1))
+        if index.ring[axis] and m >= 3:
+            a = np.take(ids, m - 1, axis=axis).reshape(-1)
+            b = np.take(ids, 0, axis=axis).reshape(-1)
+            edges.append(np.stack([a, b]))
+            lengths.append(np.full(a.size, 2 * math.pi - (vals[-1] - vals[0])))
+    if not edges:
+        return np.zeros((2, 0), dtype=np.intp), np.zeros(0)
+    e = np.concatenate(edges, axis=1)
+    length = np.concatenate(lengths)
+    keep = flat_yes[e[0]] & flat_yes[e[1]]
+    return e[:, keep], length[keep]
+
+
+def _csgraph(n: int, edges: np.ndarray, weights: np.ndarray):
+    from scipy.sparse import csr_matrix
+
+    # csgraph drops zero weights: duplicate samples keep a tiny positive one
+    w = np.maximum(weights, 1e-300)
+    return csr_matrix((w, (edges[0], edges[1])), shape=(n, n))
+
+
+def _connected(n: int, edges: np.ndarray, s: int, g: int) -> bool:
+    from scipy.sparse.csgraph import connected_components
+
+    if s == g:
+        return True
+    graph = _csgraph(n, edges, np.ones(edges.shape[1]))
+    _, comp = connected_components(graph, directed=False)
+    return bool(comp[s] == comp[g])
+
+
+def _bottleneck(n: int, edges: np.ndarray, node_margin: np.ndarray, s: int, g: int) -> float:
+    """The largest t such that the edges whose smaller end margin is >= t
+    join s and g (bisection over the distinct edge margins)."""
+    w = np.minimum(node_margin[edges[0]], node_margin[edges[1]])
+    levels = np.unique(w)
+    lo, hi = 0, levels.size - 1  # levels[lo] joins them (all edges)
+    while lo < hi:
+        mid = (lo + hi + 1) // 2
+        if _connected(n, edges[:, w >= levels[mid]], s, g):
+            lo = mid
+        else:
+            hi = mid - 1
+    return float(levels[lo])
+
+
+def _route(n: int, edges: np.ndarray, lengths: np.ndarray, s: int, g: int, unweighted: bool):
+    """Node ids of a shortest path s -> g, or None."""
+    from scipy.sparse.csgraph import dijkstra
+
+    if s == g:
+        return [s]
+    graph = _csgraph(n, edges, lengths)
+    _, pred = dijkstra(
+        graph, directed=False, indices=s, return_predecessors=True, unweighted=unweighted
+    )
+    if pred[g] < 0:
+        return None
+    path = [g]
+    while path[-1] != s:
+        path.append(int(pred[path[-1]]))
+    return path[::-1]
+
+
+# ------------------------------------------------------------------ public
+
+
+def poc_path(map: Any, start: Any, goal: Any, *, maximise_margin: bool = False) -> POCPath:
+    """A path of POC map poses from the start to the goal, inside one region.
+
+    Args:
+        map: a map (``xarray.Dataset``) or the path of its store.
+        start, goal: poses as for :func:`cdpm.maps.regions.region_of`:
+            ``{coordinate: value}``, values in the map's axis order, or the
+            robot's natural coordinates; each is moved to its nearest map pose.
+        maximise_margin: maximise the smallest margin (``reach_margin``, else
+            ``poc_margin``) along the path, then take the shortest such path;
+            default: the shortest path (fewest steps on a grid, least length
+            on a sampled map).
+
+    Returns:
+        :class:`POCPath`.
+
+    Raises:
+        NotConnectedError: the start or goal is in no region, or they are in
+            different regions (the message names both, with their sizes).
+        InputError: a pose off the map or of the wrong length; a map
+            without margins with ``maximise_margin``.
+    """
+    ds = as_dataset(map)
+    layout = map_layout(ds)
+    labels_da = region_labels(ds)
+    labels = np.asarray(labels_da.transpose(*layout.dims).values)
+    radius = labels_da.attrs.get("radius") if layout.mode == "sample" else None
+    if layout.mode == "sample" and radius is None:
+        from cdpm.maps.regions import default_radius
+
+        radius = default_radius(layout)
+    s_idx = nearest_index(ds, layout, start, radius)
+    g_idx = nearest_index(ds, layout, goal, radius)
+    s_label, g_label = int(labels[s_idx]), int(labels[g_idx])
+    if s_label == 0 or g_label == 0 or s_label != g_label:
+        raise _not_connected(ds, layout, labels, s_idx, g_idx)
+    poc = np.asarray(ds["poc"].transpose(*layout.dims).values)
+    margin, margin_name = _margin_values(ds, layout.dims)
+    if layout.mode == "grid":
+        index = grid_index(layout)
+        yes = distinct(poc == YES, layout, index)
+        edges, lengths = _grid_graph(layout, index, yes)
+        n = yes.size
+        s, g = (_distinct_id(index, yes.shape, i) for i in (s_idx, g_idx))
+        node_margin = None if margin is None else distinct(margin, layout, index).reshape(-1)
+    else:
+        yes = poc == YES
+        edges, lengths = sample_edges(layout, yes, float(radius))
+        n, s, g = yes.size, int(s_idx[0]), int(g_idx[0])
+        node_margin = margin
+    unweighted = layout.mode == "grid"
+    if maximise_margin:
+        if node_margin is None or not np.any(np.isfinite(node_margin[yes.reshape(-1)])):
+            raise InputError(
+                "this map has no margins (no reach_margin, or poc_margin all NaN: made with "
+                "margin=False / --no-margin); make the map with margins to maximise the margin, "
+                "or ask for the shortest path"
+            )
+        node_margin = np.where(np.isfinite(node_margin), node_margin, -np.inf)
+        if s != g:
+            t = _bottleneck(n, edges, node_margin, s, g)
+            keep = np.minimum(node_margin[edges[0]], node_margin[edges[1]]) >= t
+            edges, lengths = edges[:, keep], lengths[keep]
+    route = _route(n, edges, lengths, s, g, unweighted)
+    if route is None:  # stored labels that disagree with the map's adjacency
+        raise _not_connected(ds, layout, labels, s_idx, g_idx, joined=False)
+    if layout.mode == "grid":
+        indices, seams = _grid_indices(layout, index, route, s_idx, g_idx)
+    else:
+        indices = np.array(route, dtype=np.intp).reshape(-1, 1)
+        seams = _seams(layout, [v[indices[:, 0]] for v in layout.values])
+    return _make_path(
+        ds, layout, indices, seams, s_label, labels, margin, margin_name, maximise_margin
+    )
+
+
+def _distinct_id(index, shape: tuple[int, ...], dataset_index: tuple) -> int:
+    """Flat id on the distinct grid of a dataset index."""
+    pos = tuple(int(p[i]) for p, i in zip(index.position, dataset_index, strict=True))
+    return int(np.ravel_multi_index(pos, shape))
+
+
+def _grid_indices(layout, index, route, s_idx, g_idx):
+    """Dataset indices (k, d) of a route on the distinct grid, and the steps
+    crossing a seam; a closed axis's seam pose takes the copy at the end the
+    path comes from (the start's and the goal's as they were given)."""
+    pos = np.array(np.unravel_index(np.array(route), index.shape)).T  # (k, d)
+    k, d = pos.shape
+    out = np.empty((k, d), dtype=np.intp)
+    for axis in range(d):
+        order = index.order[axis]
+        m = order.size
+        out[:, axis] = order[pos[:, axis]]
+        if layout.wrap[axis] != "closed":
+            continue
+        last = int(np.argsort(layout.values[axis], kind="stable")[-1])
+        at_end = int(s_idx[axis]) == last
+        for i in range(k):
+            p = int(pos[i, axis])
+            if i > 0 and p == 0:
+                prev = int(pos[i - 1, axis])
+                if prev != 0:
+                    at_end = prev > m // 2
+            if p == 0:
+                out[i, axis] = last if at_end else order[0]
+        if pos[-1, axis] == 0:
+            out[-1, axis] = g_idx[axis]
+    return out, _seams(layout, [v[out[:, a]] for a, v in enumerate(layout.values)])
+
+
+def _seams(layout, shown: list[np.ndarray]) -> tuple[int, ...]:
+    """Steps i (waypoint i to i + 1) whose shown value of an axis that wraps
+    changes by more than half a turn: the step crosses the seam."""
+    seams: set[int] = set()
+    for values, w in zip(shown, layout.wrap, strict=True):
+        if w:
+            seams.update(int(j) for j in np.flatnonzero(np.abs(np.diff(values)) > math.pi))
+    return tuple(sorted(seams))
+
+
+def _make_path(ds, layout, indices, seams, label, labels, margin, margin_name, maximise):
+    from cdpm.maps.regions import sample_distance
+
+    k = indices.shape[0]
+    tup = tuple(indices.T)
+    if layout.mode == "grid":
+        coords = {
+            a: layout.values[i][indices[:, i]].astype(float) for i, a in enumerate(layout.axes)
+        }
+    else:
+        coords = {
+            a: v[indices[:, 0]].astype(float)
+            for a, v in zip(layout.axes, layout.values, strict=True)
+        }
+    points = np.stack([coords[a] for a in layout.axes], axis=1)
+    length = 0.0
+    for i in range(k - 1):
+        length += float(sample_distance(layout, points[i], points[i + 1]))
+    names = tuple(ds.attrs.get("robot_coordinates", []) or [])
+    base = list(ds.attrs.get("base", []) or [])
+    if names and len(base) == len(names):
+        natural = np.tile(np.asarray(base, dtype=float), (k, 1))
+        for a in layout.axes:
+            natural[:, names.index(a)] = coords[a]
+    else:
+        names, natural = tuple(layout.axes), points.copy()
+    margins = np.full(k, np.nan) if margin is None else margin[tup].astype(float)
+    return POCPath(
+        dims=tuple(layout.dims),
+        axes=tuple(layout.axes),
+        indices=indices,
+        coordinates=coords,
+        natural=natural,
+        natural_names=tuple(names),
+        region=int(label),
+        region_size=int(np.count_nonzero(labels == label)) - _seam_copies(layout, labels, label),
+        margins=margins,
+        margin_variable=margin_name,
+        length=length,
+        maximise_margin=bool(maximise),
+        units=dict(zip(layout.axes, layout.units, strict=True)),
+        seam_crossings=seams,
+    )
+
+
+def _seam_copies(layout, labels: np.ndarray, label: int) -> int:
+    """Poses of the region counted twice (a closed axis's last value)."""
+    if layout.mode != "grid":
+        return 0
+    mask = labels == label
+    count = 0
+    for k, w in enumerate(layout.wrap):
+        if w == "closed":
+            last = int(np.argsort(layout.values[k], kind="stable")[-1])
+            idx = [slice(None)] * mask.ndim
+            idx[k] = last
+            count += int(np.count_nonzero(mask[tuple(idx)]))
+            mask = mask.copy()
+            mask[tuple(idx)] = False
+    return count
+
+
+def map_pose(layout, index: tuple) -> dict[str, float]:
+    """{axis: value} of the map pose at a dataset index."""
+    if layout.mode == "sample":
+        return {a: float(v[index[0]]) for a, v in zip(layout.axes, layout.values, strict=True)}
+    return {a: float(v[i]) for a, v, i in zip(layout.axes, layout.values, index, strict=True)}
+
+
+def _describe(ds, layout, labels, index, role: str) -> tuple[str, int, dict]:
+    pose = map_pose(layout, index)
+    where = ", ".join(f"{a}={v:.4g}" for a, v in pose.items())
+    label = int(labels[index])
+    size = 0
+    if label > 0:
+        size = int(np.count_nonzero(labels == label)) - _seam_copies(layout, labels, label)
+        return f"{role} ({where}) is in POC region {label} ({size} poses)", size, pose
+    code = int(np.asarray(ds["poc"].transpose(*layout.dims).values)[index])
+    verdict = VERDICT_LABELS.get(code, "not analysed").upper()
+    if code == YES:
+        reason = (
+            "its verdict there is YES, but the same pose at the other end of a full-turn "
+            "axis is not"
+        )
+    else:
+        reason = f"its verdict there is {verdict}"
+        if "status" in ds.data_vars and code != 0 and code != 2:
+            status = int(np.asarray(ds["status"].transpose(*layout.dims).values)[index])
+            reason += f" ({STATUS_LABELS.get(status, 'unknown status')})"
+    return f"{role} ({where}) is in no POC region: {reason}", size, pose
+
+
+def _not_connected(ds, layout, labels, s_idx, g_idx, joined: bool = True) -> NotConnectedError:
+    start, s_size, s_pose = _describe(ds, layout, labels, s_idx, "start")
+    goal, g_size, g_pose = _describe(ds, layout, labels, g_idx, "goal")
+    s_label, g_label = int(labels[s_idx]), int(labels[g_idx])
+    if s_label > 0 and g_label > 0:
+        if s_label != g_label:
+            goal = goal.replace("is in POC region", "is in region")
+        message = f"{start}; {goal}: no path of POC poses joins them"
+        if s_label == g_label and not joined:
+            message += " (the map's stored poc_region is stale: attach_regions(ds, store) again)"
+    else:
+        message = f"{start}; {goal}"
+    return NotConnectedError(
+        message,
+        s_label,
+        g_label,
+        start_pose=s_pose,
+        goal_pose=g_pose,
+        start_size=s_size,
+        goal_size=g_size,
+    )
+
+
+def path_json(path: POCPath) -> str:
+    """The path as indented JSON."""
+    return json.dumps(path.as_dict(), indent=2)

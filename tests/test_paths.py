@@ -1,0 +1,353 @@
+"""Paths of POC poses through maps (cdpm.poc_path) and `cdpm path`."""
+
+from __future__ import annotations
+
+import heapq
+import inspect
+import json
+import math
+import socket
+from collections import deque
+
+import numpy as np
+import pytest
+import xarray as xr
+
+import cdpm
+from cdpm import plotting
+from cdpm.cli import main
+from cdpm.errors import InputError
+from cdpm.maps.regions import attach_regions, label_regions
+from cdpm.paths import NotConnectedError, POCPath, poc_path
+from cdpm.verdicts import NO, YES
+from tests.conftest import MODELS, PAPER_SPEC
+
+VERTICAL_SPEC = MODELS / "two_link_vertical" / "two_link_vertical.yaml"
+TWO_CABLES_SPEC = MODELS / "two_link_two_cables" / "two_link_two_cables.yaml"
+N = 31
+TURN = np.linspace(-math.pi, math.pi, N)  # closed: -pi and +pi are one pose
+NOMINAL = [math.pi / 6, math.pi / 3]
+
+
+@pytest.fixture(scope="module")
+def stores(tmp_path_factory):
+    """31 x 31 full-turn maps of three models, written to zarr stores."""
+    folder = tmp_path_factory.mktemp("path_maps")
+    out = {}
+    for name, spec in (
+        ("paper", PAPER_SPEC),
+        ("vertical", VERTICAL_SPEC),
+        ("two_cables", TWO_CABLES_SPEC),
+    ):
+        store = folder / f"{name}.zarr"
+        cdpm.workspace_map(spec, {"q1": TURN, "q2": TURN}, workers=1, store=store)
+        out[name] = store
+    return out
+
+
+@pytest.fixture(scope="module")
+def paper(stores):
+    return attach_regions(cdpm.open_map(stores["paper"]))
+
+
+@pytest.fixture(scope="module")
+def two_cables(stores):
+    return cdpm.open_map(stores["two_cables"])  # no poc_region: labelled on the fly
+
+
+# -------------------------------------------------------------- references
+
+
+def _neighbours(i: int, j: int, m: int = N - 1):
+    """Face neighbours of distinct pose (i, j) on the m x m torus."""
+    return [((i + 1) % m, j), ((i - 1) % m, j), (i, (j + 1) % m), (i, (j - 1) % m)]
+
+
+def _distinct_yes(ds) -> np.ndarray:
+    poc = ds.poc.transpose("q1", "q2").values == YES
+    yes = poc[:-1, :-1].copy()
+    yes[0, :] &= poc[-1, :-1]
+    yes[:, 0] &= poc[:-1, -1]
+    yes[0, 0] &= poc[-1, -1]
+    return yes
+
+
+def _bfs_steps(yes: np.ndarray, start, goal) -> int:
+    seen, queue = {start: 0}, deque([start])
+    while queue:
+        p = queue.popleft()
+        if p == goal:
+            return seen[p]
+        for q in _neighbours(*p):
+            if yes[q] and q not in seen:
+                seen[q] = seen[p] + 1
+                queue.append(q)
+    raise AssertionError("goal not reached")
+
+
+def _widest_bottleneck(yes, margin, start, goal) -> float:
+    """Largest smallest margin over paths start -> goal (a widest-path
+    Dijkstra with a max-heap)."""
+    best = {start: margin[start]}
+    heap = [(-margin[start], start)]
+    while heap:
+        neg, p = heapq.heappop(heap)
+        if p == goal:
+            return -neg
+        for q in _neighbours(*p):
+            if yes[q]:
+                width = min(-neg, margin[q])
+                if width > best.get(q, -np.inf):
+                    best[q] = width
+                    heapq.heappush(heap, (-width, q))
+    raise AssertionError("goal not reached")
+
+
+def _distinct_margin(ds, name) -> np.ndarray:
+    m = ds[name].transpose("q1", "q2").values
+    out = m[:-1, :-1].copy()
+    out[0, :] = np.minimum(out[0, :], m[-1, :-1])
+    out[:, 0] = np.minimum(out[:, 0], m[:-1, -1])
+    out[0, 0] = min(out[0, 0], m[-1, -1])
+    return out
+
+
+def _check_walk(ds, path: POCPath) -> None:
+    """Consecutive waypoints are face neighbours on the torus, every one YES
+    and in the path's region; coordinates and natural agree with the map."""
+    labels = ds.poc_region if "poc_region" in ds else label_regions(ds)
+    pos = path.indices % (N - 1)
+    for a, b in zip(pos[:-1], pos[1:], strict=True):
+        assert (int(b[0]), int(b[1])) in _neighbours(int(a[0]), int(a[1]))
+    poc = ds.poc.transpose("q1", "q2").values
+    lab = labels.transpose("q1", "q2").values
+    for i, j in path.indices:
+        assert poc[i, j] == YES and lab[i, j] == path.region
+    np.testing.assert_array_equal(path.coordinates["q1"], TURN[path.indices[:, 0]])
+    np.testing.assert_array_equal(path.natural[:, 1], TURN[path.indices[:, 1]])
+    assert path.natural_names == ("q1", "q2")
+    assert path.length == pytest.approx(path.steps * 2 * math.pi / (N - 1))
+
+
+# -------------------------------------------------------------------- paths
+
+
+def test_shortest_path_is_a_shortest_walk_of_poc_poses(paper):
+    path = poc_path(paper, NOMINAL, [2.5, -2.0])
+    assert isinstance(path, POCPath) and path.region == 1
+    _check_walk(paper, path)
+    assert path.dims == ("q1", "q2") and path.indices.shape == (path.n_waypoints, 2)
+    start = tuple(int(x) for x in path.indices[0] % (N - 1))
+    goal = tuple(int(x) for x in path.indices[-1] % (N - 1))
+    assert path.steps == _bfs_steps(_distinct_yes(paper), start, goal)
+    assert path.margin_variable in ("reach_margin", "poc_margin")
+    assert path.min_margin == pytest.approx(np.min(path.margins)) and path.min_margin > 0
+    assert "POC path (shortest) in region 1" in str(path)
+
+
+def test_maximin_path_keeps_the_largest_smallest_margin(paper):
+    start, goal = NOMINAL, [-2.0, -1.5]
+    shortest = poc_path(paper, start, goal)
+    widest = poc_path(paper, start, goal, maximise_margin=True)
+    _check_walk(paper, widest)
+    assert widest.maximise_margin and widest.min_margin >= shortest.min_margin
+    margin = _distinct_margin(paper, widest.margin_variable)
+    s = tuple(int(x) for x in widest.indices[0] % (N - 1))
+    g = tuple(int(x) for x in widest.indices[-1] % (N - 1))
+    assert widest.min_margin == pytest.approx(
+        _widest_bottleneck(_distinct_yes(paper), margin, s, g), rel=1e-12
+    )
+    assert widest.steps >= shortest.steps
+
+
+def test_a_path_across_the_seam_takes_the_short_way(paper):
+    path = poc_path(paper, [2.9, 0.5], [-2.9, 0.5])
+    assert path.steps <= 3  # across +-pi, not 28 steps the long way round
+    assert path.seam_crossings
+    k = path.seam_crossings[0]
+    assert abs(path.coordinates["q1"][k + 1] - path.coordinates["q1"][k]) > math.pi
+    # the seam pose is shown at the end the path comes from
+    onto_seam = poc_path(paper, [2.9, 0.5], [math.pi, 0.5])
+    assert onto_seam.coordinates["q1"].tolist() == pytest.approx([TURN[-2], TURN[-1]])
+    assert not onto_seam.seam_crossings
+
+
+def test_same_start_and_goal_is_a_path_of_one_pose(paper):
+    path = poc_path(paper, [0.6, 1.0], [0.62, 1.03])  # both nearest (0.628, 1.047)
+    assert path.n_waypoints == 1 and path.steps == 0 and path.length == 0
+
+
+def test_not_connected_names_both_regions(two_cables):
+    labels = label_regions(two_cables)
+    regions = json.loads(labels.attrs["regions"])
+    lab = labels.values
+    poses = []
+    for label in (1, 2):
+        i, j = np.argwhere(lab == label)[0]
+        poses.append([float(TURN[i]), float(TURN[j])])
+    with pytest.raises(NotConnectedError) as info:
+        poc_path(two_cables, poses[0], poses[1])
+    err = info.value
+    assert isinstance(err, InputError)
+    assert (err.start_region, err.goal_region) == (1, 2)
+    sizes = (regions[0]["size"], regions[1]["size"])
+    assert (err.start_size, err.goal_size) == sizes
+    assert str(err) == (
+        f"start (q1={poses[0][0]:.4g}, q2={poses[0][1]:.4g}) is in POC region 1 "
+        f"({sizes[0]} poses); goal (q1={poses[1][0]:.4g}, q2={poses[1][1]:.4g}) is in "
+        f"region 2 ({sizes[1]} poses): no path of POC poses joins them"
+    )
+    # the paper's pose is NO on this model
+    with pytest.raises(NotConnectedError, match=r"is in no POC region: its verdict there is NO"):
+        poc_path(two_cables, NOMINAL, poses[1])
+
+
+def test_not_connected_on_a_hand_made_map():
+    poc = np.full((6, 7), NO, dtype=np.int8)
+    poc[:, :2] = YES
+    poc[:, 4:] = YES
+    q1, q2 = np.linspace(0.0, 1.0, 6), np.linspace(0.0, 0.6, 7)
+    ds = xr.Dataset(
+        {"poc": (("q1", "q2"), poc)},
+        coords={"q1": ("q1", q1, {"units": "m"}), "q2": ("q2", q2, {"units": "m"})},
+    )
+    with pytest.raises(NotConnectedError, match=r"region 2 \(12 poses\).*region 1 \(18 poses\)"):
+        poc_path(ds, [0.0, 0.0], [1.0, 0.6])
+    path = poc_path(ds, [0.0, 0.0], [1.0, 0.1])
+    assert path.steps == 6 and np.isnan(path.min_margin) and path.margin_variable is None
+    with pytest.raises(InputError, match="no margins"):
+        poc_path(ds, [0.0, 0.0], [1.0, 0.1], maximise_margin=True)
+    with pytest.raises(InputError, match="off the map"):
+        poc_path(ds, [0.0, 0.0], [1.2, 0.1])
+
+
+def test_sampled_path_steps_within_the_radius():
+    ds = cdpm.workspace_map(
+        PAPER_SPEC,
+        {"q1": (-math.pi, math.pi), "q2": (-math.pi, math.pi)},
+        samples=600,
+        seed=2,
+        workers=1,
+    )
+    labels = label_regions(ds)
+    path = poc_path(ds, NOMINAL, [2.5, -2.0])
+    assert path.dims == ("sample",) and path.indices.shape[1] == 1
+    x = np.stack([path.coordinates["q1"], path.coordinates["q2"]], axis=1)
+    step = np.abs(np.diff(x, axis=0))
+    step = np.minimum(step, 2 * math.pi - step)
+    lengths = np.sqrt((step**2).sum(axis=1))
+    assert np.all(lengths <= labels.attrs["radius"] * (1 + 1e-12))
+    assert path.length == pytest.approx(lengths.sum())
+    samples = path.indices[:, 0]
+    assert np.all(ds.poc.values[samples] == YES)
+    assert np.all(labels.values[samples] == path.region)
+    widest = poc_path(ds, NOMINAL, [2.5, -2.0], maximise_margin=True)
+    assert widest.min_margin >= path.min_margin
+
+
+def test_path_as_dict_is_json(paper):
+    data = json.loads(json.dumps(poc_path(paper, NOMINAL, [1.0, 0.5]).as_dict()))
+    assert data["region"] == 1 and data["waypoints"] == len(data["coordinates"]["q1"])
+
+
+# --------------------------------------------------------------------- CLI
+
+
+def test_path_help(capsys):
+    with pytest.raises(SystemExit) as info:
+        main(["path", "--help"])
+    assert info.value.code == 0
+    out = capsys.readouterr().out
+    assert "--from V [V ...]" in out and "--maximin" in out and "--steer" in out
+    assert "exit codes: 0 a path was found; 3 the start and goal are not joined" in out
+
+
+def test_path_command_prints_the_path(stores, capsys):
+    assert main(["path", str(stores["paper"]), "--from", "nominal", "--to", "2.5", "-2"]) == 0
+    out = capsys.readouterr().out
+    assert "axes q1, q2" in out and "POC path (shortest) in region 1" in out
+    assert "waypoints" in out and "smallest" in out
+    args = ["path", str(stores["paper"]), "--from", "1/2", "1", "--to", "2.5", "-2"]
+    assert main([*args, "--maximin", "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert data["connected"] and data["maximise_margin"] and data["region"] == 1
+    assert data["coordinates"]["q1"][0] == pytest.approx(TURN[17])  # 0.419, nearest 0.5
+    assert data["coordinates"]["q2"][-1] == pytest.approx(TURN[5])  # -2.094, nearest -2
+
+
+def test_path_command_not_connected(stores, capsys):
+    store = str(stores["two_cables"])
+    assert main(["path", store, "--from", "nominal", "--to", "0", "-1"]) == 3
+    out, err = capsys.readouterr()
+    assert err.startswith("cdpm path: not connected: start (q1=")
+    assert "is in no POC region: its verdict there is NO; goal (q1=0, q2=-1.047)" in err
+    assert "Traceback" not in err and out == ""
+    assert main(["path", store, "--from", "nominal", "--to", "0", "-1", "--json"]) == 3
+    data = json.loads(capsys.readouterr().out)
+    assert data["connected"] is False and data["start_region"] == 0
+
+
+def test_path_command_bad_input(stores, tmp_path, capsys):
+    store = str(stores["paper"])
+    cases = [
+        (["path", str(tmp_path / "none.zarr"), "--from", "0", "0", "--to", "1", "1"], "not found"),
+        (["path", store, "--from", "1", "2", "3", "--to", "0", "0"], "--from 1 2 3: pose has 3"),
+        (["path", store, "--from", "home", "--to", "0", "0"], "pose 'home' not in spec"),
+        (["path", store, "--from", "0", "0", "--to", "x", "y"], "--to x y: give numbers"),
+        (["path", store, "--from", "0", "0", "--to", "1", "1", "--seconds", "1"], "--view"),
+        (["path", store, "--from", "0", "0", "--to", "1", "1", "--legs", "2"], "--steer"),
+    ]
+    for argv, message in cases:
+        assert main(argv) == 1, argv
+        err = capsys.readouterr().err
+        assert message in err and "Traceback" not in err
+
+
+def test_path_command_off_the_map(tmp_path, capsys):
+    store = tmp_path / "slice.zarr"
+    cdpm.workspace_map(PAPER_SPEC, {"q1": np.linspace(0.0, 1.0, 5)}, workers=1, store=store)
+    assert main(["path", str(store), "--from", "0.5", "--to", "1.5"]) == 1
+    assert "--to 1.5: pose q1 = 1.5 is off the map" in capsys.readouterr().err
+
+
+def test_path_command_steers_the_gravity_arm(stores, capsys):
+    store = str(stores["vertical"])
+    argv = ["path", store, "--from", "0.2", "0.8", "--to", "0.2", "1.25", "--steer", "--legs", "2"]
+    assert main([*argv, "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert data["steps"] == 2 and len(data["steering"]) == 2
+    for leg in data["steering"]:
+        assert math.isfinite(leg["miss"]) and leg["miss"] < 0.1 * leg["distance"]
+        assert leg["distance"] > 0.1  # a grid step moves the tip by about 0.2 m
+    assert main(argv) == 0
+    out = capsys.readouterr().out
+    assert "steering the nonlinear robot along 2 leg(s)" in out and "miss [m]" in out
+
+
+@pytest.mark.skipif(
+    "path" not in inspect.signature(plotting.plot_map).parameters,
+    reason="cdpm.plotting.save_map_plot has no path= overlay yet",
+)
+def test_path_command_plots_the_path(stores, tmp_path, capsys):
+    pytest.importorskip("matplotlib")
+    image = tmp_path / "path.png"
+    argv = ["path", str(stores["paper"]), "--from", "nominal", "--to", "-1.5", "0.8", "--plot"]
+    assert main([*argv, str(image)]) == 0
+    assert f"plot written to {image}" in capsys.readouterr().out
+    assert image.stat().st_size > 10_000
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def test_path_command_views_the_path_for_seconds(stores, capsys):
+    pytest.importorskip("meshcat")
+    port = _free_port()
+    argv = ["path", str(stores["paper"]), "--from", "nominal", "--to", "1", "0.5", "--view"]
+    assert main([*argv, "--port", str(port), "--seconds", "0.5"]) == 0
+    out, err = capsys.readouterr()
+    assert f"viewer: http://127.0.0.1:{port}/static/  (playing the path" in out
+    assert "viewer stopped after " in err
