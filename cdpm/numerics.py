@@ -117,7 +117,7 @@ REACH_BLOCK_ELEMENTS = 4_000_000
 #: its generators' lengths comes from dependent generators and is skipped
 ZONOTOPE_NORMAL_RTOL = 1e-12
 #: reach margin: a zonotope inradius below this times the sum of its
-#: generators' lengths is round-off, reported as 0
+#: generators' lengths, or times the robot's size, is round-off, reported as 0
 REACH_ZERO_RTOL = 1e-12
 #: default tension budget: the least characteristic acceleration [m/s^2]
 #: (the budget accelerates the robot's mass by max(|g|, this))

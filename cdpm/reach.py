@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from cdpm.errors import InputError
-from cdpm.numerics import REACH_MIN_ACCELERATION, REACH_SIZE_FRACTION
+from cdpm.numerics import REACH_MIN_ACCELERATION, REACH_SIZE_FRACTION, REACH_ZERO_RTOL
 
 if TYPE_CHECKING:  # pragma: no cover
     from cdpm.linearisation import Linearisation, LinearisationBatch
@@ -107,14 +107,14 @@ def reach_settings(
     if tension_budget is not None:
         F = _positive("the tension budget", tension_budget, "N", "--tension-budget")
     if T is None or F is None:
-        T0, F0 = _model_scales(robot)
+        T0, F0, _ = _model_scales(robot)
         T = T0 if T is None else T
         F = F0 if F is None else F
     return ReachSettings(float(T), float(F), horizon is None, tension_budget is None)
 
 
-def _model_scales(robot: CableRobot) -> tuple[float, float]:
-    """(default horizon [s], default budget [N]) of the robot."""
+def _model_scales(robot: CableRobot) -> tuple[float, float, float]:
+    """(default horizon [s], default budget [N], size l [m]) of the robot."""
     cached = getattr(robot, "_reach_scales", None)
     if cached is not None:
         return cached
@@ -130,7 +130,7 @@ def _model_scales(robot: CableRobot) -> tuple[float, float]:
     if not (size > 0 and math.isfinite(size)):
         size = 1.0
     budget = mass * a if mass > 0 else 1.0
-    scales = (_round3(math.sqrt(2 * REACH_SIZE_FRACTION * size / a)), _round3(budget))
+    scales = (_round3(math.sqrt(2 * REACH_SIZE_FRACTION * size / a)), _round3(budget), size)
     robot._reach_scales = scales
     return scales
 
@@ -177,6 +177,9 @@ def reach_margins_at(
             direction that no input ever reaches, so r_T = 0 there exactly
             (the quadrature would leave round-off).
 
+    Values below REACH_ZERO_RTOL times the robot's size are round-off (e.g.
+    a folded arm whose output Jacobian is round-off) and read 0.
+
     Returns:
         :class:`cdpm.analysis.reach.ReachMargins` (value [output units],
         error estimate, intervals), each (N,).
@@ -189,6 +192,7 @@ def reach_margins_at(
         A, B, C, f = A[None], B[None], C[None], f[None]
     lower, upper = reach_bounds(robot, f, settings.tension_budget)
     r = reach_margins(A, B, C, lower, upper, settings.horizon)
-    if verdict_no is None:
-        return r
-    return ReachMargins(np.where(verdict_no, 0.0, r.value), r.error, r.intervals)
+    zero = r.value < REACH_ZERO_RTOL * _model_scales(robot)[2]
+    if verdict_no is not None:
+        zero |= np.asarray(verdict_no, dtype=bool)
+    return ReachMargins(np.where(zero, 0.0, r.value), r.error, r.intervals)
