@@ -117,8 +117,12 @@ REACH_BLOCK_ELEMENTS = 4_000_000
 #: its generators' lengths comes from dependent generators and is skipped
 ZONOTOPE_NORMAL_RTOL = 1e-12
 #: reach margin: a zonotope inradius below this times the sum of its
-#: generators' lengths, or times the robot's size, is round-off, reported as 0
+#: generators' lengths, or times the reach scale (F / m) T^2 / 2, is
+#: round-off, reported as 0
 REACH_ZERO_RTOL = 1e-12
+#: reach margin: the largest growth e^{Re(lambda) T} of a pose's modes
+#: within the horizon; beyond it r_T is not resolvable (NaN)
+REACH_GROWTH_MAX = 1e8
 #: default tension budget: the least characteristic acceleration [m/s^2]
 #: (the budget accelerates the robot's mass by max(|g|, this))
 REACH_MIN_ACCELERATION = 1.0

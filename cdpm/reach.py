@@ -71,17 +71,17 @@ class ReachSettings:
         }
 
 
-def _positive(name: str, value: Any, unit: str, option: str) -> float:
+def _positive(name: str, value: Any, unit: str) -> float:
     from cdpm.expressions import parse_number
 
+    text = value.strip() if isinstance(value, str) else value
+    message = f"{name} must be a positive finite number [{unit}], got {text!r}"
     try:
-        x = parse_number(value) if isinstance(value, str) else float(value)
+        x = parse_number(text) if isinstance(text, str) else float(text)
     except (TypeError, ValueError) as exc:
-        raise InputError(f"{name} must be a number [{unit}], got {value!r} ({option})") from exc
+        raise InputError(message) from exc
     if not (math.isfinite(x) and x > 0):
-        raise InputError(
-            f"{name} must be a positive finite number [{unit}], got {value!r} ({option})"
-        )
+        raise InputError(message)
     return x
 
 
@@ -103,18 +103,19 @@ def reach_settings(
         return horizon
     T = F = None
     if horizon is not None:
-        T = _positive("the reach horizon", horizon, "s", "--horizon")
+        T = _positive("the reach horizon", horizon, "s")
     if tension_budget is not None:
-        F = _positive("the tension budget", tension_budget, "N", "--tension-budget")
+        F = _positive("the tension budget", tension_budget, "N")
     if T is None or F is None:
-        T0, F0, _ = _model_scales(robot)
+        T0, F0 = _model_scales(robot)[:2]
         T = T0 if T is None else T
         F = F0 if F is None else F
     return ReachSettings(float(T), float(F), horizon is None, tension_budget is None)
 
 
-def _model_scales(robot: CableRobot) -> tuple[float, float, float]:
-    """(default horizon [s], default budget [N], size l [m]) of the robot."""
+def _model_scales(robot: CableRobot) -> tuple[float, float, float, float]:
+    """(default horizon [s], default budget [N], size l [m], mass m [kg])
+    of the robot (mass 1 kg if the model has none)."""
     cached = getattr(robot, "_reach_scales", None)
     if cached is not None:
         return cached
@@ -130,7 +131,8 @@ def _model_scales(robot: CableRobot) -> tuple[float, float, float]:
     if not (size > 0 and math.isfinite(size)):
         size = 1.0
     budget = mass * a if mass > 0 else 1.0
-    scales = (_round3(math.sqrt(2 * REACH_SIZE_FRACTION * size / a)), _round3(budget), size)
+    T = _round3(math.sqrt(2 * REACH_SIZE_FRACTION * size / a))
+    scales = (T, _round3(budget), size, mass if mass > 0 else 1.0)
     robot._reach_scales = scales
     return scales
 
@@ -160,6 +162,14 @@ def reach_bounds(
     return np.minimum(lower, 0.0), np.maximum(upper, 0.0)
 
 
+def reach_scale(robot: CableRobot, settings: ReachSettings) -> float:
+    """``(F / m) T^2 / 2`` [m]: how far the budget's force moves the robot's
+    mass from rest in T (the defaults make it a tenth of the robot's size);
+    the scale of r_T."""
+    mass = _model_scales(robot)[3]
+    return settings.tension_budget / mass * settings.horizon**2 / 2
+
+
 def reach_margins_at(
     robot: CableRobot,
     lin: LinearisationBatch | Linearisation,
@@ -177,8 +187,8 @@ def reach_margins_at(
             direction that no input ever reaches, so r_T = 0 there exactly
             (the quadrature would leave round-off).
 
-    Values below REACH_ZERO_RTOL times the robot's size are round-off (e.g.
-    a folded arm whose output Jacobian is round-off) and read 0.
+    Values below REACH_ZERO_RTOL times :func:`reach_scale` are round-off
+    (e.g. a folded arm whose output Jacobian is round-off) and read 0.
 
     Returns:
         :class:`cdpm.analysis.reach.ReachMargins` (value [output units],
@@ -192,7 +202,10 @@ def reach_margins_at(
         A, B, C, f = A[None], B[None], C[None], f[None]
     lower, upper = reach_bounds(robot, f, settings.tension_budget)
     r = reach_margins(A, B, C, lower, upper, settings.horizon)
-    zero = r.value < REACH_ZERO_RTOL * _model_scales(robot)[2]
+    zero = r.value < REACH_ZERO_RTOL * reach_scale(robot, settings)
+    error = r.error
     if verdict_no is not None:
-        zero |= np.asarray(verdict_no, dtype=bool)
-    return ReachMargins(np.where(zero, 0.0, r.value), r.error, r.intervals)
+        no = np.asarray(verdict_no, dtype=bool)
+        zero |= no
+        error = np.where(no, 0.0, error)  # exact
+    return ReachMargins(np.where(zero, 0.0, r.value), error, r.intervals)

@@ -81,6 +81,12 @@ class PoseReport:
         r, err = self.reach_margin
         names = ", ".join(self.linearisation.output_names) or "the outputs"
         exact = "exact" if err == 0 else f"+- {err:.2g}, quadrature estimate"
+        if not np.isfinite(r):
+            return [
+                f"Reach margin r_T: not resolvable within T = {self.reach.horizon:.3g} s: a "
+                "mode grows by more than 1e8 in that time (use a shorter --horizon)",
+                f"  {self.reach.describe()}",
+            ]
         return [
             f"Reach margin r_T = {r + 0.0:.4g} m ({exact}): within T = {self.reach.horizon:.3g} s "
             f"the cables can move {names} {r + 0.0:.4g} m in every direction",

@@ -227,3 +227,26 @@ def test_cli_options(tmp_path, capsys):
     assert main([*mapped, "--workers", "1", "--horizon", "2"]) == 0
     assert "reach margin: T = 2 s (set)" in capsys.readouterr().out
     assert cdpm.open_map(store).attrs["reach_horizon"] == 2.0
+
+
+def test_long_horizons_give_nan_not_zero_and_no_warnings(vertical):
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no RuntimeWarning reaches the user
+        short = cdpm.analyze_pose(vertical, [0.3, 0.5], horizon=1.0)
+        long = cdpm.analyze_pose(vertical, [0.3, 0.5], horizon=30.0)
+        no = cdpm.analyze_pose(vertical, "horizontal", horizon=30.0)
+    assert short.poc.verdict is cdpm.Verdict.YES and short.reach_margin[0] > 0
+    assert np.isnan(long.reach_margin[0]) and "not resolvable" in str(long)
+    assert no.reach_margin == (0.0, 0.0)  # NO: exactly 0, whatever T
+
+
+def test_tiny_horizons_give_tiny_positive_margins():
+    robot = cdpm.load_robot(PAPER_SPEC)
+    value, error = cdpm.analyze_pose(robot, "nominal", horizon=1e-9).reach_margin
+    # r_T = (T^2 / 2) F min(...) scales exactly with T^2 in the nilpotent case
+    assert value == pytest.approx(0.15012364849 * (1e-9 / 0.775) ** 2, rel=1e-6)
+    assert error == 0.0
+    # the folded arm: output Jacobian of round-off size, r_T reads 0
+    assert cdpm.analyze_pose(robot, [0.0, np.pi]).reach_margin[0] == 0.0

@@ -43,6 +43,7 @@ from cdpm.analysis._common import square_zero
 from cdpm.analysis.margin import state_samples
 from cdpm.numerics import (
     REACH_BLOCK_ELEMENTS,
+    REACH_GROWTH_MAX,
     REACH_NODES,
     REACH_NODES_HIGH,
     REACH_ZERO_RTOL,
@@ -95,8 +96,16 @@ def reach_margins(
         weight: output weights, shape (p,), positive; default 1.
 
     Returns:
-        :class:`ReachMargins` (value, error estimate, intervals).
+        :class:`ReachMargins` (value, error estimate, intervals); value NaN
+        (error inf) where a growing mode grows by more than REACH_GROWTH_MAX
+        within T (the horizon is too long for the pose: the reachable set
+        is too thin across that mode to resolve in floating point).
     """
+    with np.errstate(over="ignore", invalid="ignore"):
+        return _reach_margins(A, B, C, lower, upper, horizon, weight)
+
+
+def _reach_margins(A, B, C, lower, upper, horizon, weight) -> ReachMargins:
     k, n, m = B.shape
     p = C.shape[1]
     T = float(horizon)
@@ -118,11 +127,21 @@ def reach_margins(
         error[i] = cb_bound[i]
     rest = np.flatnonzero(~exact)
     if rest.size:
+        # growing modes: beyond e^{Re(lambda) T} = REACH_GROWTH_MAX every
+        # sample lines up with the fastest mode and the zonotope's width
+        # across it drowns in round-off: not resolvable in floating point
+        growth = np.linalg.eigvals(A[rest]).real.max(axis=1) * T
+        lost = rest[growth > math.log(REACH_GROWTH_MAX)]
+        value[lost], error[lost] = np.nan, np.inf
+        rest = rest[growth <= math.log(REACH_GROWTH_MAX)]
+    if rest.size:
         K = reach_nodes(p)
         intervals[rest] = K
         value[rest], error[rest] = _quadrature(
             A[rest], B[rest], Cw[rest], mid[rest], half[rest], T, K
         )
+    overflow = ~(np.isfinite(value) & np.isfinite(error))
+    value[overflow], error[overflow] = np.nan, np.inf
     return ReachMargins(np.maximum(value, 0.0), error, intervals)
 
 
@@ -202,7 +221,7 @@ def zonotope_inradii(D: np.ndarray, center: np.ndarray) -> np.ndarray:
         valid = np.any(normals != 0, axis=2)
         spread = np.where(valid, spread, np.inf)
         r = spread.min(axis=1)
-        out[start : start + block] = np.where(np.isfinite(r), r, 0.0)
+        out[start : start + block] = np.where(np.isposinf(r), 0.0, r)  # NaN: overflow
     return np.where(out > REACH_ZERO_RTOL * size, out, 0.0)
 
 

@@ -8,9 +8,7 @@ import argparse
 def add_reach_arguments(parser: argparse.ArgumentParser) -> None:
     """``--horizon T`` and ``--tension-budget F``."""
     group = parser.add_argument_group(
-        "reach margin",
-        "r_T: within T seconds the cables can move the outputs at least r_T in every "
-        "direction, with tension changes within the cables' bounds (docs/analysis.md)",
+        "reach margin r_T (how far tension changes move the outputs in T seconds)"
     )
     group.add_argument(
         "--horizon",
@@ -20,8 +18,8 @@ def add_reach_arguments(parser: argparse.ArgumentParser) -> None:
     group.add_argument(
         "--tension-budget",
         metavar="F",
-        help="how much harder than at equilibrium [N] a cable without an upper bound may "
-        "pull (default: the model's, printed)",
+        help="largest tension change [N], up or down, of a cable without an upper bound "
+        "(cables with one use their bounds; default: the model's, printed)",
     )
 
 

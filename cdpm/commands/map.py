@@ -250,7 +250,12 @@ def _regions_line(labels) -> str:
     listed = json.loads(labels.attrs.get("regions", "[]"))
     n = int(labels.attrs.get("n_regions", len(listed)))
     sizes = ", ".join(str(r["size"]) for r in listed[:5]) + (", ..." if n > 5 else "")
-    return f"POC regions (connected YES poses): {n}" + (f" of {sizes} poses" if n else "")
+    if not n:
+        return "POC regions: none (no YES poses)"
+    return (
+        f"POC regions (connected YES poses): {n}; sizes {sizes} "
+        "(a pose on a full-turn seam counts once)"
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -271,7 +276,7 @@ def run(args: argparse.Namespace) -> int:
         base = robot.configuration(base)
     _check_tension(robot, args.tension)
     reach = None if args.no_margin else reach_from_args(robot, args)
-    if reach is not None and not args.quiet:
+    if reach is not None:
         print(f"reach margin: {reach.describe()}")
     try:
         ds = workspace_map(
