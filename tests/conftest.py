@@ -1,9 +1,12 @@
-"""Shared fixtures: paths of the shipped models and a spec-writing helper."""
+"""Shared fixtures: paths of the shipped models, a spec-writing helper and
+the CASPR model library (``CDPM_CASPR_MODELS``)."""
 
 from __future__ import annotations
 
+import os
 import shutil
 import textwrap
+from collections.abc import Mapping
 from pathlib import Path
 
 import pytest
@@ -11,7 +14,34 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 MODELS = ROOT / "models"
 PAPER_SPEC = MODELS / "two_link_planar" / "two_link_planar.yaml"
-SHARED = ROOT.parent / "shared"
+#: environment variable naming the ``models`` folder of a CASPR checkout
+#: (https://github.com/darwinlau/CASPR, BSD-3-Clause), used by tests/test_caspr.py
+CASPR_MODELS_ENV = "CDPM_CASPR_MODELS"
+#: where the CASPR model library is looked for when the variable is not set
+CASPR_MODELS_DEFAULT = ROOT.parent / "shared" / "caspr-models" / "models"
+
+
+def caspr_models(environ: Mapping[str, str] | None = None) -> tuple[Path, str | None]:
+    """The CASPR model library for the tests, and why it is missing.
+
+    Args:
+        environ: the environment to read (default ``os.environ``).
+
+    Returns:
+        (folder, skip reason): the folder named by ``CDPM_CASPR_MODELS`` (or
+        the default), and None when it holds CASPR's ``models_list.csv``,
+        else a sentence naming the variable.
+    """
+    environ = os.environ if environ is None else environ
+    value = environ.get(CASPR_MODELS_ENV, "")
+    folder = Path(value).expanduser() if value else CASPR_MODELS_DEFAULT
+    if (folder / "models_list.csv").is_file():
+        return folder, None
+    where = f"{CASPR_MODELS_ENV}={value}" if value else f"{folder} ({CASPR_MODELS_ENV} not set)"
+    return folder, (
+        f"CASPR model library not found at {where}: set {CASPR_MODELS_ENV} to the "
+        "models folder of a CASPR checkout (https://github.com/darwinlau/CASPR)"
+    )
 
 
 @pytest.fixture(scope="session")

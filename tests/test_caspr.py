@@ -22,13 +22,11 @@ import cdpm
 import cdpm.cli
 from cdpm.caspr import CasprWarning, cable_sets, import_caspr
 from cdpm.errors import CdpmError, InputError, UnsupportedError
-from tests.conftest import PAPER_SPEC, SHARED
+from tests.conftest import PAPER_SPEC, caspr_models
 
-CASPR = SHARED / "caspr-models" / "models"
-needs_library = pytest.mark.skipif(
-    not (CASPR / "models_list.csv").is_file(),
-    reason=f"CASPR model files not found at {CASPR} (shared test data)",
-)
+#: CASPR's model library: the folder named by CDPM_CASPR_MODELS (see conftest)
+CASPR, _CASPR_MISSING = caspr_models()
+needs_library = pytest.mark.skipif(_CASPR_MISSING is not None, reason=_CASPR_MISSING or "")
 
 # ---------------------------------------------------------------------------
 # An independent implementation of CASPR's kinematics (SystemModelBodies.update,

@@ -191,3 +191,61 @@ def test_cable_labels_neither_collide_nor_leave_the_axes(spec, pose, plane, tmp_
     if plane == "xy":
         # seen from above, the upper and lower cable of a corner share an anchor and a label
         assert any(t.get_text().startswith("c1 (") and "c5" in t.get_text() for t in labels)
+
+
+PENDULUM_SPEC = ROOT / "models" / "double_pendulum_cables" / "double_pendulum_cables.yaml"
+
+
+@pytest.fixture(scope="module")
+def pendulum():
+    pytest.importorskip("cmeel", reason="example-robot-data (pip install 'cdpm[robots]')")
+    import cdpm
+
+    return cdpm.load_robot(PENDULUM_SPEC)
+
+
+def _link_segments(ax):
+    """Link segments drawn in ``ax`` as ((x0, y0), (x1, y1)) in plot coordinates."""
+    from matplotlib.colors import to_rgb
+
+    return [
+        tuple(zip(line.get_xdata(), line.get_ydata(), strict=True))
+        for line in ax.get_lines()
+        if np.allclose(to_rgb(line.get_color()), COLORS["link"])
+    ]
+
+
+def test_output_marker_sits_on_the_output_point(pendulum, tmp_path):
+    from cdpm.picture import render_pose
+
+    # the outputs are y and z of a point 0.2 m along link2, not link2's origin
+    fig = render_pose(pendulum, "leaning", tmp_path / "leaning.png", plane="yz")
+    ax = fig.axes[0]
+    y = pendulum.output("leaning")  # (tip_y, tip_z) [m]
+    stars = [c for c in ax.collections if np.allclose(c.get_sizes(), 260)]
+    assert len(stars) == 1
+    np.testing.assert_allclose(stars[0].get_offsets(), [y], atol=1e-12)
+    label = next(t for t in ax.texts if t.get_text() == "tip_y, tip_z")
+    np.testing.assert_allclose(label.xy, y, atol=1e-12)
+
+
+def test_last_link_is_drawn_to_its_points(pendulum):
+    import pinocchio as pin
+
+    from cdpm.picture import render_pose
+
+    # link2 has no child joint: it used to be missing from the picture
+    q = pendulum.as_q("leaning")
+    data = pendulum.model.createData()
+    pin.forwardKinematics(pendulum.model, data, q)
+    joint2 = np.asarray(data.oMi[2].translation)[[1, 2]]  # link2's joint, (y, z)
+    c4_on_link2 = pendulum.attachment_points(q)[3][1][[1, 2]]
+    tip = pendulum.output(q)
+    segments = _link_segments(render_pose(pendulum, q, plane="yz").axes[0])
+    for end in (tip, c4_on_link2):
+        assert any(
+            np.allclose(seg[0], joint2, atol=1e-12) and np.allclose(seg[-1], end, atol=1e-12)
+            for seg in segments
+        ), end
+    # link2 reaches up to the output point, 0.2 m from its joint
+    assert np.linalg.norm(tip - joint2) == pytest.approx(0.2, abs=1e-9)

@@ -25,6 +25,10 @@ from cdpm.numerics import (
     TAYLOR_ZERO_RTOL,
 )
 
+#: ln of the largest float64 (~709.78): sinh(x) / w < e^x / (2 w) stays
+#: finite for x below this plus min(0, ln w)
+_LOG_FLOAT_MAX = math.log(np.finfo(float).max)
+
 # MODAL_COND_MAX: the eigenvector matrix of A above which the modal
 # (eigen-decomposition) evaluation is not trusted; HORIZON_MAX: the longest
 # default horizon, in units of 1/|A|
@@ -114,16 +118,45 @@ class ModalEvaluator:
         self.grow = kappa > zero
         self.eigvals = np.concatenate([1j * self.w, -1j * self.w])
         self._cq2 = np.einsum("pi,pi->i", CqU, CqU)
+        w_grow = self.w[self.grow]
+        #: the latest time at which every modal response s_k(t) is a finite
+        #: float64 (same time unit as 1/w; sinh(w t) / w of a growing mode
+        #: overflows beyond)
+        self.t_finite = (
+            float(np.min((_LOG_FLOAT_MAX + np.minimum(np.log(w_grow), 0.0)) / w_grow))
+            if w_grow.size
+            else math.inf
+        )
 
     def __call__(self, t: np.ndarray) -> np.ndarray:
         t = np.asarray(t, dtype=float)
         return np.einsum("pi,ti,ij->tpj", self.CqU, self._s(t), self.beta)
 
     def _s(self, t: np.ndarray) -> np.ndarray:
-        """Modal responses s_k(t), shape (N, h)."""
-        wt = np.outer(t, self.w)
-        w = np.where(self.w > 0, self.w, 1.0)
-        return np.where(self.osc, np.sin(wt) / w, np.where(self.grow, np.sinh(wt) / w, t[:, None]))
+        """Modal responses s_k(t), shape (N, h), for times t in
+        [0, ``t_finite``] (the unit of 1/w).
+
+        Each response is evaluated on its own modes only: sinh of an
+        oscillatory mode's w t (discarded anyway) overflows at late times of
+        a slow oscillation although every value returned is finite. A time
+        beyond ``t_finite`` would make a growing mode's sinh overflow to inf
+        (and its products with zero entries NaN), so it is refused; the
+        samplers stop far earlier (a growth of 1e8).
+        """
+        t = np.asarray(t, dtype=float)
+        if t.size and float(t.max()) > self.t_finite:
+            raise ValueError(
+                f"modal responses sinh(w t) / w overflow float64 beyond "
+                f"t = {self.t_finite:.6g}; got t = {float(t.max()):.6g}"
+            )
+        S = np.empty((t.size, self.w.size))
+        flat = ~(self.osc | self.grow)
+        S[:, flat] = t[:, None]
+        for modes, fn in ((self.osc, np.sin), (self.grow, np.sinh)):
+            if modes.any():
+                w = self.w[modes]
+                S[:, modes] = fn(np.outer(t, w)) / w
+        return S
 
     def columns(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(G (p, N*m), scale (N*m,)): column k*m + j is g_j(t_k), with its

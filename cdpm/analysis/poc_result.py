@@ -106,7 +106,16 @@ class POCResult:
     def _certificate_lines(self) -> list[str]:
         c = self.certificate
         if c.kind == "positive-span":
-            lines = [f"  {c.times.size} output vectors g_j(t) positively span R^{self.C.shape[0]}:"]
+            late = ""
+            if c.times.size and c.times.max() > self.margin_horizon:
+                # the impulse index only sees [0, margin_horizon]: say so
+                late = (
+                    f" (at t up to {c.times.max():.4g}, beyond the impulse index's "
+                    f"horizon [0, {self.margin_horizon:.4g}])"
+                )
+            lines = [
+                f"  {c.times.size} output vectors g_j(t) positively span R^{self.C.shape[0]}{late}:"
+            ]
             for t, j, s, w in zip(c.times, c.inputs, c.signs, c.weights, strict=True):
                 sign = "-" if s < 0 else "+"
                 lines.append(f"    {sign}g_{j}(t={t:.4g}) weight {w:.4g}")
