@@ -29,7 +29,9 @@ pose, so a map and the per-pose API get the same matrices.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -38,11 +40,12 @@ from cdpm.equilibrium import (
     EQUILIBRIUM_METHODS,
     EquilibriumResult,
     InfeasibleEquilibriumError,
+    NotAnEquilibriumError,
     check_equilibrium,
     equilibrium_tension,
 )
 from cdpm.equilibrium.statics import input_signs
-from cdpm.errors import InputError, ModelError
+from cdpm.errors import InputError, MissingExtraError, ModelError
 from cdpm.numerics import BOUND_TOLERANCE, MASS_COND_MAX
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -57,7 +60,15 @@ __all__ = [
     "mass_inverse",
     "input_cone_scale",
     "state_names",
+    "matrix_text",
+    "named_values",
+    "round_to_scale",
+    "largest_magnitude",
+    "EXPORT_FORMATS",
 ]
+
+#: file formats :meth:`Linearisation.save` writes, by extension
+EXPORT_FORMATS = {".npz": "npz", ".mat": "mat"}
 
 
 @dataclass(frozen=True)
@@ -153,12 +164,107 @@ class Linearisation:
             out["equilibrium"] = self.equilibrium.as_dict()
         return out
 
+    def to_arrays(self) -> dict[str, np.ndarray]:
+        """The system as named arrays, for files and other tools.
+
+        Returns:
+            ``A`` (2 nv, 2 nv), ``B`` (2 nv, m) [per N], ``B_cone`` (2 nv, m),
+            ``C`` (p, 2 nv), ``q`` (nq,), ``output`` y* (p,) [m],
+            ``tension`` f* (m,) [N], ``sign_constrained`` (m,) bool,
+            ``input_sign`` (m,) int (+1 u >= 0, -1 u <= 0, 0 free), and the
+            names ``cable_names`` (m,), ``output_names`` (p,),
+            ``state_names`` (2 nv,) as string arrays. New arrays (copies).
+        """
+        signs = self.input_sign
+        if signs is None:
+            signs = self.sign_constrained.astype(int)
+        return {
+            "A": self.A.copy(),
+            "B": self.B.copy(),
+            "B_cone": self.B_cone,
+            "C": self.C.copy(),
+            "q": self.q.copy(),
+            "output": self.output.copy(),
+            "tension": self.tension.copy(),
+            "sign_constrained": self.sign_constrained.astype(bool),
+            "input_sign": np.asarray(signs, dtype=np.int64).copy(),
+            "cable_names": np.array(self.cable_names, dtype=str),
+            "output_names": np.array(self.output_names, dtype=str),
+            "state_names": np.array(self.state_names, dtype=str),
+        }
+
+    def save(self, path: str | Path) -> Path:
+        """Write :meth:`to_arrays` to a file, its format by the extension:
+        ``.npz`` (``numpy.savez``; the names are unicode arrays, so
+        ``numpy.load`` needs no pickle) or ``.mat`` (``scipy.io.savemat``,
+        MATLAB 5; the names are cell arrays of char, ``sign_constrained``
+        is logical).
+
+        Returns:
+            The path written.
+
+        Raises:
+            InputError: the extension is not .npz or .mat.
+        """
+        path = Path(path)
+        fmt = EXPORT_FORMATS.get(path.suffix.lower())
+        if fmt is None:
+            raise InputError(
+                f"cannot write a linearisation to {path.name}: give a file ending in "
+                f"{' or '.join(EXPORT_FORMATS)}"
+            )
+        arrays = self.to_arrays()
+        if fmt == "npz":
+            with path.open("wb") as handle:
+                np.savez(handle, **arrays)
+        else:
+            from scipy.io import savemat
+
+            for name in ("cable_names", "output_names", "state_names"):
+                arrays[name] = np.array(list(arrays[name]), dtype=object).reshape(-1, 1)
+            savemat(path, arrays, do_compression=True, oned_as="column")
+        return path
+
+    def to_control(self, cone: bool = False):
+        """The linearisation as a python-control state-space system
+        ``dx' = A dx + B du, dy = C dx`` (D = 0), with the states, inputs and
+        outputs named as here (inputs: changes of cable tension [N]).
+
+        Args:
+            cone: use ``B_cone`` (every sign-constrained input u >= 0)
+                instead of B.
+
+        Returns:
+            ``control.StateSpace``.
+
+        Raises:
+            MissingExtraError: python-control is not installed
+                (``pip install 'cdpm[control]'``).
+        """
+        try:
+            import control
+        except ImportError as exc:
+            raise MissingExtraError(
+                "Linearisation.to_control needs python-control: pip install 'cdpm[control]'"
+            ) from exc
+        B = self.B_cone if cone else self.B
+        D = np.zeros((self.C.shape[0], B.shape[1]))
+        names = {
+            "inputs": list(self.cable_names) or None,
+            "outputs": list(self.output_names) or None,
+            "states": list(self.state_names) or None,
+        }
+        return control.ss(self.A, B, self.C, D, **{k: v for k, v in names.items() if v})
+
     def __str__(self) -> str:
-        with np.printoptions(precision=4, suppress=True, linewidth=100):
+        q = round_to_scale(self.q, largest_magnitude(self.q))
+        tension = round_to_scale(self.tension, largest_magnitude(self.tension))
+        with np.printoptions(precision=6, suppress=True, linewidth=100):
             return (
-                f"Linearisation at q = {self.q}\n"
-                f"A =\n{self.A}\nB =\n{self.B}\nC =\n{self.C}\n"
-                f"tension f* = {self.tension} N\n"
+                f"Linearisation at q = {q}\n"
+                f"A =\n{matrix_text(self.A)}\nB =\n{matrix_text(self.B)}\n"
+                f"C =\n{matrix_text(self.C)}\n"
+                f"tension f* = {tension} N\n"
                 f"sign-constrained inputs: {self.sign_constrained}"
             )
 
@@ -339,12 +445,7 @@ def _equilibrium(robot: CableRobot, q, tension, pretension) -> EquilibriumResult
         # within BOUND_TOLERANCE of a bound: the cable sits on it
         eq = check_equilibrium(robot, q, clipped)
     if not eq.feasible:
-        raise InputError(
-            f"the given tension is not an equilibrium at this pose: statics residual "
-            f"|L^T f + G + w_ext| = {eq.residual:.6g} (N or N m); let cdpm compute one: "
-            "omit the tension (tension=None) or name a method "
-            f"({', '.join(EQUILIBRIUM_METHODS)})"
-        )
+        raise NotAnEquilibriumError(eq, tuple(EQUILIBRIUM_METHODS))
     return eq
 
 
@@ -370,8 +471,10 @@ def linearise(
     Raises:
         InfeasibleEquilibriumError: no tension in bounds holds the pose
             (``.result`` has the residual).
-        InputError: bad q, a tension array of the wrong length, outside the
-            bounds or not an equilibrium (the message gives the residual).
+        InputError: bad q, a tension array of the wrong length or outside
+            the bounds; :class:`~cdpm.equilibrium.NotAnEquilibriumError` (an
+            InputError) for given tensions that do not hold the pose (the
+            message gives the residual, ``.result`` the equilibrium check).
         ModelError: the mass matrix is singular or a cable has zero length.
     """
     kin = robot.kinematics(q)  # raises on a zero-length segment
@@ -410,3 +513,76 @@ def linearise(
         gravity_stiffness=lin.gravity_stiffness[0],
         cable_stiffness=lin.cable_stiffness[0],
     )
+
+
+# ---------------------------------------------------------------- printing
+#
+# Printed numbers are rounded relative to the scale they are printed with: an
+# entry of a matrix to the matrix's largest entry, an output [m] to the
+# robot's size, a tension to the largest tension. Round-off such as
+# tip_x = 1.2e-16 next to a 2 m arm then prints as 0, not as a number that
+# looks like information. (:mod:`cdpm.report` prints with these too.)
+
+#: significant digits of the largest entry of a printed matrix, and the
+#: fewest decimals of every entry
+MATRIX_DIGITS = 5
+MATRIX_DECIMALS = 4
+#: widest printed matrix row [characters]; a wider matrix wraps at 100
+MATRIX_WIDTH = 200
+#: significant digits of printed values (coordinates, outputs, tensions)
+VALUE_DIGITS = 6
+
+
+def round_to_scale(values: Any, scale: float, digits: int = VALUE_DIGITS) -> np.ndarray:
+    """``values`` with every entry below half the last digit of ``scale``
+    printed at ``digits`` significant digits set to 0 (and no -0.0).
+
+    Args:
+        values: numbers, any shape.
+        scale: the size they are printed next to (e.g. the largest of
+            them); 0 or not finite leaves them unchanged.
+        digits: significant digits of ``scale`` in print.
+
+    Returns:
+        A new float array (the input is not modified).
+    """
+    arr = np.array(values, dtype=float)
+    if np.isfinite(scale) and scale > 0:
+        last = 0.5 * 10.0 ** (math.floor(math.log10(scale)) - digits + 1)
+        arr[np.abs(arr) < last] = 0.0
+    return arr + 0.0
+
+
+def largest_magnitude(values: Any) -> float:
+    """The largest finite |value| (0 when none): the scale values print at."""
+    arr = np.abs(np.asarray(values, dtype=float))
+    arr = arr[np.isfinite(arr)]
+    return float(arr.max()) if arr.size else 0.0
+
+
+def matrix_text(M: Any, digits: int = MATRIX_DIGITS) -> str:
+    """A matrix in numpy's layout, every entry to the same decimals: at least
+    MATRIX_DECIMALS, more when needed for ``digits`` significant digits of
+    the largest entry (entries below the last printed decimal print as 0,
+    never as -0); a row that fits in MATRIX_WIDTH characters is not
+    wrapped."""
+    M = np.asarray(M, dtype=float)
+    scale = largest_magnitude(M)
+    decimals = MATRIX_DECIMALS
+    if scale > 0:
+        decimals = max(decimals, digits - 1 - math.floor(math.log10(scale)))
+    M = np.where(np.abs(M) < 0.5 * 10.0**-decimals, 0.0, M) + 0.0
+    options = {"precision": decimals, "suppress_small": True}
+    text = np.array2string(M, max_line_width=10**6, **options)
+    if max(map(len, text.splitlines()), default=0) > MATRIX_WIDTH:
+        text = np.array2string(M, max_line_width=100, **options)
+    return text
+
+
+def named_values(names: Any, values: Any, scale: float | None = None) -> str:
+    """``"a = 1, b = 0"``: each value to VALUE_DIGITS significant digits,
+    rounded relative to ``scale`` (default: the largest |value|)."""
+    values = np.asarray(values, dtype=float).reshape(-1)
+    scale = largest_magnitude(values) if scale is None else scale
+    rounded = round_to_scale(values, scale)
+    return ", ".join(f"{n} = {v:.{VALUE_DIGITS}g}" for n, v in zip(names, rounded, strict=True))

@@ -2,12 +2,18 @@
 
 :func:`analyze_pose` linearises the robot at a pose and runs the analysis
 layer on the result; :class:`PoseReport` prints it for people (``str``),
-notebooks (``_repr_html_``) and programs (``as_dict`` -> JSON).
+notebooks (``_repr_html_``) and programs (``as_dict`` -> JSON). At a pose
+that no tension within the cable bounds holds there is nothing to linearise:
+``analyze_pose(..., infeasible="report")`` then returns an
+:class:`InfeasiblePoseReport` (the pose, the outputs, the cables, the
+closest tensions and their statics residual, the map criteria) instead of
+raising.
 """
 
 from __future__ import annotations
 
 import html
+import math
 import re
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
@@ -15,12 +21,22 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from cdpm.analysis._common import to_plain
-from cdpm.linearisation import Linearisation, linearise
+from cdpm.equilibrium import InfeasibleEquilibriumError
+from cdpm.errors import InputError
+from cdpm.linearisation import (
+    Linearisation,
+    largest_magnitude,
+    linearise,
+    matrix_text,
+    named_values,
+    round_to_scale,
+)
 
 if TYPE_CHECKING:  # pragma: no cover
+    from cdpm.equilibrium import EquilibriumResult
     from cdpm.robot import CableRobot
 
-__all__ = ["PoseReport", "analyze_pose"]
+__all__ = ["PoseReport", "InfeasiblePoseReport", "analyze_pose"]
 
 
 @dataclass(frozen=True)
@@ -49,6 +65,9 @@ class PoseReport:
             ``criteria["reach_margin"]``.
         neighbourhood: the POC neighbourhood of the pose
             (:func:`cdpm.poc_neighbourhood`), or None.
+        length_scale: the robot's size at the pose [m]: the largest distance
+            of a cable route point or an output from the world origin. Printed
+            outputs below the last printed digit of it show as 0 (round-off).
     """
 
     model_name: str
@@ -66,6 +85,12 @@ class PoseReport:
     criteria: dict[str, Any] = field(default_factory=dict)
     reach: Any = None
     neighbourhood: Any = None
+    length_scale: float | None = None
+
+    @property
+    def feasible(self) -> bool:
+        """True: the pose has an equilibrium (see :class:`InfeasiblePoseReport`)."""
+        return True
 
     @property
     def reach_margin(self) -> tuple[float, float]:
@@ -94,11 +119,12 @@ class PoseReport:
         ]
 
     def as_dict(self) -> dict:
-        """JSON-serialisable content of the report."""
+        """JSON-serialisable content of the report (``"feasible": true``)."""
         lin = self.linearisation
         return {
             "model": self.model_name,
             "pose": self.pose_name,
+            "feasible": True,
             "q": lin.q.tolist(),
             "coordinates": dict(zip(self.coordinate_names, self.natural.tolist(), strict=True)),
             "output": dict(zip(lin.output_names, lin.output.tolist(), strict=True)),
@@ -137,44 +163,42 @@ class PoseReport:
 
     def __str__(self) -> str:
         lin = self.linearisation
-        where = f"pose {self.pose_name!r}" if self.pose_name else "the given q"
-        coords = ", ".join(
-            f"{n} = {v:.6g}" for n, v in zip(self.coordinate_names, self.natural, strict=True)
-        )
-        outputs = ", ".join(
-            f"{n} = {v:.6g}" for n, v in zip(lin.output_names, lin.output, strict=True)
-        )
-        lines = [
-            f"cdpm report: {self.model_name}, {where}",
-            f"  coordinates: {coords}",
-            f"  outputs:     {outputs or '(none)'}",
-            "",
-            *self._equilibrium_lines(),
-        ]
-        with np.printoptions(precision=4, suppress=True, linewidth=100):
-            lines += [
-                "",
-                "Linearisation (state = (dq, dq'))",
-                _indent(f"A =\n{lin.A}"),
-                _indent(f"B =\n{lin.B}"),
-                _indent(f"C =\n{lin.C}"),
-            ]
+        lines = [*_pose_head(self, lin.output, lin.output_names), *self._equilibrium_lines()]
         lines += [
             "",
-            "Verdicts",
-            _indent(_labelled("Positive output controllability (Theorem 1)", self.poc)),
-            _indent(_labelled("Positive controllability (Brammer)", self.positive_controllability)),
-            _indent(f"Output controllability: {self.output_controllability}"),
-            _indent(f"Controllability (Kalman): {self.controllability}"),
-            _indent(f"Wrench closure: {self.wrench_closure}"),
-            *[_indent(line) for line in self._reach_lines()],
+            "Linearisation (state = (dq, dq'))",
+            _indent(f"A =\n{matrix_text(lin.A)}"),
+            _indent(f"B =\n{matrix_text(lin.B)}"),
+            _indent(f"C =\n{matrix_text(lin.C)}"),
         ]
+        verdicts = [
+            _labelled("Positive output controllability (Theorem 1)", self.poc),
+            _labelled("Positive controllability (Brammer)", self.positive_controllability),
+            f"Output controllability: {self.output_controllability}",
+            f"Controllability (Kalman): {self.controllability}",
+            f"Wrench closure: {self.wrench_closure}",
+        ]
+        # decided quantities in the results' own text, each to its scale:
+        # the span margin is on unit vectors, the eigenvalues are A's
+        a_scale = largest_magnitude(lin.A)
+        scales = {
+            "impulse index": _impulse_scale(self.poc),
+            "margin": 1.0,
+            "eigenvalue": a_scale,
+            "A^T v =": a_scale,
+        }
+        lines += ["", "Verdicts", *[_indent(without_round_off(v, scales)) for v in verdicts]]
+        lines += [_indent(line) for line in self._reach_lines()]
         if self.neighbourhood is not None:
             lines += ["", *self.neighbourhood.lines()]
         if self.criteria:
             lines += ["", "Map criteria (as a workspace map stores them)"]
-            names = self.linearisation.output_names
-            lines += [_indent(line) for line in _criteria_lines(self.criteria, names)]
+            lines += [
+                _indent(line)
+                for line in _criteria_lines(
+                    self.criteria, lin.output_names, self.length_scale or 0.0
+                )
+            ]
         return _without_negative_zeros("\n".join(lines))
 
     def _equilibrium_lines(self) -> list[str]:
@@ -194,17 +218,221 @@ class PoseReport:
             states = eq.cable_states()
         inputs = {1: "u >= 0 (pull only)", -1: "u <= 0 (release only)", 0: "free"}
         signs = lin.input_sign if lin.input_sign is not None else lin.sign_constrained.astype(int)
-        lines = head + [
-            f"  {'name':<12} {'length [m]':>11} {'tension [N]':>12}  {'state':<7} input"
-        ]
-        for name, length, f, state, sign in zip(
-            lin.cable_names, self.cable_lengths, lin.tension, states, signs, strict=True
-        ):
-            lines.append(f"  {name:<12} {length:>11.6f} {f:>12.6g}  {state:<7} {inputs[int(sign)]}")
-        return lines
+        words = [inputs[int(sign)] for sign in signs]
+        return head + _tension_table(
+            lin.cable_names, self.cable_lengths, lin.tension, states, words, "input"
+        )
 
     def _repr_html_(self) -> str:
         return f"<pre>{html.escape(str(self))}</pre>"
+
+
+@dataclass(frozen=True)
+class InfeasiblePoseReport:
+    """What cdpm can say at a pose that no tension within the cable bounds
+    holds (by the requested method): the pose, its kinematics, the closest
+    tensions and the map criteria, but no linearisation and so no verdicts.
+
+    Attributes:
+        model_name: name of the spec file.
+        pose_name: name of the pose, or None for an explicit q.
+        q: configuration vector, shape (nq,).
+        natural: natural coordinates of the pose, shape (nv,).
+        coordinate_names: names of the natural coordinates.
+        output: outputs y = h(q) [m], shape (p,).
+        output_names: names of the outputs.
+        cable_names: names of the cables.
+        cable_lengths: cable lengths [m], shape (m,).
+        equilibrium: the infeasible :class:`~cdpm.equilibrium.EquilibriumResult`:
+            its ``tension`` [N] are the tensions within the method's bounds
+            that come closest to holding the pose (least squares), its
+            ``residual`` the statics residual ``|L^T f + G + w_ext|`` they
+            leave [N or N m], its ``message`` why no tension holds the pose.
+        criteria: every registered map criterion at this pose (status
+            ``no_equilibrium``, the verdicts not analysed, static
+            feasibility and wrench closure as a map stores them).
+        length_scale: the robot's size at the pose [m] (as :class:`PoseReport`).
+        neighbourhood_radius: the ``neighbourhood`` asked for [rad or m], or
+            None; it is not computed at a pose without an equilibrium.
+    """
+
+    model_name: str
+    pose_name: str | None
+    q: np.ndarray
+    natural: np.ndarray
+    coordinate_names: tuple[str, ...]
+    output: np.ndarray
+    output_names: tuple[str, ...]
+    cable_names: tuple[str, ...]
+    cable_lengths: np.ndarray
+    equilibrium: EquilibriumResult
+    criteria: dict[str, Any] = field(default_factory=dict)
+    length_scale: float | None = None
+    neighbourhood_radius: Any = None
+
+    @property
+    def feasible(self) -> bool:
+        """False: no tension within the cable bounds holds the pose."""
+        return False
+
+    @property
+    def reason(self) -> str:
+        """Why there is no linearisation and no verdict, in one sentence."""
+        eq = self.equilibrium
+        text = (
+            "the linearisation is taken at an equilibrium (q*, q' = 0, f*), and no tension "
+            f"within the cable bounds holds this pose by method {eq.method!r} (the closest "
+            f"tensions leave a statics residual of {eq.residual:.3g} N or N m), so positive "
+            "output controllability, positive controllability, output and Kalman "
+            "controllability and the reach margin are not defined here"
+        )
+        if self.criteria.get("static_feasible") == 1 and eq.method != "min_norm":
+            text += (
+                " (static_feasible is yes: other tensions within the bounds hold the pose, "
+                "e.g. by method 'min_norm')"
+            )
+        return text
+
+    def as_dict(self) -> dict:
+        """JSON-serialisable content (``"feasible": false``; the verdicts,
+        the linearisation and the reach margin are null)."""
+        eq = self.equilibrium
+        return {
+            "model": self.model_name,
+            "pose": self.pose_name,
+            "feasible": False,
+            "q": self.q.tolist(),
+            "coordinates": dict(zip(self.coordinate_names, self.natural.tolist(), strict=True)),
+            "output": dict(zip(self.output_names, self.output.tolist(), strict=True)),
+            "cables": [
+                {
+                    "name": name,
+                    "length": float(length),
+                    "tension": float(f),
+                    "state": state,
+                    "tension_min": _finite_or_none(low),
+                    "tension_max": _finite_or_none(high),
+                }
+                for name, length, f, state, low, high in zip(
+                    self.cable_names,
+                    self.cable_lengths,
+                    eq.tension,
+                    eq.cable_states(),
+                    eq.tension_min,
+                    eq.tension_max,
+                    strict=True,
+                )
+            ],
+            "equilibrium": eq.as_dict(),
+            "statics_residual": float(eq.residual),
+            "reason": self.reason,
+            "linearisation": None,
+            "positive_output_controllability": None,
+            "positive_controllability": None,
+            "output_controllability": None,
+            "controllability": None,
+            "wrench_closure": None,
+            "criteria": to_plain(self.criteria),
+            "reach": None,
+            "neighbourhood": None,
+        }
+
+    def __str__(self) -> str:
+        eq = self.equilibrium
+        method = eq.method + (
+            f", pretension {eq.pretension:g} N" if eq.method == "pretension" else ""
+        )
+        bounds = [
+            f"[{low:g}, {high:g}]" for low, high in zip(eq.tension_min, eq.tension_max, strict=True)
+        ]
+        lines = [
+            *_pose_head(self, self.output, self.output_names),
+            f"Equilibrium ({method}): INFEASIBLE, residual |L^T f + G + w_ext| = "
+            f"{eq.residual:.3g} (N or N m)",
+            f"  {eq.message}",
+            f"  closest tensions: {_closest_words(eq)}",
+            *_tension_table(
+                self.cable_names,
+                self.cable_lengths,
+                eq.tension,
+                eq.cable_states(),
+                bounds,
+                "bounds [N]",
+            ),
+            "",
+            "No linearisation and no verdicts:",
+            *_indent(_wrap(self.reason)).splitlines(),
+        ]
+        if self.neighbourhood_radius is not None:
+            lines += [
+                "",
+                f"POC neighbourhood (R = {self.neighbourhood_radius}): not computed, the pose "
+                "itself has no equilibrium",
+            ]
+        if self.criteria:
+            lines += ["", "Map criteria (as a workspace map stores them)"]
+            lines += [
+                _indent(line)
+                for line in _criteria_lines(
+                    self.criteria, self.output_names, self.length_scale or 0.0
+                )
+            ]
+        return _without_negative_zeros("\n".join(lines))
+
+    def _repr_html_(self) -> str:
+        return f"<pre>{html.escape(str(self))}</pre>"
+
+
+def _closest_words(eq: EquilibriumResult) -> str:
+    """Which tensions the infeasible result shows, in words."""
+    if eq.method == "zero":
+        return "method 'zero' allows f = 0 only"
+    where = "within the cable bounds"
+    if eq.method == "pretension":
+        where += f" and at least {eq.pretension:g} N (the pretension)"
+    return f"the least-squares solution of the statics {where}"
+
+
+def _finite_or_none(x: float) -> float | None:
+    """x, or None for an infinite bound (JSON has no infinity)."""
+    return float(x) if np.isfinite(x) else None
+
+
+def _wrap(text: str, width: int = 88) -> str:
+    import textwrap
+
+    return textwrap.fill(text, width)
+
+
+# ---------------------------------------------------------------- printing
+#
+# Numbers print rounded to the scale they stand next to (see the printing
+# helpers of cdpm.linearisation); the analysis results' own text is cleaned
+# of round-off in the quantities they decide.
+
+#: a decided quantity (a margin, an eigenvalue) below this fraction of its
+#: scale is round-off of 0
+ROUND_OFF_RTOL = 1e-12
+
+
+# "margin -1.5e-33": a label followed by one number
+_NUMBER = r"-?\d+(?:\.\d*)?(?:e[+-]?\d+)?"
+
+
+def without_round_off(text: str, scales: dict[str, float]) -> str:
+    """``text`` with each number after a label of ``scales`` (e.g.
+    ``"margin"``) shown as 0 when it is below ROUND_OFF_RTOL times that
+    label's scale."""
+    for label, scale in scales.items():
+        if not (np.isfinite(scale) and scale > 0):
+            continue
+
+        def zero(match: re.Match, scale=scale) -> str:
+            small = abs(float(match.group(2))) <= ROUND_OFF_RTOL * scale
+            return match.group(1) + ("0" if small else match.group(2))
+
+        text = re.sub(rf"(\b{re.escape(label)} )({_NUMBER})", zero, text)
+    return text
 
 
 # A printed zero with a minus sign: "-0", "-0.000", "-0e+00" (from format
@@ -227,9 +455,12 @@ def _without_negative_zeros(text: str) -> str:
     return _NEGATIVE_ZERO.sub(positive, text)
 
 
-def _criteria_lines(criteria: dict[str, Any], output_names=()) -> list[str]:
+def _criteria_lines(
+    criteria: dict[str, Any], output_names=(), length_scale: float = 0.0
+) -> list[str]:
     """One line per criterion: verdict and status codes by name, quantities
-    with their units (per-output values with the outputs' names)."""
+    with their units (per-output values with the outputs' names; arrays
+    rounded to their scale, lengths [m] to at least ``length_scale``)."""
     from cdpm.maps.criteria import CRITERIA
 
     lines = []
@@ -240,10 +471,13 @@ def _criteria_lines(criteria: dict[str, Any], output_names=()) -> list[str]:
             text = f"{names.get(int(value), str(value))} ({int(value)})"
         else:
             arr = np.asarray(value, dtype=float) + 0.0
+            scale = largest_magnitude(arr)
+            if c is not None and c.units == "m":
+                scale = max(scale, length_scale)
             if c is not None and c.dims == ("output",) and len(output_names) == arr.size:
-                text = ", ".join(f"{n} = {x:.6g}" for n, x in zip(output_names, arr, strict=True))
+                text = named_values(output_names, arr, scale)
             elif arr.ndim:
-                text = np.array2string(arr, precision=6, suppress_small=True)
+                text = np.array2string(round_to_scale(arr, scale), precision=6, suppress_small=True)
             else:
                 text = f"{float(arr):.6g}"
             if c is not None and c.units not in (None, "1"):
@@ -265,6 +499,47 @@ def _indent(text: str, prefix: str = "  ") -> str:
     return "\n".join(prefix + line for line in text.splitlines())
 
 
+def _impulse_scale(poc: Any) -> float:
+    """The size of the POC result's output curves ``|W C e^{At} b_j s_j|``
+    on its margin horizon (the scale of its impulse index); NaN when it
+    cannot be evaluated."""
+    from scipy.linalg import expm
+
+    try:
+        A, B, C = poc.A, poc.B, poc.C
+        if poc.input_scale is not None:
+            B = B * poc.input_scale
+        if poc.output_weight is not None:
+            W = np.asarray(poc.output_weight, dtype=float)
+            C = W[:, None] * C if W.ndim == 1 else W @ C
+        times = np.linspace(0.0, float(poc.margin_horizon), 5)
+        return max(largest_magnitude(C @ expm(A * t) @ B) for t in times)
+    except (AttributeError, TypeError, ValueError, np.linalg.LinAlgError):
+        return math.nan
+
+
+def _tension_table(names, lengths, tensions, states, last: list[str], last_head: str) -> list[str]:
+    """The cable table: name, length [m], tension [N] (rounded to the
+    largest tension), state and a last column."""
+    tensions = round_to_scale(tensions, largest_magnitude(tensions))
+    lines = [f"  {'name':<12} {'length [m]':>11} {'tension [N]':>12}  {'state':<7} {last_head}"]
+    for name, length, f, state, extra in zip(names, lengths, tensions, states, last, strict=True):
+        lines.append(f"  {name:<12} {length:>11.6f} {f:>12.6g}  {state:<7} {extra}".rstrip())
+    return lines
+
+
+def _pose_head(report: Any, output, output_names) -> list[str]:
+    """The report's first lines: model, pose, coordinates and outputs."""
+    where = f"pose {report.pose_name!r}" if report.pose_name else "the given q"
+    y_scale = max(largest_magnitude(output), report.length_scale or 0.0)
+    return [
+        f"cdpm report: {report.model_name}, {where}",
+        f"  coordinates: {named_values(report.coordinate_names, report.natural)}",
+        f"  outputs:     {named_values(output_names, output, y_scale) or '(none)'}",
+        "",
+    ]
+
+
 def analyze_pose(
     robot: CableRobot,
     q: Any,
@@ -273,8 +548,10 @@ def analyze_pose(
     *,
     horizon: Any = None,
     tension_budget: Any = None,
-    neighbourhood: float | None = None,
-) -> PoseReport:
+    neighbourhood: Any = None,
+    neighbourhood_points: int | None = None,
+    infeasible: str = "raise",
+) -> PoseReport | InfeasiblePoseReport:
     """Linearise ``robot`` at ``q`` and decide every property at that pose.
 
     Args:
@@ -291,24 +568,47 @@ def analyze_pose(
         neighbourhood: half-width R [rad, m] of a local map around the pose
             for the POC neighbourhood (:func:`cdpm.poc_neighbourhood`), or
             None to skip it.
+        neighbourhood_points: grid points per coordinate of that map, odd
+            (default: :func:`cdpm.poc_neighbourhood`'s).
+        infeasible: what to do when no tension within the cable bounds holds
+            the pose by the method: ``"raise"`` (default) raises
+            :class:`~cdpm.equilibrium.InfeasibleEquilibriumError`,
+            ``"report"`` returns an :class:`InfeasiblePoseReport` (the pose,
+            the closest tensions and their residual, the map criteria; no
+            linearisation, no verdicts).
+
+    Returns:
+        The :class:`PoseReport`, or with ``infeasible="report"`` at a pose
+        without an equilibrium an :class:`InfeasiblePoseReport`; both have
+        ``feasible``.
 
     Raises:
-        InfeasibleEquilibriumError: no tension within the bounds holds the
-            pose; its ``result`` (and message) give the residual.
+        InfeasibleEquilibriumError: with ``infeasible="raise"``, no tension
+            within the bounds holds the pose; its ``result`` (and message)
+            give the closest tensions and the residual.
+        InputError: a bad argument, or given tensions that do not hold the
+            pose (:class:`~cdpm.equilibrium.NotAnEquilibriumError`).
     """
     from cdpm import analysis
     from cdpm.maps._evaluate import evaluate_batch
     from cdpm.maps.criteria import CRITERIA
     from cdpm.reach import reach_settings
 
+    if infeasible not in ("raise", "report"):
+        raise InputError(f"infeasible must be 'raise' or 'report', got {infeasible!r}")
     pose_name = q if isinstance(q, str) else None
-    lin = linearise(robot, q, tension=tension, pretension=pretension)
+    reach = reach_settings(robot, horizon, tension_budget)
+    try:
+        lin = linearise(robot, q, tension=tension, pretension=pretension)
+    except InfeasibleEquilibriumError as exc:
+        if infeasible == "raise":
+            raise
+        return _infeasible_report(robot, exc.result, pose_name, pretension, reach, neighbourhood)
     B_cone = lin.B_cone
     kin = robot.kinematics(lin.q)
     natural = robot.to_natural(lin.q)
     eq = lin.equilibrium
     setting = lin.tension if eq is None or eq.method == "given" else eq.method
-    reach = reach_settings(robot, horizon, tension_budget)
     batch = evaluate_batch(robot, natural[None], setting, pretension=pretension, reach=reach)
     criteria = {name: c.compute(batch)[0] for name, c in CRITERIA.items()}
     ball = None
@@ -316,7 +616,14 @@ def analyze_pose(
         from cdpm.neighbourhood import poc_neighbourhood
 
         ball = poc_neighbourhood(
-            robot, lin.q, neighbourhood, tension=setting, pretension=pretension
+            robot,
+            lin.q,
+            neighbourhood,
+            points=neighbourhood_points,
+            tension=setting,
+            pretension=pretension,
+            horizon=reach,
+            pose_name=pose_name,
         )
     return PoseReport(
         model_name=robot.spec.path.name,
@@ -338,4 +645,39 @@ def analyze_pose(
         criteria=criteria,
         reach=reach,
         neighbourhood=ball,
+        length_scale=_length_scale(kin),
     )
+
+
+def _infeasible_report(
+    robot: CableRobot, eq: EquilibriumResult, pose_name, pretension, reach, neighbourhood
+) -> InfeasiblePoseReport:
+    """The report at a pose without an equilibrium (``eq`` infeasible)."""
+    from cdpm.maps._evaluate import evaluate_batch
+    from cdpm.maps.criteria import CRITERIA
+
+    kin = robot.kinematics(eq.q)
+    natural = robot.to_natural(eq.q)
+    batch = evaluate_batch(robot, natural[None], eq.method, pretension=pretension, reach=reach)
+    return InfeasiblePoseReport(
+        model_name=robot.spec.path.name,
+        pose_name=pose_name,
+        q=eq.q.copy(),
+        natural=natural,
+        coordinate_names=robot.coordinate_names,
+        output=kin.output.copy(),
+        output_names=robot.output_names,
+        cable_names=robot.cable_names,
+        cable_lengths=kin.lengths.copy(),
+        equilibrium=eq,
+        criteria={name: c.compute(batch)[0] for name, c in CRITERIA.items()},
+        length_scale=_length_scale(kin),
+        neighbourhood_radius=neighbourhood,
+    )
+
+
+def _length_scale(kin: Any) -> float:
+    """The robot's size at a pose [m]: the largest distance of a cable
+    route point or an output from the world origin."""
+    points = np.linalg.norm(kin.point_positions, axis=-1) if kin.point_positions.size else [0.0]
+    return max(largest_magnitude(points), largest_magnitude(kin.output))

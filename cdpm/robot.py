@@ -31,9 +31,16 @@ from cdpm.configuration import (
 from cdpm.errors import ModelError
 from cdpm.kinematics import BatchKinematics, CableKinematics
 from cdpm.numerics import MIN_SEGMENT_LENGTH
-from cdpm.spec import OUTPUT_COMPONENTS, WORLD_FRAME_NAMES, CableSpec, load_spec
+from cdpm.spec import (
+    OUTPUT_COMPONENTS,
+    WORLD_FRAME_NAMES,
+    CableSpec,
+    find_specs,
+    folder_error,
+    load_spec,
+)
 
-__all__ = ["CableRobot", "CableKinematics", "BatchKinematics", "load_robot"]
+__all__ = ["CableRobot", "CableKinematics", "BatchKinematics", "load_robot", "spec_in_folder"]
 
 
 class CableRobot:
@@ -555,15 +562,34 @@ def load_robot(path: str | os.PathLike) -> CableRobot:
 
     Args:
         path: the cable spec file, e.g. ``models/two_link_planar/two_link_planar.yaml``.
-            A directory holding exactly one spec ``<dir>/<dir name>.yaml`` works too.
+            A folder works too: ``<dir>/<dir name>.yaml`` when it exists, else
+            the folder's only spec (:func:`spec_in_folder`).
 
     Raises:
-        SpecError: the spec or its URDF is missing or invalid; the message
-            lists every problem found.
+        SpecError: the spec or its URDF is missing or invalid (the message
+            lists every problem found), or a folder holds no spec or several
+            (the message lists them).
     """
     p = Path(path).expanduser()
     if p.is_dir():
-        candidate = p / f"{p.name}.yaml"
-        if candidate.is_file():
-            p = candidate
+        p = spec_in_folder(path)
     return CableRobot(load_spec(p))
+
+
+def spec_in_folder(folder: str | os.PathLike) -> Path:
+    """The spec a folder stands for: ``<folder>/<folder name>.yaml`` when
+    it exists, else the folder's only spec (:func:`cdpm.spec.find_specs`:
+    in it or one folder down).
+
+    Raises:
+        SpecError: the folder holds no spec or several; the message lists
+            them.
+    """
+    root = Path(folder).expanduser()
+    own = root / f"{root.resolve().name}.yaml"
+    if own.is_file():
+        return own
+    specs = find_specs(folder)
+    if len(specs) == 1:
+        return specs[0]
+    raise folder_error(folder, specs)

@@ -39,6 +39,7 @@ from __future__ import annotations
 import hashlib
 import math
 import os
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -57,6 +58,8 @@ __all__ = [
     "OutputDef",
     "CableSpec",
     "load_spec",
+    "find_specs",
+    "folder_error",
     "parse_number",
     "OUTPUT_COMPONENTS",
     "WORLD_FRAME_NAMES",
@@ -199,6 +202,42 @@ def _file_hash(*paths: Path) -> str:
     return digest.hexdigest()
 
 
+#: a cable spec is a YAML file with a top-level "cables:" key
+_SPEC_KEY = re.compile(r"^cables\s*:", re.MULTILINE)
+
+
+def find_specs(folder: str | os.PathLike) -> list[Path]:
+    """The cable specs in a folder and its subfolders (one level down; hidden
+    ones skipped): YAML files with a top-level ``cables:`` key, sorted, each
+    starting with ``folder`` as given (``models/two_link_planar/...yaml``)."""
+    root = Path(folder).expanduser()
+    files = [*root.glob("*.y*ml"), *root.glob("[!.]*/*.y*ml")]
+    return sorted(f for f in files if f.suffix.lower() in (".yaml", ".yml") and _is_spec(f))
+
+
+def _is_spec(path: Path) -> bool:
+    try:
+        with path.open(encoding="utf-8", errors="replace") as handle:
+            return bool(_SPEC_KEY.search(handle.read(100_000)))
+    except OSError:
+        return False
+
+
+def folder_error(folder: str | os.PathLike, specs: list[Path] | None = None) -> SpecError:
+    """The error for a folder given where a spec file is needed: it lists
+    the folder's specs (:func:`find_specs`) or says it has none."""
+    specs = find_specs(folder) if specs is None else specs
+    where = os.fspath(folder)
+    if not specs:
+        return SpecError(
+            f"{where} is a folder with no cable spec in it or one folder down (a YAML "
+            "file with a top-level cables: key): give the spec file"
+        )
+    return SpecError(
+        f"{where} is a folder; specs in it: {', '.join(map(str, specs))}; give one of them"
+    )
+
+
 def load_spec(path: str | os.PathLike) -> CableSpec:
     """Read and validate a cable spec and build its Pinocchio model.
 
@@ -219,13 +258,10 @@ def load_spec(path: str | os.PathLike) -> CableSpec:
     import yaml
 
     spec_path = Path(path).expanduser().resolve()
+    if spec_path.is_dir():
+        raise folder_error(path)
     if not spec_path.is_file():
-        hint = ""
-        if spec_path.is_dir():
-            candidates = sorted(spec_path.glob("*.yaml")) + sorted(spec_path.glob("*.yml"))
-            if candidates:
-                hint = f"; did you mean {candidates[0]}?"
-        raise SpecError(f"cable spec file not found: {spec_path}{hint}")
+        raise SpecError(f"cable spec file not found: {spec_path}")
     try:
         data, duplicates = load_yaml(spec_path.read_text(encoding="utf-8"))
     except yaml.YAMLError as exc:

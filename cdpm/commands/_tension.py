@@ -30,17 +30,67 @@ def add_tension_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def cli_equilibrium(function, *args, **kwargs):
-    """Call ``function``; an infeasible equilibrium's message names this
-    command's options (--tension, --pretension) instead of Python arguments."""
+#: how the per-pose commands spell the options that fix an equilibrium
+#: problem (the keys of :data:`cdpm.equilibrium.PYTHON_OPTIONS`)
+CLI_OPTIONS: dict[str, str] = {
+    "method_option": "--tension {}",
+    "pretension_option": "--pretension {}",
+    "omit_option": "leave out --tension",
+}
+
+
+def cli_equilibrium(function, *args, command: str = "cdpm", **kwargs):
+    """Call ``function`` with the equilibrium's errors and warnings in this
+    command's words: they name its options (--tension, --pretension)
+    instead of Python arguments. Equilibrium warnings print once each to
+    stderr as ``<command>: warning: ...``; other warnings pass through."""
+    import warnings
+
+    from cdpm.equilibrium import (
+        EquilibriumWarning,
+        InfeasibleEquilibriumError,
+        NotAnEquilibriumError,
+    )
+
+    caught: list = []
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", EquilibriumWarning)
+            try:
+                return function(*args, **kwargs)
+            except (InfeasibleEquilibriumError, NotAnEquilibriumError) as exc:
+                raise exc.spelled(**CLI_OPTIONS) from None
+    finally:
+        _show_warnings(caught, command)
+
+
+def _show_warnings(caught: list, command: str) -> None:
+    """Print the equilibrium warnings (once each, in this command's
+    words) and re-issue the others."""
+    import sys
+    import warnings
+
+    from cdpm.equilibrium import EquilibriumWarning
+
+    shown = set()
+    for warning in caught:
+        if isinstance(warning.message, EquilibriumWarning):
+            text = str(warning.message.spelled(**CLI_OPTIONS))
+            if text not in shown:
+                shown.add(text)
+                print(f"{command}: warning: {text}", file=sys.stderr)
+        else:
+            warnings.warn_explicit(
+                warning.message, warning.category, warning.filename, warning.lineno
+            )
+
+
+def cli_infeasible_message(result) -> str:
+    """The error message of an infeasible equilibrium ``result``, naming
+    this command's options."""
     from cdpm.equilibrium import InfeasibleEquilibriumError
 
-    try:
-        return function(*args, **kwargs)
-    except InfeasibleEquilibriumError as exc:
-        raise InfeasibleEquilibriumError(
-            exc.result, method_option="--tension {}", pretension_option="--pretension {}"
-        ) from None
+    return str(InfeasibleEquilibriumError(result).spelled(**CLI_OPTIONS))
 
 
 def tension_from_args(robot: CableRobot, args: argparse.Namespace):

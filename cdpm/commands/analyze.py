@@ -4,14 +4,22 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 from cdpm.commands._pose import Q_HELP, add_pose_arguments, pose_from_args
 from cdpm.commands._reach import add_reach_arguments
-from cdpm.commands._tension import add_tension_arguments, cli_equilibrium, tension_from_args
+from cdpm.commands._tension import (
+    add_tension_arguments,
+    cli_equilibrium,
+    cli_infeasible_message,
+    tension_from_args,
+)
+from cdpm.errors import InputError
 
 if TYPE_CHECKING:  # pragma: no cover
-    pass
+    from cdpm.robot import CableRobot
 
 NAME = "analyze"
 HELP = "linearise at one pose and print POC, positive controllability and more"
@@ -26,17 +34,52 @@ eigenvector when it fails), output and Kalman controllability, and wrench
 closure; then the reach margin r_T (how far, in T seconds, tension changes
 within the cables' bounds can move the outputs in every direction) and, with
 --neighbourhood R, the POC neighbourhood: how far around the pose every pose of
-a local map is POC."""
+a local map is POC.
+
+At a pose that no tension within the cable bounds holds (by the chosen
+method) there is no linearisation: the report then shows the pose, the
+outputs, the cables with the closest tensions within the bounds and their
+statics residual, and the map criteria, marked INFEASIBLE (exit status 3)."""
+
+#: exit status when the pose has no equilibrium (the report is printed)
+EXIT_NO_EQUILIBRIUM = 3
+
+#: --format -> the extension its --output file must have (None: any)
+FORMATS = {"text": None, "json": ".json", "npz": ".npz", "mat": ".mat"}
+
 EPILOG = (
     """\
 examples:
   cdpm analyze models/two_link_planar/two_link_planar.yaml --pose nominal
   cdpm analyze models/two_link_planar/two_link_planar.yaml --q pi/6 pi/3
   cdpm analyze models/two_link_planar/two_link_planar.yaml --q 0.5 1.0 --json > report.json
+  cdpm analyze models/two_link_planar --pose nominal --format npz --output lin.npz
+  cdpm analyze models/two_link_planar --pose nominal --output lin.mat   (MATLAB file)
   cdpm analyze models/two_link_vertical --pose horizontal --tension pretension --pretension 10
   cdpm analyze models/two_link_planar --pose nominal --tension 0 0 0 0   (given tensions)
-  cdpm analyze models/two_link_planar --pose nominal --neighbourhood 0.3
+  cdpm analyze models/two_link_planar --pose nominal --neighbourhood 0.3 --points 31
   cdpm analyze models/two_link_vertical --pose nominal --horizon 0.5 --tension-budget 10
+
+SPEC is a cable spec YAML file or a folder: models/two_link_planar means
+models/two_link_planar/two_link_planar.yaml (or the folder's only spec); a
+folder with several specs (e.g. models/) lists them.
+
+output formats (--format, or from the --output file's extension):
+  text  the report (default)
+  json  the report as JSON ("feasible": false at a pose without equilibrium)
+  npz   the linearisation's arrays (A, B, B_cone, C, q, output, tension,
+        sign_constrained, input_sign; cable_names, output_names, state_names
+        as string arrays), numpy.savez; needs --output FILE.npz
+  mat   the same arrays for MATLAB (scipy.io.savemat; names as cell arrays);
+        needs --output FILE.mat
+
+exit status:
+  0  the report was printed (or written)
+  1  an error (bad spec, pose or option; the message says which)
+  2  bad usage
+  3  no tension within the cable bounds holds the pose by the chosen method:
+     the report is printed, marked INFEASIBLE, without linearisation or
+     verdicts; stderr says what to change (nothing is written for npz/mat)
 
 """
     + Q_HELP
@@ -46,8 +89,27 @@ examples:
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_pose_arguments(parser)
     add_tension_arguments(parser)
-    parser.add_argument(
-        "--json", action="store_true", help="print the report as JSON instead of text"
+    output = parser.add_argument_group("output")
+    how = output.add_mutually_exclusive_group()
+    how.add_argument(
+        "--format",
+        choices=tuple(FORMATS),
+        help="text (default), json, npz or mat (see below); default: from --output's "
+        "extension, else text",
+    )
+    how.add_argument(
+        "--json",
+        dest="format",
+        action="store_const",
+        const="json",
+        help="the same as --format json",
+    )
+    output.add_argument(
+        "--output",
+        "-o",
+        metavar="FILE",
+        help="write to FILE instead of stdout (required for npz and mat; the extension must "
+        "match the format: .json, .npz, .mat)",
     )
     parser.add_argument(
         "--neighbourhood",
@@ -55,46 +117,122 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="also map the poses within R [rad or m] of the pose (every natural coordinate) "
         "and report the largest box and ball around it in which every pose is POC",
     )
+    parser.add_argument(
+        "--points",
+        metavar="N",
+        help="grid points per coordinate of the --neighbourhood map, odd (default: as many "
+        "as a budget of a few thousand poses allows)",
+    )
     add_reach_arguments(parser)
 
 
 def run(args: argparse.Namespace) -> int:
-    import sys
-    import warnings
-
-    from cdpm.equilibrium import EquilibriumWarning
     from cdpm.report import analyze_pose
     from cdpm.robot import load_robot
 
+    fmt, output = output_from_args(args)
     robot = load_robot(args.spec)
     q = pose_from_args(robot, args)
     tension, _ = tension_from_args(robot, args)
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", EquilibriumWarning)
-        report = cli_equilibrium(
-            analyze_pose,
-            robot,
-            q,
-            tension=tension,
-            pretension=args.pretension,
-            horizon=args.horizon,
-            tension_budget=args.tension_budget,
-            neighbourhood=args.neighbourhood,
-        )
-    for warning in caught:
-        if issubclass(warning.category, EquilibriumWarning):
-            print(f"cdpm analyze: warning: {_cli_words(str(warning.message))}", file=sys.stderr)
-        else:
-            warnings.warn_explicit(
-                warning.message, warning.category, warning.filename, warning.lineno
-            )
-    if args.json:
-        print(json.dumps(report.as_dict(), indent=2))
+    radius, points = neighbourhood_from_args(robot, args)
+    report = cli_equilibrium(
+        analyze_pose,
+        robot,
+        q,
+        tension=tension,
+        pretension=args.pretension,
+        horizon=args.horizon,
+        tension_budget=args.tension_budget,
+        neighbourhood=radius,
+        neighbourhood_points=points,
+        infeasible="report",
+        command="cdpm analyze",
+    )
+    if not report.feasible:
+        print(f"cdpm analyze: error: {cli_infeasible_message(report.equilibrium)}", file=sys.stderr)
+    if fmt in ("npz", "mat"):
+        if not report.feasible:
+            print(report)
+            print(f"cdpm analyze: no linearisation, {output} not written", file=sys.stderr)
+            return EXIT_NO_EQUILIBRIUM
+        report.linearisation.save(output)
+        lin = report.linearisation
+        shapes = ", ".join(f"{k} {'x'.join(map(str, lin.to_arrays()[k].shape))}" for k in "ABC")
+        print(f"wrote {output}: the linearisation of {_where(report)} ({shapes}; {fmt})")
+        return 0
+    text = json.dumps(report.as_dict(), indent=2) if fmt == "json" else str(report)
+    if output is None:
+        print(text)
     else:
-        print(report)
-    return 0
+        output.write_text(text + "\n", encoding="utf-8")
+        print(f"wrote {output}: the {fmt} report of {_where(report)}")
+    return 0 if report.feasible else EXIT_NO_EQUILIBRIUM
 
 
-def _cli_words(message: str) -> str:
-    """A library message with the Python argument named as this command's option."""
-    return message.replace("pretension=N", "--pretension N")
+def output_from_args(args: argparse.Namespace) -> tuple[str, Path | None]:
+    """(format, output file) from --format/--json and --output, checked
+    before any work: npz and mat need a file, and a file's extension must
+    match its format."""
+    output = None if args.output is None else Path(args.output)
+    fmt = args.format
+    if fmt is None:
+        by_extension = {ext: name for name, ext in FORMATS.items() if ext}
+        fmt = by_extension.get(output.suffix.lower(), "text") if output else "text"
+    want = FORMATS[fmt]
+    if output is None and fmt in ("npz", "mat"):
+        raise InputError(
+            f"--format {fmt} writes a file: add --output FILE{want} (e.g. --output lin{want})"
+        )
+    if output is not None and want is not None and output.suffix.lower() != want:
+        raise InputError(
+            f"--output {args.output}: --format {fmt} writes a {want} file; give a FILE "
+            f"ending in {want}"
+        )
+    if output is not None and not output.parent.is_dir():
+        raise InputError(f"--output {args.output}: folder {output.parent} does not exist")
+    return fmt, output
+
+
+def neighbourhood_from_args(robot: CableRobot, args: argparse.Namespace):
+    """(R, points) from --neighbourhood and --points, checked: points are an
+    odd integer >= 1 and only mean something with --neighbourhood."""
+    from cdpm.expressions import parse_number
+    from cdpm.neighbourhood import MAX_POSES
+
+    radius = None if args.neighbourhood is None else args.neighbourhood.strip()
+    if radius is not None:
+        try:
+            value = parse_number(radius)
+        except ValueError:
+            value = -1.0
+        if not (value > 0 and value < float("inf")):
+            raise InputError(
+                f"--neighbourhood must be a positive number [rad or m] (the half-width R of "
+                f"the box around the pose), e.g. 0.3 or pi/20, got {radius!r}"
+            )
+    if args.points is None:
+        return radius, None
+    if radius is None:
+        raise InputError(
+            f"--points {args.points.strip()} sets the grid of the POC neighbourhood: add "
+            "--neighbourhood R, or leave out --points"
+        )
+    try:
+        points = int(args.points)
+    except ValueError:
+        points = -1
+    if points < 1 or points % 2 == 0:
+        raise InputError(
+            f"--points must be an odd integer >= 1 (grid points per coordinate, so that the "
+            f"pose itself is one), got {args.points.strip()!r}"
+        )
+    if points > 1 and points**robot.nv > MAX_POSES:
+        raise InputError(
+            f"--points {points} over {robot.nv} coordinates is a grid of {points**robot.nv:,} "
+            f"poses; at most {MAX_POSES:,}: give fewer --points"
+        )
+    return radius, points
+
+
+def _where(report) -> str:
+    return f"pose {report.pose_name!r}" if report.pose_name else "the given q"

@@ -51,9 +51,12 @@ from cdpm.equilibrium.methods import (
 )
 from cdpm.equilibrium.qp import closest_in_bounds, min_norm_in_bounds
 from cdpm.equilibrium.result import (
+    PYTHON_OPTIONS,
     EquilibriumResult,
     EquilibriumWarning,
     InfeasibleEquilibriumError,
+    NotAnEquilibriumError,
+    ZeroPretensionWarning,
 )
 from cdpm.errors import InputError
 from cdpm.numerics import STATICS_RTOL
@@ -71,6 +74,9 @@ __all__ = [
     "EquilibriumResult",
     "EquilibriumWarning",
     "InfeasibleEquilibriumError",
+    "NotAnEquilibriumError",
+    "ZeroPretensionWarning",
+    "PYTHON_OPTIONS",
     "equilibrium_tension",
     "equilibrium_tensions",
     "check_equilibrium",
@@ -210,7 +216,8 @@ def equilibrium_tension(
         pretension: least tension [N] of every cable for the ``pretension``
             method; None uses the spec's ``equilibrium.pretension``. The
             other methods do not use it. With 0 N the ``pretension`` method
-            is ``min_norm``, which an :class:`EquilibriumWarning` points out.
+            is ``min_norm``, which a :class:`ZeroPretensionWarning` (an
+            :class:`EquilibriumWarning`) points out.
 
     Returns:
         The :class:`EquilibriumResult`; ``feasible`` is False (with the
@@ -223,13 +230,7 @@ def equilibrium_tension(
     """
     method, pretension = resolve_method(robot, method, pretension)
     if method == "pretension" and pretension == 0:
-        warnings.warn(
-            "the 'pretension' method with a pretension of 0 N is the 'min_norm' method "
-            "(cables the load does not need stay slack); give a pretension > 0 N "
-            "(pretension=N or the spec's equilibrium.pretension) to keep every cable taut",
-            EquilibriumWarning,
-            stacklevel=2,
-        )
+        warnings.warn(ZeroPretensionWarning(), stacklevel=2)
     q, LT, load = _statics(robot, q)
     fmin, fmax = robot.tension_min, robot.tension_max
     batch = solve_equilibria(LT, load, fmin, fmax, method, pretension)

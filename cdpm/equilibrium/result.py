@@ -1,4 +1,11 @@
-"""Equilibrium results and their errors and warnings."""
+"""Equilibrium results and their errors and warnings.
+
+The errors and warnings say what to change, naming the Python arguments
+(``tension=``, ``pretension=``) by default. A command line shows its own
+options instead: each has ``spelled(...)``, which returns the same error or
+warning with the options spelled as given (format strings, see
+:class:`InfeasibleEquilibriumError`).
+"""
 
 from __future__ import annotations
 
@@ -7,21 +14,68 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from cdpm.errors import ModelError
+from cdpm.errors import InputError, ModelError
 
-__all__ = ["EquilibriumResult", "EquilibriumWarning", "InfeasibleEquilibriumError"]
+__all__ = [
+    "EquilibriumResult",
+    "EquilibriumWarning",
+    "ZeroPretensionWarning",
+    "InfeasibleEquilibriumError",
+    "NotAnEquilibriumError",
+    "PYTHON_OPTIONS",
+]
+
+#: how messages name the arguments that fix a problem, in the Python API:
+#: ``method_option`` takes a method name, ``pretension_option`` a
+#: placeholder, ``omit_option`` is the words for "no tension given"
+PYTHON_OPTIONS: dict[str, str] = {
+    "method_option": "tension={!r}",
+    "pretension_option": "pretension={}",
+    "omit_option": "omit the tension (tension=None)",
+}
 
 
 class EquilibriumWarning(UserWarning):
     """An equilibrium request that is valid but probably not what was meant
     (e.g. the ``pretension`` method with a pretension of 0 N)."""
 
+    def spelled(self, **options: str) -> EquilibriumWarning:
+        """This warning with the arguments spelled as ``options`` (keys of
+        :data:`PYTHON_OPTIONS`); a plain warning names none, so it is
+        returned unchanged."""
+        return self
+
+
+class ZeroPretensionWarning(EquilibriumWarning):
+    """The ``pretension`` method with a pretension of 0 N: it is the
+    ``min_norm`` method.
+
+    Args:
+        pretension_option: how to spell "set the pretension", a format
+            string taking a placeholder (default ``"pretension={}"``).
+    """
+
+    def __init__(self, pretension_option: str = PYTHON_OPTIONS["pretension_option"]):
+        self.pretension_option = pretension_option
+        super().__init__(
+            "the 'pretension' method with a pretension of 0 N is the 'min_norm' method "
+            "(cables the load does not need stay slack); give a pretension > 0 N "
+            f"({pretension_option.format('N')} or the spec's equilibrium.pretension) to "
+            "keep every cable taut"
+        )
+
+    def spelled(self, **options: str) -> ZeroPretensionWarning:
+        return ZeroPretensionWarning(
+            options.get("pretension_option", PYTHON_OPTIONS["pretension_option"])
+        )
+
 
 class InfeasibleEquilibriumError(ModelError):
     """No tension within the cable bounds holds the robot at the pose.
 
     The message says what to change, naming the Python arguments by
-    default; a command line passes its own spelling of the options.
+    default; a command line passes its own spelling of the options (or
+    calls :meth:`spelled`).
 
     Args:
         result: the infeasible :class:`EquilibriumResult`.
@@ -40,24 +94,86 @@ class InfeasibleEquilibriumError(ModelError):
         self,
         result: EquilibriumResult,
         *,
-        method_option: str = "tension={!r}",
-        pretension_option: str = "pretension={}",
+        method_option: str = PYTHON_OPTIONS["method_option"],
+        pretension_option: str = PYTHON_OPTIONS["pretension_option"],
     ):
         self.result = result
-        min_norm = method_option.format("min_norm")
-        bounds = "wider tension bounds for the cables in the spec"
-        if result.method == "zero":
-            fix = f"let the cables take the load ({min_norm}), or try another pose"
-        elif result.method == "pretension":
-            fix = (
-                f"try a lower pretension ({pretension_option.format('N')}, now "
-                f"{result.pretension:g} N), {min_norm}, another pose or {bounds}"
-            )
-        else:
-            fix = f"try another pose or {bounds}"
         super().__init__(
             f"no equilibrium at this pose with method {result.method!r}: {result.message}. "
-            f"To fix: {fix}"
+            f"To fix: {infeasible_fix(result, method_option, pretension_option)}"
+        )
+
+    def spelled(self, **options: str) -> InfeasibleEquilibriumError:
+        """The same error with the options spelled as given (keys of
+        :data:`PYTHON_OPTIONS`; others are ignored)."""
+        return InfeasibleEquilibriumError(
+            self.result,
+            method_option=options.get("method_option", PYTHON_OPTIONS["method_option"]),
+            pretension_option=options.get("pretension_option", PYTHON_OPTIONS["pretension_option"]),
+        )
+
+
+def infeasible_fix(
+    result: EquilibriumResult,
+    method_option: str = PYTHON_OPTIONS["method_option"],
+    pretension_option: str = PYTHON_OPTIONS["pretension_option"],
+) -> str:
+    """What to change when ``result`` is infeasible, in the given spelling
+    of the options (see :class:`InfeasibleEquilibriumError`)."""
+    min_norm = method_option.format("min_norm")
+    bounds = "wider tension bounds for the cables in the spec"
+    if result.method == "zero":
+        return f"let the cables take the load ({min_norm}), or try another pose"
+    if result.method == "pretension":
+        return (
+            f"try a lower pretension ({pretension_option.format('N')}, now "
+            f"{result.pretension:g} N), {min_norm}, another pose or {bounds}"
+        )
+    return f"try another pose or {bounds}"
+
+
+class NotAnEquilibriumError(InputError):
+    """Given tensions that are within the cable bounds but do not hold the
+    robot at the pose.
+
+    Args:
+        result: the :class:`EquilibriumResult` of the given tensions
+            (method ``given``, ``feasible`` False, with their residual).
+        methods: the method names to suggest.
+        method_option: how to spell "use this tension method" (as for
+            :class:`InfeasibleEquilibriumError`).
+        omit_option: the words for "give no tension" (default
+            ``"omit the tension (tension=None)"``).
+
+    Attributes:
+        result: the :class:`EquilibriumResult` of the given tensions.
+    """
+
+    def __init__(
+        self,
+        result: EquilibriumResult,
+        methods: tuple[str, ...] = ("zero", "min_norm", "pretension"),
+        *,
+        method_option: str = PYTHON_OPTIONS["method_option"],
+        omit_option: str = PYTHON_OPTIONS["omit_option"],
+    ):
+        self.result = result
+        self.methods = tuple(methods)
+        named = ", ".join(method_option.format(m) for m in self.methods)
+        super().__init__(
+            "the given tension is not an equilibrium at this pose: statics residual "
+            f"|L^T f + G + w_ext| = {result.residual:.6g} (N or N m); let cdpm compute one: "
+            f"{omit_option} or name a method ({named})"
+        )
+
+    def spelled(self, **options: str) -> NotAnEquilibriumError:
+        """The same error with the options spelled as given (keys of
+        :data:`PYTHON_OPTIONS`; others are ignored)."""
+        return NotAnEquilibriumError(
+            self.result,
+            self.methods,
+            method_option=options.get("method_option", PYTHON_OPTIONS["method_option"]),
+            omit_option=options.get("omit_option", PYTHON_OPTIONS["omit_option"]),
         )
 
 
