@@ -52,8 +52,10 @@ STATUS_TEXT = {
 
 #: a zero margin (not POC, or the horizon too short): red, outside the colour map
 ZERO_MARGIN_COLOR = "#e0312b"
-#: a pose analysed without a margin (map made with margin=False)
-NO_MARGIN_COLOR = "#f4f4f4"
+#: a pose analysed without a margin (r_T not resolvable in double precision,
+#: docs/analysis.md): light magenta, apart from the greys, the red and the
+#: colour map
+NO_MARGIN_COLOR = "#f0a8d8"
 #: sequential colour map of positive margins (dark = small)
 MARGIN_CMAP = "viridis"
 

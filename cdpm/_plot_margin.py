@@ -7,6 +7,11 @@ tension changes within their bounds (up to +-``tension_budget`` [N] for
 cables without an upper bound), can move the output r_T in every
 direction. Older maps carry only ``poc_margin``, the unit-impulse
 index mu_T (unitless); it is drawn the same way and labelled as what it is.
+
+The colour scale spans the positive margins but clips stragglers at either
+end by one rule (:func:`margin_range`): a few margins far beyond the 1st or
+99th percentile take the end colour, the colour bar gets a triangle at that
+end and its label says what was clipped.
 """
 
 from __future__ import annotations
@@ -23,7 +28,6 @@ from cdpm._plot_common import (
     STATUS_TEXT,
     ZERO_MARGIN_COLOR,
     cell_edges,
-    legend_below,
 )
 from cdpm.verdicts import NOT_ANALYSED, STATUS_CODES
 
@@ -84,7 +88,8 @@ def margin_scale(ds) -> MarginScale | None:
         within = f" within $T$ = {horizon:.3g} s" if horizon is not None else ""
         title = f"reach margin $r_T$ [{units}]{within} (log scale)"
         if budget is not None:
-            title += f"\ntension changes up to ±{budget:.3g} N"
+            # bounded cables use their own bounds (docs/analysis.md)
+            title += f"\ntension changes up to ±{budget:.3g} N\nfor cables without an upper bound"
         return MarginScale(
             "reach_margin",
             title,
@@ -109,7 +114,7 @@ def _categories() -> list[tuple[str, str]]:
     """(label, colour) of every category index."""
     cats = [
         ("", ZERO_MARGIN_COLOR),  # label from the MarginScale
-        ("analysed, no margin computed", NO_MARGIN_COLOR),
+        ("analysed, margin not resolvable (NaN)", NO_MARGIN_COLOR),
         ("not analysed", STATUS_COLORS[STATUS_CODES["no_equilibrium"]]),
     ]
     return cats + [(STATUS_TEXT[s], STATUS_COLORS[s]) for s in _STATUS_ORDER]
@@ -169,66 +174,111 @@ def _category_cmap():
     return ListedColormap(colours), BoundaryNorm(np.arange(len(colours) + 1) - 0.5, len(colours))
 
 
-#: stragglers: at most this fraction of the positive margins, separated
-#: from the others by a gap of at least _STRAGGLER_GAP decades, are clipped
-#: to the bottom colour (e.g. round-off values ~1e-15 at singular poses)
-_STRAGGLER_FRACTION = 0.02
-_STRAGGLER_GAP = 3.0
+#: the bulk of the positive margins runs from this quantile to 1 minus it
+#: (the 1st to the 99th percentile): at most this fraction of them is
+#: clipped at either end of the colour scale
+STRAGGLER_FRACTION = 0.01
+#: a margin more than this many decades beyond the bulk (below the 1st
+#: percentile / 10 or above the 99th percentile x 10) is a straggler: it
+#: takes the end colour of its side and the colour bar says so. Below:
+#: round-off values at singular poses; above: poses whose equilibrium needs
+#: huge tensions (e.g. 692 m next to a median of 0.12 m on the gravity arm)
+STRAGGLER_DECADES = 1.0
 
 
-def log_norm(positive: np.ndarray):
-    """LogNorm of the positive margins: vmax the largest, vmin the smallest
-    (a decade either side of a single value), unless a few stragglers (at
-    most 2 % of them) lie three decades or more below the rest: then vmin
-    is just below the rest, the stragglers take the bottom colour, and the
-    norm's ``clipped`` attribute says so."""
-    from matplotlib.colors import LogNorm
+@dataclass(frozen=True)
+class MarginRange:
+    """The colour (or axis) range of the positive margins.
 
-    finite = np.sort(positive[np.isfinite(positive)])
-    clipped = False
+    Attributes:
+        low, high: the range [margin units], low < high.
+        below, above: how many margins are clipped below ``low`` and above
+            ``high`` (stragglers, :data:`STRAGGLER_DECADES`).
+    """
+
+    low: float
+    high: float
+    below: int = 0
+    above: int = 0
+
+    def norm(self):
+        """``matplotlib.colors.LogNorm`` of the range."""
+        from matplotlib.colors import LogNorm
+
+        return LogNorm(self.low, self.high)
+
+    @property
+    def extend(self) -> str:
+        """The colour bar's ``extend``: which ends have clipped values."""
+        return {(0, 0): "neither", (1, 0): "min", (0, 1): "max", (1, 1): "both"}[
+            (int(self.below > 0), int(self.above > 0))
+        ]
+
+    @property
+    def clip_note(self) -> str:
+        """``"below 0.00081 and above 1.3 clipped"``, or ``""``."""
+        parts = [f"below {self.low:.2g}"] * (self.below > 0)
+        parts += [f"above {self.high:.2g}"] * (self.above > 0)
+        return " and ".join(parts) + " clipped" if parts else ""
+
+
+def margin_range(positive: np.ndarray) -> MarginRange:
+    """The range of the positive margins (NaN ignored): the smallest to the
+    largest, but stragglers (more than :data:`STRAGGLER_DECADES` beyond the
+    1st or 99th percentile, at most :data:`STRAGGLER_FRACTION` of the
+    margins at either end) are clipped: the range ends at the most extreme
+    margin that is not one. The rule is the same at both ends. A single
+    value gets a decade either side."""
+    finite = np.sort(np.asarray(positive, dtype=float)[np.isfinite(positive)])
     if finite.size == 0:
-        low, high = 0.1, 10.0
-    else:
-        low, high = float(finite[0]), float(finite[-1])
-        most = int(_STRAGGLER_FRACTION * finite.size)  # most stragglers
-        if most >= 1:
-            # decades between each of the lowest margins and the next one up
-            decades = np.diff(np.log10(finite[: most + 1]))
-            gap = int(np.argmax(decades))
-            if decades[gap] >= _STRAGGLER_GAP:
-                low, clipped = float(finite[gap + 1]) / 1.5, True
-        if high <= low * 1.0001:
-            low, high = low / 10.0, high * 10.0
-    norm = LogNorm(low, high)
-    norm.clipped = clipped
-    return norm
+        return MarginRange(0.1, 10.0)
+    logs = np.log10(finite)
+    most = int(STRAGGLER_FRACTION * finite.size)  # most stragglers at either end
+    low_fence, high_fence = np.quantile(logs, [STRAGGLER_FRACTION, 1.0 - STRAGGLER_FRACTION])
+    below = int(np.sum(logs < low_fence - STRAGGLER_DECADES))
+    above = int(np.sum(logs > high_fence + STRAGGLER_DECADES))
+    below = below if below <= most else 0
+    above = above if above <= most else 0
+    low, high = float(finite[below]), float(finite[finite.size - 1 - above])
+    if high <= low * 1.0001:
+        return MarginRange(low / 10.0, high * 10.0, below, above)
+    return MarginRange(low, high, below, above)
 
 
-def colorbar_beside(ax, fig, mappable, scale: MarginScale):
+def colorbar_beside(ax, fig, mappable, scale: MarginScale, limits: MarginRange):
     """The colour bar of the positive margins in a slim axes to the right
     of ``ax`` (a child of ``ax``, so it follows the axes' box and the
-    layout makes room for it)."""
+    layout makes room for it); a clipped end is drawn as a triangle and the
+    label says what was clipped."""
     cax = ax.inset_axes([1.04, 0.0, 0.045, 1.0])
     label = scale.colorbar_label
-    clipped = getattr(mappable.norm, "clipped", False)
-    if clipped:
-        label += f" (below {mappable.norm.vmin:.2g} clipped)"
-    return fig.colorbar(mappable, cax=cax, label=label, extend="min" if clipped else "neither")
+    if limits.clip_note:
+        label += f"\n({limits.clip_note})"
+    return fig.colorbar(mappable, cax=cax, label=label, extend=limits.extend)
 
 
-#: title line of a margin panel without margins
-NO_MARGIN_NOTE = "not computed: map made with margin=False (cdpm map --no-margin)"
+def margin_computed(ds, scale: MarginScale) -> bool:
+    """Whether the map carries margins: False for a map made with
+    ``margin=False`` (``cdpm map --no-margin``: its settings say so) and for
+    a map without a single finite margin, unless none of its poses has
+    been computed yet (``status`` pending everywhere)."""
+    import json
+
+    try:
+        settings = json.loads(ds.attrs.get("cdpm_settings", "{}"))
+    except (TypeError, ValueError):
+        settings = {}
+    if isinstance(settings, dict) and settings.get("margin") is False:
+        return False
+    values = np.asarray(ds[scale.variable].values, dtype=float)
+    if np.isfinite(values).any():
+        return True
+    pending = STATUS_CODES["pending"]
+    return "status" in ds and bool(np.all(np.asarray(ds["status"].values) == pending))
 
 
-def _note(category: np.ndarray) -> str:
-    """:data:`NO_MARGIN_NOTE` when no analysed pose has a margin, else ""."""
-    if np.any(category == NO_MARGIN) and not np.any(category == POSITIVE):
-        return NO_MARGIN_NOTE
-    return ""
-
-
-def margin_grid(ax, fig, x_edges, y_edges, values, status, verdict, scale: MarginScale):
-    """Margin cells over a grid slice.
+def margin_grid(ax, fig, x_edges, y_edges, values, status, verdict, scale: MarginScale) -> list:
+    """Margin cells over a grid slice, with a colour bar and a legend.
 
     Args:
         ax, fig: the axes and figure to draw in.
@@ -238,17 +288,18 @@ def margin_grid(ax, fig, x_edges, y_edges, values, status, verdict, scale: Margi
             first index along x.
 
     Returns:
-        A note for the title ("" unless the map has no margins).
+        The legend handles of the categories present (zero margins, poses
+        not analysed).
     """
     positive, category = classify(values, status, verdict)
     X, Y = np.meshgrid(x_edges, y_edges, indexing="ij")
-    norm = log_norm(positive)
+    limits = margin_range(positive)
     mesh = ax.pcolormesh(
         X,
         Y,
         np.ma.masked_invalid(positive),
         cmap=MARGIN_CMAP,
-        norm=norm,
+        norm=limits.norm(),
         shading="flat",
         gid="margin",
     )
@@ -258,16 +309,15 @@ def margin_grid(ax, fig, x_edges, y_edges, values, status, verdict, scale: Margi
         X, Y, category_cells, cmap=cmap, norm=cnorm, shading="flat", gid="margin categories"
     )
     if np.any(category == POSITIVE):
-        colorbar_beside(ax, fig, mesh, scale)
-    legend_below(ax, category_handles(category, scale), ncol=1)
-    return _note(category)
+        colorbar_beside(ax, fig, mesh, scale, limits)
+    return category_handles(category, scale)
 
 
 def margin_scatter(ax, fig, x, y, values, status, verdict, scale: MarginScale, size: float):
-    """Margins of sampled poses at (x, y), all arrays of shape (N,).
-    Returns a note for the title, as :func:`margin_grid`."""
+    """Margins of sampled poses at (x, y), all arrays of shape (N,), with a
+    colour bar. Returns the legend handles of the categories present."""
     positive, category = classify(values, status, verdict)
-    norm = log_norm(positive)
+    limits = margin_range(positive)
     cats = _categories()
     for k in np.unique(category[category >= 0]):
         sel = category == k
@@ -287,15 +337,14 @@ def margin_scatter(ax, fig, x, y, values, status, verdict, scale: MarginScale, s
         s=size,
         c=positive[sel],
         cmap=MARGIN_CMAP,
-        norm=norm,
+        norm=limits.norm(),
         linewidths=0,
         rasterized=True,
         gid="margin",
     )
     if np.any(category == POSITIVE):
-        colorbar_beside(ax, fig, points, scale)
-    legend_below(ax, category_handles(category, scale), ncol=1)
-    return _note(category)
+        colorbar_beside(ax, fig, points, scale, limits)
+    return category_handles(category, scale)
 
 
 def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
@@ -305,11 +354,13 @@ def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
     return list(zip(change[::2], change[1::2] - 1, strict=True))
 
 
-def margin_line(ax, x, values, status, verdict, scale: MarginScale):
+def margin_line(ax, x, values, status, verdict, scale: MarginScale) -> list:
     """The margin over one coordinate (sorted x, shape (N,)) on a log axis:
     a line through the positive margins, red ticks at zero margins along
-    the bottom, shaded spans where poses are not analysed (by reason).
-    Returns (legend handles, a note for the title as :func:`margin_grid`)."""
+    the bottom, shaded spans where poses are not analysed (by reason). The
+    axis spans :func:`margin_range`: stragglers are marked by triangles at
+    the top (or bottom) edge. Returns the legend handles."""
+    from matplotlib.lines import Line2D
     from matplotlib.transforms import blended_transform_factory
 
     positive, category = classify(values, status, verdict)
@@ -320,14 +371,14 @@ def margin_line(ax, x, values, status, verdict, scale: MarginScale):
     padded = np.concatenate([[False], finite, [False]])
     alone = finite & ~padded[:-2] & ~padded[2:]
     ax.plot(x[alone], positive[alone], ".", color="0.15", ms=4)
-    norm = log_norm(positive)
-    ax.set_ylim(norm.vmin / 1.5, norm.vmax * 1.5)
+    limits = margin_range(positive)
+    ax.set_ylim(limits.low / 1.5, limits.high * 1.5)
     edges = cell_edges(x)
     cats = _categories()
     for k in np.unique(category[category > ZERO]):
         for first, last in _runs(category == k):
             ax.axvspan(edges[first], edges[last + 1], color=cats[k][1], lw=0, zorder=0)
-    bottom = blended_transform_factory(ax.transData, ax.transAxes)
+    edge = blended_transform_factory(ax.transData, ax.transAxes)
     zero = category == ZERO
     ax.plot(
         x[zero],
@@ -336,14 +387,10 @@ def margin_line(ax, x, values, status, verdict, scale: MarginScale):
         color=ZERO_MARGIN_COLOR,
         ms=12,
         mew=2,
-        transform=bottom,
+        transform=edge,
         clip_on=False,
         gid="zero margin",
     )
-    ax.set_ylabel(f"{scale.axis_label}, log scale")
-    ax.grid(True, which="major", color="0.9", lw=0.6)
-    from matplotlib.lines import Line2D
-
     handles = [Line2D([], [], color="0.15", lw=1.4, label=f"{scale.symbol} > 0")]
     if zero.any():
         handles.append(
@@ -358,5 +405,19 @@ def margin_line(ax, x, values, status, verdict, scale: MarginScale):
                 label=scale.zero_label,
             )
         )
+    off_scale = (
+        (positive > limits.high, 1.0, "^", f"above {limits.high:.2g}"),
+        (positive < limits.low, 0.0, "v", f"below {limits.low:.2g}"),
+    )
+    for beyond, height, marker, where in off_scale:
+        if beyond.any():
+            style = {"ls": "", "marker": marker, "ms": 6, "color": "0.15", "clip_on": False}
+            ax.plot(
+                x[beyond], np.full(beyond.sum(), height), transform=edge, gid="off scale", **style
+            )
+            label = f"{scale.symbol} {where}: off the scale ({int(beyond.sum())})"
+            handles.append(Line2D([], [], label=label, **style))
+    ax.set_ylabel(f"{scale.axis_label}, log scale")
+    ax.grid(True, which="major", color="0.9", lw=0.6)
     others = [h for h in category_handles(category, scale) if h.get_label() != scale.zero_label]
-    return handles + others, _note(category)
+    return handles + others

@@ -19,6 +19,14 @@ MAX_NUMBERED_REGIONS = 15
 MIN_NUMBERED_FRACTION = 0.005
 #: resolution of the nearest-sample raster behind the outlines of sampled maps
 _SAMPLE_RASTER = 200
+#: region outlines follow a region's outer boundary and its holes, but not
+#: thin or small pieces of poses outside every region, so that a thin NO
+#: line (the paper's arm's diagonal NO lines, met at isolated poses; the
+#: folded arm's q2 = 0 row) reads as a red line, not as a row of black
+#: rings: an edge is outlined only when the pose outside the region is in a
+#: 2 x 2 block of such poses and in a face-connected piece of more than
+#: SMALL_HOLE_POSES poses
+SMALL_HOLE_POSES = 4
 
 OUTLINE_COLOR = "black"
 OUTLINE_WIDTH = 0.7
@@ -41,16 +49,51 @@ def region_count(ds) -> int:
         return int(ids.max()) if ids.size else 0
 
 
-def _outline_segments(ids: np.ndarray, x_edges: np.ndarray, y_edges: np.ndarray) -> list:
+def _not_outlined(ids: np.ndarray, owners: np.ndarray | None = None) -> np.ndarray:
+    """Cells outside every region whose edges are not outlined: those in
+    a small piece (a face-connected piece of such cells holding at most
+    :data:`SMALL_HOLE_POSES` poses; ``owners``: the pose of each cell, shape
+    of ``ids``, None: each cell is a pose) and those in no 2 x 2 block of
+    such cells (a line one cell thin). Shape of ``ids``, bool."""
+    from scipy import ndimage
+
+    outside = ids <= 0
+    pieces, n = ndimage.label(outside)
+    if n == 0:
+        return outside
+    if owners is None:
+        poses = np.bincount(pieces.ravel(), minlength=n + 1)
+    else:  # distinct poses per piece
+        pairs = np.unique(np.column_stack([pieces.ravel(), np.ravel(owners)]), axis=0)
+        poses = np.bincount(pairs[:, 0], minlength=n + 1)
+    small = poses <= SMALL_HOLE_POSES
+    small[0] = False  # label 0: the cells inside regions
+    block = outside[:-1, :-1] & outside[1:, :-1] & outside[:-1, 1:] & outside[1:, 1:]
+    in_block = np.zeros_like(outside)
+    for di in (0, 1):
+        for dj in (0, 1):
+            in_block[di : di + block.shape[0], dj : dj + block.shape[1]] |= block
+    return small[pieces] | (outside & ~in_block)
+
+
+def _outline_segments(
+    ids: np.ndarray, x_edges: np.ndarray, y_edges: np.ndarray, owners: np.ndarray | None = None
+) -> list:
     """Cell-edge segments between cells of different regions (one side in
-    a region), for ids of shape (nx, ny), the first index along x."""
+    a region), for ids of shape (nx, ny), the first index along x; edges
+    next to a thin or small piece outside the regions
+    (:func:`_not_outlined`) are left out."""
     segments = []
+    inside = ids > 0
+    drawn = ~_not_outlined(ids, owners)  # cells whose edges may be outlined
     a, b = ids[:-1, :], ids[1:, :]  # neighbours along x: a vertical edge
-    for i, j in zip(*np.nonzero((a != b) & (np.maximum(a, b) > 0)), strict=True):
+    edge = (a != b) & (inside[:-1, :] | inside[1:, :]) & drawn[:-1, :] & drawn[1:, :]
+    for i, j in zip(*np.nonzero(edge), strict=True):
         x = x_edges[i + 1]
         segments.append([(x, y_edges[j]), (x, y_edges[j + 1])])
     a, b = ids[:, :-1], ids[:, 1:]  # neighbours along y: a horizontal edge
-    for i, j in zip(*np.nonzero((a != b) & (np.maximum(a, b) > 0)), strict=True):
+    edge = (a != b) & (inside[:, :-1] | inside[:, 1:]) & drawn[:, :-1] & drawn[:, 1:]
+    for i, j in zip(*np.nonzero(edge), strict=True):
         y = y_edges[j + 1]
         segments.append([(x_edges[i], y), (x_edges[i + 1], y)])
     return segments
@@ -99,10 +142,10 @@ def _number(ax, x: float, y: float, k: int, fontsize: float = 9.0) -> None:
     )
 
 
-def _outline(ax, ids: np.ndarray, x_edges: np.ndarray, y_edges: np.ndarray) -> None:
+def _outline(ax, ids: np.ndarray, x_edges, y_edges, owners: np.ndarray | None = None) -> None:
     from matplotlib.collections import LineCollection
 
-    segments = _outline_segments(ids, x_edges, y_edges)
+    segments = _outline_segments(ids, x_edges, y_edges, owners)
     if segments:
         ax.add_collection(
             LineCollection(
@@ -128,8 +171,9 @@ def _number_cells(ax, ids: np.ndarray, numbered: list[int], x_edges, y_edges) ->
 
 
 def draw_regions_grid(ax, ids: np.ndarray, x_edges, y_edges) -> tuple[int, bool]:
-    """Outline every region of a grid slice and number the largest ones
-    near their largest area.
+    """Outline every region of a grid slice (its outer boundary and its
+    holes, but not thin or small pieces outside it: :data:`SMALL_HOLE_POSES`)
+    and number the largest ones near their largest area.
 
     Args:
         ids: ``poc_region`` ids, shape (nx, ny), the first index along x;
@@ -169,7 +213,7 @@ def draw_regions_samples(ax, ids, x, y, outline: bool) -> tuple[int, bool]:
     _, nearest = tree.query(np.column_stack([X.ravel(), Y.ravel()]))
     raster = ids[nearest].reshape(X.shape)
     if outline:
-        _outline(ax, raster, x_edges, y_edges)
+        _outline(ax, raster, x_edges, y_edges, nearest.reshape(X.shape))
     _number_cells(ax, raster, numbered, x_edges, y_edges)
     return len(present), len(numbered) == len(present)
 
@@ -322,9 +366,11 @@ def draw_path(ax, x, y, near=None, periods=(None, None)) -> None:
     padded = np.concatenate([[False], solid, [False]])
     alone = solid & ~padded[:-2] & ~padded[2:]
     if alone.any() and x.size > 1:
-        ax.plot(x[alone], y[alone], "o", ms=3.5, color=PATH_COLOR, zorder=5)
-    ax.plot(x[0], y[0], "o", ms=8, mfc="white", mec=PATH_COLOR, mew=1.8, zorder=7, gid="start")
-    ax.plot(x[-1], y[-1], "*", ms=13, mfc=PATH_COLOR, mec="white", mew=1.0, zorder=7, gid="goal")
+        ax.plot(x[alone], y[alone], "o", ms=3.5, color=PATH_COLOR, zorder=5, clip_on=False)
+    # markers unclipped: a path that ends on the edge of the map keeps its star
+    ends = {"zorder": 7, "clip_on": False}
+    ax.plot(x[0], y[0], "o", ms=8, mfc="white", mec=PATH_COLOR, mew=1.8, gid="start", **ends)
+    ax.plot(x[-1], y[-1], "*", ms=13, mfc=PATH_COLOR, mec="white", mew=1.0, gid="goal", **ends)
 
 
 def path_handles(k: int, sliced: bool = False) -> list:

@@ -5,18 +5,22 @@ with :func:`cdpm.maps.open_map`) as one figure, the map's first coordinate
 on the horizontal axis of every map panel:
 
 - the verdict (categorical colours) over the first two coordinates, with
-  the outlines and numbers of the POC regions (``poc_region``) and a path
-  when one is given;
+  the outlines and numbers of the POC regions (``poc_region``; on the POC
+  verdict only) and a path when one is given;
 - the reach margin r_T [output units] within the horizon T (or, for older
-  maps, the unit-impulse POC margin mu_T) on a log colour scale; zero
-  margins in red; poses not analysed in greys by reason (``status``);
+  maps, the unit-impulse POC margin mu_T) on a log colour scale, a few
+  stragglers far beyond the rest clipped at either end (said on the colour
+  bar); zero margins in red; poses not analysed in greys by reason
+  (``status``); the path again. A map made without margins gets no margin
+  panel, and its title says so;
 - for more than two coordinates, small multiples: slices of the verdict
   along the third coordinate (further coordinates at their middle value);
 - an output-space view: every pose at its outputs, coloured by verdict.
 
 Legends sit below the panels, never over a pose. A map over one coordinate
-is drawn as a verdict band along it above a line of the margin. Maps of
-random samples are drawn as scatter plots in their first two coordinates.
+is drawn as a verdict band along it above a line of the margin (the title
+gives the other coordinates' base values). Maps of random samples are drawn
+as scatter plots in their first two coordinates.
 Figures are built with the object-oriented API (no pyplot state), so it
 works headless; :func:`save_map_plot` writes an image in any format
 matplotlib writes (:func:`image_formats`).
@@ -45,7 +49,14 @@ from cdpm._plot_common import (
     verdict_index,
     verdict_title,
 )
-from cdpm._plot_margin import MarginScale, margin_grid, margin_line, margin_scale, margin_scatter
+from cdpm._plot_margin import (
+    MarginScale,
+    margin_computed,
+    margin_grid,
+    margin_line,
+    margin_scale,
+    margin_scatter,
+)
 from cdpm._plot_outputs import OutputChoice, choose_outputs, output_panel
 from cdpm._plot_overlays import (
     check_path,
@@ -184,12 +195,16 @@ def plot_map(
         ds_or_path: the ``xarray.Dataset`` of :func:`cdpm.workspace_map` or
             the path of its zarr store.
         variable: verdict variable to colour by (``poc``, ``wrench_closure``,
-            ``positive_controllable``, ``output_controllable``, ``static_feasible``).
+            ``positive_controllable``, ``output_controllable``, ``static_feasible``);
+            the POC regions are outlined over ``poc`` only.
         margin: add the margin panel: ``reach_margin`` r_T [output units]
             within the horizon T, or ``poc_margin`` mu_T (unitless) on maps
-            without it; positive margins on a log colour scale, zero margins
-            red, poses not analysed grey by reason. Maps with neither
-            variable get no margin panel.
+            without it; positive margins on a log colour scale (at most 1 %
+            of them at either end, stragglers more than a decade beyond the
+            1st or 99th percentile, clipped and said so on the colour bar),
+            zero margins red, poses not analysed grey by reason. Maps with neither
+            variable, or made with ``margin=False``, get no margin panel
+            (the title of the latter says so).
         output_view: add the output-space panel.
         outputs: what the output-space panel plots: one or two names of the
             map's outputs (the ``output`` coordinate of ``y``) or
@@ -200,8 +215,9 @@ def plot_map(
         path: coordinate name -> values along a path of map poses, each of
             shape (k,) [the coordinates' units]; it must give the plotted
             coordinates (the first two, or the one of a one-axis map). It is
-            drawn over the verdict panels as a line from a start circle to a
-            goal star. Coordinates not plotted are projected out: on the
+            drawn over the verdict and margin panels as a line from a start
+            circle to a goal star (on a one-axis map, along the margin
+            line). Coordinates not plotted are projected out: on the
             slices of a map of more than two axes, the poses whose third
             coordinate is nearest the slice's value are drawn solid and the
             rest dashed (all solid without a third coordinate in ``path``);
@@ -209,7 +225,8 @@ def plot_map(
             full-turn angle (pi to -pi) is drawn the short way, out through
             one edge of the panel and back through the other.
         max_slices: most slices drawn for maps of more than two axes.
-        title: figure title (default: spec name, poses and tension).
+        title: figure title (default: spec name, poses, the base values of
+            the coordinates off the axes, tension).
 
     Returns:
         ``matplotlib.figure.Figure``.
@@ -235,9 +252,14 @@ def plot_map(
     if path is not None:
         path = check_path(path, axes_names, plotted)
     scale = margin_scale(ds) if margin else None
+    missing = None  # a margin asked for but not in the map: said in the title, no panel
+    if scale is not None and not margin_computed(ds, scale):
+        missing, scale = scale, None
+    # region outlines are POC regions: drawn over POC verdicts only
+    regions = region_count(ds) if variable == "poc" else 0
     if len(axes_names) == 1:
-        fig = _plot_one_axis(ds, variable, axes_names[0], scale, choice, path)
-        _suptitle(fig, ds, title)
+        fig = _plot_one_axis(ds, variable, axes_names[0], scale, choice, path, regions)
+        _suptitle(fig, ds, title, axes_names, missing)
         return fig
     slices: list[dict] = [{}]
     if not sample and len(dims) > 2:
@@ -253,19 +275,18 @@ def plot_map(
         panels.append("output")
     ncols = min(len(panels), 3)
     nrows = -(-len(panels) // ncols)
-    fig = Figure(figsize=(5.0 * ncols, 4.9 * nrows), layout="constrained")
+    fig = Figure(figsize=(5.0 * ncols, 5.1 * nrows), layout="constrained")
     axs = [fig.add_subplot(nrows, ncols, k + 1) for k in range(len(panels))]
-    regions = region_count(ds)
     for k, (ax, kind) in enumerate(zip(axs, panels, strict=True)):
         if kind == "output":
             output_panel(ax, ds, variable, choice, axes_names[0])
         elif sample:
             _sample_panel(ax, fig, ds, variable, axes_names, kind, scale, path, regions)
         elif kind == "margin":
-            _margin_grid_panel(ax, fig, ds, variable, dims, slices[len(slices) // 2], scale)
+            _margin_grid_panel(ax, fig, ds, variable, dims, slices, scale, path)
         else:
             _verdict_grid_panel(ax, ds, variable, dims, slices, k, path, regions)
-    _suptitle(fig, ds, title)
+    _suptitle(fig, ds, title, axes_names, missing)
     return fig
 
 
@@ -294,10 +315,7 @@ def _verdict_grid_panel(ax, ds, variable, dims, slices, k, path, regions) -> Non
     if regions:
         ids = ds["poc_region"].isel(index).transpose(x, y).values
         _, all_numbered = draw_regions_grid(ax, ids, x_edges, y_edges)
-    sliced = bool(index) and path is not None and dims[2] in path
-    if path is not None:
-        near = _near_slice(ds, dims[2], path[dims[2]], slices, k) if sliced else None
-        draw_path(ax, path[x], path[y], near, (_period(ds, x), _period(ds, y)))
+    sliced = _grid_path(ax, ds, dims, slices, k, path)
     ax.set_xlabel(coordinate_label(ds, x))
     ax.set_ylabel(coordinate_label(ds, y))
     ax.set_box_aspect(1)
@@ -312,6 +330,18 @@ def _verdict_grid_panel(ax, ds, variable, dims, slices, k, path, regions) -> Non
         legend_below(ax, handles, ncol=3)
 
 
+def _grid_path(ax, ds, dims, slices, k, path) -> bool:
+    """Draw the path over grid slice ``k``; returns whether it is drawn
+    solid near the slice and dashed away from it."""
+    if path is None:
+        return False
+    x, y = dims[0], dims[1]
+    sliced = bool(slices[k]) and dims[2] in path
+    near = _near_slice(ds, dims[2], path[dims[2]], slices, k) if sliced else None
+    draw_path(ax, path[x], path[y], near, (_period(ds, x), _period(ds, y)))
+    return sliced
+
+
 def _near_slice(ds, third: str, values: np.ndarray, slices: list[dict], k: int) -> np.ndarray:
     """Which path poses have slice ``k`` as their nearest drawn slice."""
     drawn = np.asarray(ds[third].values, dtype=float)[[s[third] for s in slices]]
@@ -319,19 +349,26 @@ def _near_slice(ds, third: str, values: np.ndarray, slices: list[dict], k: int) 
     return nearest == k
 
 
-def _margin_grid_panel(ax, fig, ds, variable, dims, index, scale: MarginScale) -> None:
+def _margin_grid_panel(ax, fig, ds, variable, dims, slices, scale: MarginScale, path) -> None:
+    """The margin over the middle slice of the first two grid coordinates,
+    with the path (where a maximin path matters)."""
     x, y = dims[0], dims[1]
+    k = len(slices) // 2
+    index = slices[k]
     values = ds[scale.variable].isel(index).transpose(x, y).values
     codes = ds[variable].isel(index).transpose(x, y).values
     x_edges, y_edges = cell_edges(ds[x].values), cell_edges(ds[y].values)
     status = _status(ds, index, (x, y))
-    note = margin_grid(ax, fig, x_edges, y_edges, values, status, codes, scale)
+    handles = margin_grid(ax, fig, x_edges, y_edges, values, status, codes, scale)
+    sliced = _grid_path(ax, ds, dims, slices, k, path)
+    if path is not None:
+        handles += path_handles(next(iter(path.values())).size, sliced)[:1]
+    legend_below(ax, handles, ncol=1)
     ax.set_xlabel(coordinate_label(ds, x))
     ax.set_ylabel(coordinate_label(ds, y))
     ax.set_box_aspect(1)
     where = _where(ds, index)
-    lines = [scale.title] + [f"({where})"] * bool(where) + [note] * bool(note)
-    ax.set_title("\n".join(lines), fontsize=10)
+    ax.set_title(scale.title + (f"\n({where})" if where else ""), fontsize=10)
 
 
 def _sample_panel(ax, fig, ds, variable, axes_names, kind, scale, path, regions) -> None:
@@ -368,14 +405,57 @@ def _sample_panel(ax, fig, ds, variable, axes_names, kind, scale, path, regions)
         ax.set_title(verdict_title(variable) + projected, fontsize=10)
     else:
         margins = np.asarray(ds[scale.variable].values, dtype=float)
-        note = margin_scatter(ax, fig, xv, yv, margins, _status(ds), values, scale, size)
-        ax.set_title(scale.title + projected + (f"\n{note}" if note else ""), fontsize=10)
+        handles = margin_scatter(ax, fig, xv, yv, margins, _status(ds), values, scale, size)
+        if path is not None:
+            draw_path(ax, path[xn], path[yn], periods=(_period(ds, xn), _period(ds, yn)))
+            handles += path_handles(path[xn].size)[:1]
+        legend_below(ax, handles, ncol=1)
+        ax.set_title(scale.title + projected, fontsize=10)
     ax.set_xlabel(coordinate_label(ds, xn))
     ax.set_ylabel(coordinate_label(ds, yn))
     ax.set_box_aspect(1)
 
 
-def _suptitle(fig, ds, title: str | None) -> None:
+#: most base coordinates a title lists
+_MAX_BASE_IN_TITLE = 6
+
+
+def _base_text(ds, axes_names: Sequence[str]) -> str:
+    """``"q2 = 1.047 (base)"``: the coordinates off the map's axes at the
+    base pose (attributes ``robot_coordinates`` and ``base``), or ""."""
+    names, base = ds.attrs.get("robot_coordinates"), ds.attrs.get("base")
+    try:
+        names, base = [str(n) for n in names], [float(v) for v in base]
+    except (TypeError, ValueError):
+        return ""
+    if len(names) != len(base):  # natural coordinates that are not named one by one
+        return ""
+    fixed = [f"{n} = {v:.4g}" for n, v in zip(names, base, strict=True) if n not in axes_names]
+    if not fixed:
+        return ""
+    if len(fixed) > _MAX_BASE_IN_TITLE:
+        fixed = [*fixed[:_MAX_BASE_IN_TITLE], "..."]
+    return ", ".join(fixed) + " (base)"
+
+
+def _poses_text(ds, axes_names: Sequence[str]) -> str:
+    """``"q1: 181 poses, q2 = 1.047 (base)"``, ``"181 x 181 grid"``,
+    ``"2000 random poses"``: what the map covers."""
+    if "sample" in ds.dims:
+        poses = f"{ds.sizes['sample']} random poses"
+    elif len(axes_names) == 1:
+        poses = f"{axes_names[0]}: {ds.sizes[axes_names[0]]} poses"
+    else:
+        sizes = [ds.sizes[d] for d in ds.dims if d not in ("output", "xyz")]
+        poses = " x ".join(str(n) for n in sizes) + " grid"
+    base = _base_text(ds, axes_names)
+    return f"{poses}, {base}" if base else poses
+
+
+def _suptitle(fig, ds, title: str | None, axes_names, missing: MarginScale | None) -> None:
+    """The figure title: ``title``, else the spec, the poses, the base pose
+    and the tension, and a line when the margin was asked for but the map
+    has none."""
     if title is None:
         tension = ds.attrs.get("tension", "?")
         try:
@@ -383,19 +463,21 @@ def _suptitle(fig, ds, title: str | None) -> None:
         except (TypeError, ValueError):
             pass
         spec = Path(str(ds.attrs.get("spec", "map"))).name
-        sizes = [ds.sizes[d] for d in ds.dims if d not in ("output", "xyz")]
-        if "sample" in ds.dims:
-            poses = f"{ds.sizes['sample']} random poses"
-        else:
-            poses = " x ".join(str(n) for n in sizes) + " grid"
-        title = f"{spec}: {poses}, equilibrium tension {tension}"
+        head = f"{spec}: {_poses_text(ds, axes_names)}"
+        tail = f"equilibrium tension {tension}"
+        # about 12 characters per inch at 11 points
+        fits = len(head) + len(tail) + 2 <= 12 * fig.get_figwidth()
+        title = f"{head}, {tail}" if fits else f"{head}\n{tail}"
+        if missing is not None:
+            what = "reach margin" if missing.variable == "reach_margin" else "POC margin"
+            title += f"\n{what} not computed (map made with --no-margin): no margin panel"
     fig.suptitle(title, fontsize=11)
 
 
-def _plot_one_axis(ds, variable, name, scale, choice: OutputChoice | None, path):
+def _plot_one_axis(ds, variable, name, scale, choice: OutputChoice | None, path, regions: int):
     """A map over one coordinate: the verdict as a coloured band along it
     (regions and path on it), the margin as a line over it on a log axis
-    (same x axis), the output-space view beside."""
+    (same x axis, the path along it), the output-space view beside."""
     matplotlib, Figure = _matplotlib()
     x = np.asarray(ds[name].values, dtype=float).reshape(-1)
     order = np.argsort(x, kind="stable")
@@ -423,15 +505,14 @@ def _plot_one_axis(ds, variable, name, scale, choice: OutputChoice | None, path)
     strip.set_yticks([])
     strip.set_ylabel(verdict_title(variable).replace(" verdict", "\nverdict"), fontsize=9)
     handles = verdict_handles(codes)
-    if "poc_region" in ds:
+    if regions:
         ids = np.asarray(ds["poc_region"].values).reshape(-1)[order]
         count, all_numbered = draw_regions_band(strip, ids, edges)
         if count:
-            handles.append(region_handle(region_count(ds), all_numbered))
+            handles.append(region_handle(regions, all_numbered))
+    period = _period(ds, name)
     if path is not None:
-        draw_path(
-            strip, path[name], np.full(path[name].size, 0.5), periods=(_period(ds, name), None)
-        )
+        draw_path(strip, path[name], np.full(path[name].size, 0.5), periods=(period, None))
         handles += path_handles(path[name].size)
     strip.legend(
         handles=handles,
@@ -451,15 +532,32 @@ def _plot_one_axis(ds, variable, name, scale, choice: OutputChoice | None, path)
         values = np.asarray(ds[scale.variable].values, dtype=float).reshape(-1)[order]
         status = _status(ds)
         status = None if status is None else status.reshape(-1)[order]
-        margin_handles, note = margin_line(line, x, values, status, codes, scale)
+        margin_handles = margin_line(line, x, values, status, codes, scale)
+        if path is not None:
+            heights = _along_line(line, x, values, path[name])
+            draw_path(line, path[name], heights, periods=(period, None))
         line.set_xlabel(axis_label)
-        line.set_title(scale.title + (f"\n{note}" if note else ""), fontsize=10)
+        line.set_title(scale.title, fontsize=10)
         legend_below(line, margin_handles, ncol=2)
     else:
         strip.set_xlabel(axis_label)
     if choice is not None:
         output_panel(fig.add_subplot(grid[0, 1]), ds, variable, choice, name)
     return fig
+
+
+def _along_line(ax, x: np.ndarray, values: np.ndarray, path_x: np.ndarray) -> np.ndarray:
+    """Heights of path poses on the margin line: the margin of the nearest
+    map pose (x sorted, shape (N,)), kept within the axis' limits; the
+    bottom edge where the margin is not positive (with the zero ticks)."""
+    nearest = np.clip(np.searchsorted(x, path_x), 1, x.size - 1) if x.size > 1 else None
+    if nearest is None:
+        index = np.zeros(path_x.size, dtype=int)
+    else:
+        left_closer = np.abs(path_x - x[nearest - 1]) <= np.abs(x[nearest] - path_x)
+        index = np.where(left_closer, nearest - 1, nearest)
+    low, high = ax.get_ylim()
+    return np.clip(np.where(values[index] > 0, values[index], low), low, high)
 
 
 def save_map_plot(

@@ -175,9 +175,10 @@ def test_cli_map_samples_and_errors(tmp_path, capsys):
         == 1
     )
     assert "different settings" in capsys.readouterr().err
-    assert main(["map", str(PAPER_SPEC), "--axis", "q9=0:1:3", "--quiet"]) == 1
+    other = ["--out", str(tmp_path / "other.zarr"), "--quiet"]
+    assert main(["map", str(PAPER_SPEC), "--axis", "q9=0:1:3", *other]) == 1
     assert "'q9' is not a coordinate of the robot" in capsys.readouterr().err
-    assert main(["map", str(PAPER_SPEC), "--axis", "q1=0:1", "--quiet"]) == 1
+    assert main(["map", str(PAPER_SPEC), "--axis", "q1=0:1", *other]) == 1
     assert "NAME=LOW:HIGH:COUNT" in capsys.readouterr().err
     assert (
         main(
@@ -188,7 +189,7 @@ def test_cli_map_samples_and_errors(tmp_path, capsys):
                 "q1=0,0.5,1",
                 "--base",
                 "q2=pi/3",
-                "--quiet",
+                *other,
                 "--workers",
                 "1",
             ]
@@ -216,12 +217,24 @@ def test_map_command_without_margin_keeps_verdicts(tmp_path):
     margin = "reach_margin" if "reach_margin" in full else "poc_margin"
     assert np.isnan(fast[margin].values).all()
     assert np.isfinite(full[margin].values[full["status"].values == 0]).all()
-    # the picture of the map without margins says so in the margin panel's title
+    # the picture of the map without margins has no margin panel and says why
     from cdpm.plotting import plot_map
 
-    panel = plot_map(fast).axes[1]
-    assert "not computed: map made with margin=False" in panel.get_title()
-    assert not panel.child_axes  # no colour bar for margins that are not there
+    fig = plot_map(fast)
+    titles = [ax.get_title() for ax in fig.axes]
+    assert len(fig.axes) == 2 and titles[0] == "POC verdict", titles
+    assert not any("log scale" in t or "margin" in t for t in titles), titles
+    assert "reach margin not computed (map made with --no-margin)" in fig.get_suptitle()
+    fig = plot_map(full)
+    assert "reach margin" in fig.axes[1].get_title() and len(fig.axes) == 3
+    assert "not computed" not in fig.get_suptitle()
+    # one axis: the band and the output view, no empty log-scale margin line
+    one = ["--axis", "q1=-pi:pi:31", "--base", "q2=0.8", "--workers", "1", "--quiet"]
+    assert main(["map", spec, *one, "--out", str(tmp_path / "one.zarr"), "--no-margin"]) == 0
+    fig = plot_map(open_map(tmp_path / "one.zarr"))
+    assert [ax.get_ylabel() for ax in fig.axes] == ["POC\nverdict", "output tip_z [m]"]
+    assert not any("log" in ax.get_yscale() for ax in fig.axes)
+    assert "reach margin not computed (map made with --no-margin)" in fig.get_suptitle()
 
 
 def test_plot_legend_takes_verdict_labels_and_colours_from_cdpm_verdicts():
@@ -379,6 +392,17 @@ def test_one_axis_map_is_a_strip_and_a_margin_line(paper_robot, tmp_path, sample
     assert line.get_yscale() == "log" and "log scale" in line.get_ylabel()
     assert line.get_xlabel() == "q1 [rad]" and "[m]" in line.get_ylabel()
     assert strip.get_shared_x_axes().joined(strip, line)
+    # the path along the margin line: at the margins of its nearest poses
+    (on_line,) = [ln for ln in line.get_lines() if ln.get_gid() == "path"]
+    q1 = ds["q1"].values[order]
+    nearest = [int(np.argmin(np.abs(q1 - v))) for v in path["q1"]]
+    np.testing.assert_allclose(on_line.get_xdata(), path["q1"])
+    bottom = line.get_ylim()[0]  # a zero margin: on the bottom edge, with the red ticks
+    expected = np.where(values[nearest] > 0, values[nearest], bottom)
+    np.testing.assert_allclose(on_line.get_ydata(), np.clip(expected, *line.get_ylim()))
+    # the title names the axis, its poses and the other coordinate's base value
+    poses = "80 random poses" if sample else "q1: 61 poses"
+    assert fig.get_suptitle().startswith(f"two_link_planar.yaml: {poses}, q2 = 1.047 (base), ")
     # the paper's one output against the axis
     assert output.get_xlabel() == "q1 [rad]" and output.get_ylabel() == "output tip_x [m]"
     _assert_legends_outside(fig)
@@ -486,6 +510,10 @@ def _inked_fraction(pixels: np.ndarray, ax) -> float:
     return float(np.mean(np.any(inside < 245, axis=-1)))
 
 
+def legend_texts_of(ax) -> list[str]:
+    return [t.get_text() for t in ax.get_legend().get_texts()]
+
+
 def _assert_legends_outside(fig) -> None:
     """No legend overlaps the data area of any panel."""
     _render(fig)
@@ -524,6 +552,10 @@ def test_map_panels_read_at_a_glance(which, paper_map, vertical_map, tmp_path):
     horizon = ds.attrs["reach_horizon"]
     assert "reach margin" in margin.get_title() and "[m]" in margin.get_title()
     assert f"= {horizon:.3g} s" in margin.get_title() and "log scale" in margin.get_title()
+    budget = ds.attrs["tension_budget"]
+    assert f"tension changes up to ±{budget:.3g} N\nfor cables without an upper bound" in (
+        margin.get_title()
+    )
     # margins on a log scale spanning their positive range
     positive_mesh = _gids(margin, "margin")
     norm = positive_mesh.norm
@@ -533,14 +565,16 @@ def test_map_panels_read_at_a_glance(which, paper_map, vertical_map, tmp_path):
     assert np.isfinite(np.asarray(positive_mesh.get_array())).sum() == positive.size
     (colorbar,) = margin.child_axes
     assert "log scale" in colorbar.get_ylabel() and "[m]" in colorbar.get_ylabel()
-    assert norm.vmax >= positive.max()
-    if norm.vmin > positive.min():  # a few round-off stragglers clipped, and said so
-        assert "clipped" in colorbar.get_ylabel() and colorbar.get_label() != ""
-        stragglers = positive[positive < norm.vmin]
-        assert stragglers.size <= 0.02 * positive.size
-        assert stragglers.max() * 1e3 <= positive[positive >= norm.vmin].min()
-    else:
-        assert norm.vmin <= positive.min()
+    # the colour scale ends at margins of the map; the few beyond it (stragglers,
+    # each more than a decade beyond the 1st or 99th percentile) are said so
+    p1, p99 = np.quantile(np.log10(positive), [0.01, 0.99])
+    below, above = positive[positive < norm.vmin], positive[positive > norm.vmax]
+    assert norm.vmin in positive and norm.vmax in positive
+    assert below.size <= 0.01 * positive.size and above.size <= 0.01 * positive.size
+    assert np.all(np.log10(below) < p1 - 1) and np.all(np.log10(above) > p99 + 1)
+    ends = {(False, False): "neither", (True, False): "min", (False, True): "max"}
+    assert positive_mesh.colorbar.extend == ends.get((below.size > 0, above.size > 0), "both")
+    assert ("clipped" in colorbar.get_ylabel()) == (below.size + above.size > 0)
     # zero margins and poses not analysed: cells of their own colours, not in the colour map
     categories = _gids(margin, "margin categories")
     cells = np.asarray(categories.get_array())
@@ -560,8 +594,10 @@ def test_map_panels_read_at_a_glance(which, paper_map, vertical_map, tmp_path):
         np.testing.assert_allclose(rgb[unanalysed], [expected] * int(unanalysed.sum()))
         assert np.linalg.norm(np.subtract(expected, to_rgb(ZERO_MARGIN_COLOR))) > 0.3
         assert "not analysed: no equilibrium" in legend_texts
-    # the regions: outlined and numbered, the largest first
-    assert _gids(verdict, "region outlines") is not None
+    # the regions: numbered, the largest first; outlined where they meet the
+    # wide grey areas of poses without an equilibrium (the paper's arm has
+    # only thin or small NO pieces at 41 x 41: no outline)
+    assert (_gids(verdict, "region outlines") is not None) == (which == "vertical")
     assert "1" in _region_numbers(verdict)
     # the path, from its start to its goal
     (line,) = [ln for ln in verdict.get_lines() if ln.get_gid() == "path"]
@@ -573,6 +609,12 @@ def test_map_panels_read_at_a_glance(which, paper_map, vertical_map, tmp_path):
     labels = [t.get_text() for t in verdict.get_legend().get_texts()]
     assert {"start", "goal", "path (25 poses)"} <= set(labels)
     assert any(t.startswith("POC regions") for t in labels)
+    # the path over the margins too, where a maximin path matters
+    (on_margin,) = [ln for ln in margin.get_lines() if ln.get_gid() == "path"]
+    np.testing.assert_allclose(on_margin.get_xdata(), path["q1"])
+    np.testing.assert_allclose(on_margin.get_ydata(), path["q2"])
+    assert {"start", "goal"} <= {ln.get_gid() for ln in margin.get_lines()}
+    assert "path (25 poses)" in legend_texts_of(margin)
     _assert_legends_outside(fig)
     save_map_plot(ds, tmp_path / f"{which}.png", path=path)
     _check_image(tmp_path / f"{which}.png")
@@ -709,8 +751,19 @@ def test_sampled_map_gets_regions_path_and_log_margin(tmp_path):
     points = _gids(margin, "margin")
     assert isinstance(points.norm, LogNorm)
     values = ds["reach_margin"].values
-    assert np.asarray(points.get_array()).size == np.sum(values > 0)
-    assert points.norm.vmax >= values[values > 0].max()
+    positive = values[values > 0]
+    assert np.asarray(points.get_array()).size == positive.size
+    # the colour scale ends at the largest margin but stragglers (here about
+    # 120 m where the equilibrium needs huge tensions), which it says it clips
+    above = positive[positive > points.norm.vmax]
+    assert points.norm.vmax in positive and above.size <= 0.01 * positive.size
+    assert np.all(above > 10 * np.quantile(positive, 0.99))
+    assert above.size >= 1
+    label = margin.child_axes[0].get_ylabel()
+    assert f"above {points.norm.vmax:.2g} clipped" in label, label
+    assert points.colorbar.extend in ("max", "both")
+    # the path over the margins as well
+    assert [ln for ln in margin.get_lines() if ln.get_gid() == "path"]
     colours = {
         tuple(np.round(c.get_facecolor()[0][:3], 3))
         for c in margin.collections
@@ -736,3 +789,195 @@ def test_path_across_the_seam_of_a_full_turn_goes_the_short_way(paper_map):
     (out, back) = [seg[:, 0] for seg in stubs.get_segments()]
     assert out[1] > np.pi and back[0] < -np.pi  # through the right edge, back at the left
     assert ax.get_xlim() == limits and limits[1] < 3.3  # the stubs do not widen the panel
+
+
+# ------------------------------------------------------- review of the map plots
+
+
+def test_margin_range_clips_a_few_stragglers_at_either_end_by_one_rule():
+    from cdpm._plot_margin import STRAGGLER_DECADES, STRAGGLER_FRACTION, margin_range
+
+    assert (STRAGGLER_FRACTION, STRAGGLER_DECADES) == (0.01, 1.0)
+    rng = np.random.default_rng(7)
+    bulk = 10.0 ** rng.normal(-0.9, 0.4, 5000)  # median about 0.12 m
+    # the gravity arm's stragglers: 692 m where the equilibrium needs 35 kN
+    high = np.array([15.0, 20.7, 84.3, 692.7])
+    low = np.array([1e-15, 3e-9])  # round-off at singular poses
+    limits = margin_range(np.concatenate([bulk, high, low, [np.nan]]))
+    assert (limits.below, limits.above) == (2, 4)
+    assert (limits.low, limits.high) == (bulk.min(), bulk.max())
+    assert limits.extend == "both"
+    assert limits.clip_note == f"below {bulk.min():.2g} and above {bulk.max():.2g} clipped"
+    # symmetric: the reciprocal margins clip the reciprocal stragglers
+    mirrored = margin_range(1.0 / np.concatenate([bulk, high, low]))
+    assert (mirrored.below, mirrored.above) == (4, 2)
+    assert mirrored.low == pytest.approx(1.0 / bulk.max(), rel=1e-12)
+    only_high = margin_range(np.concatenate([bulk, high]))
+    assert (only_high.below, only_high.above, only_high.extend) == (0, 4, "max")
+    assert only_high.clip_note == f"above {bulk.max():.2g} clipped"
+    # not stragglers: 3 % of the margins far above (a feature of the map), a
+    # wide but continuous spread, fewer than 100 margins
+    many = np.concatenate([bulk, np.full(150, 500.0)])
+    assert margin_range(many).above == 0 and margin_range(many).high == 500.0
+    wide = 10.0 ** rng.uniform(-6, 0, 5000)
+    assert margin_range(wide).extend == "neither" and margin_range(wide).low == wide.min()
+    few = np.concatenate([bulk[:60], [692.7]])
+    assert margin_range(few).above == 0
+    # one value: a decade either side
+    single = margin_range(np.array([0.5, 0.5]))
+    assert (single.low, single.high, single.extend) == (0.05, 5.0, "neither")
+
+
+def test_huge_margins_take_the_top_colour_and_the_colour_bar_says_so(vertical_map):
+    """A few huge margins (the gravity arm's 692 m next to a median of 0.12 m)
+    no longer stretch the colour bar over the useful range."""
+    from cdpm.plotting import plot_map
+
+    ds = vertical_map.copy(deep=True)
+    values = ds["reach_margin"].values
+    positive = np.flatnonzero(values.reshape(-1) > 0)
+    huge = positive[[10, 200, 400, 600, 800]]
+    flat = values.reshape(-1)
+    flat[huge] = [9.5, 20.7, 42.0, 84.3, 692.7]
+    ds["reach_margin"].values = flat.reshape(values.shape)
+    margin = plot_map(ds, output_view=False).axes[1]
+    mesh = _gids(margin, "margin")
+    rest = np.delete(flat, huge)
+    rest = rest[rest > 0]
+    assert mesh.norm.vmax == rest.max() < 2.0
+    assert mesh.colorbar.extend in ("max", "both")
+    label = margin.child_axes[0].get_ylabel()
+    assert f"above {rest.max():.2g} clipped" in label
+    # the stragglers take the top colour; the bulk (1st to 99th percentile)
+    # fills at least half of the colour bar (it got a third before)
+    top = mesh.cmap(1.0)
+    cells = mesh.to_rgba(np.ma.masked_invalid(np.asarray(mesh.get_array()).reshape(-1)))
+    np.testing.assert_allclose(cells[huge], [top] * huge.size)
+    p1, p99 = np.quantile(np.log10(rest), [0.01, 0.99])
+    assert (p99 - p1) / np.log10(mesh.norm.vmax / mesh.norm.vmin) > 0.5
+
+
+def _thin_and_wide_no(n=181):
+    """A synthetic POC map: one region with diagonal NO lines met at
+    isolated poses (as on the paper's arm at 181 x 181), a one-pose-wide NO
+    row, a small NO spot and a wide NO block."""
+    import xarray as xr
+
+    poc = np.ones((n, n), dtype=np.int8)
+    k = np.arange(20, 120, 2)
+    poc[k, 30 + k // 2] = 0  # a diagonal line of isolated poses, slope 1/2 in cells
+    poc[k + 40, 20 + k // 2] = 0
+    poc[10:170, 150] = 0  # a row one pose wide
+    poc[100, 20:23] = 0  # a small spot of 3 poses
+    poc[130:160, 30:60] = 0  # a wide block: a hole to outline
+    q = np.linspace(-np.pi, np.pi, n)
+    region = np.where(poc == 1, 1, 0).astype(np.int32)
+    attrs = {"flag_values": [1, 0, 2, -1]}
+    return xr.Dataset(
+        {"poc": (("q1", "q2"), poc, attrs), "poc_region": (("q1", "q2"), region)},
+        coords={"q1": q, "q2": q},
+    )
+
+
+def test_thin_no_lines_read_as_red_lines_not_as_outlined_dots(tmp_path):
+    from matplotlib.colors import to_rgb
+
+    from cdpm._plot_overlays import SMALL_HOLE_POSES, _outline_segments
+    from cdpm.plotting import VERDICT_COLORS, plot_map, save_map_plot
+
+    ds = _thin_and_wide_no()
+    poc, ids = ds["poc"].values, ds["poc_region"].values
+    edges = np.arange(poc.shape[0] + 1.0)
+    segments = np.array(_outline_segments(ids, edges, edges))  # (n, 2 ends, xy)
+    # every outlined edge borders the wide block, whose whole boundary is drawn
+    lo, hi = segments.min(axis=1), segments.max(axis=1)
+    assert np.all((lo >= [130, 30]) & (hi <= [160, 60]))
+    assert len(segments) == 4 * 30 and SMALL_HOLE_POSES == 4
+    # in the picture the thin lines stay red at 181 x 181 and 61 x 61
+    for n in (181, 61):
+        ds = _thin_and_wide_no()
+        if n == 61:  # every third pose: the lines stay isolated poses
+            ds = ds.isel(q1=slice(0, 183, 3), q2=slice(0, 183, 3))
+        fig = plot_map(ds, margin=False, output_view=False)
+        ax = fig.axes[0]
+        pixels = _render(fig)[..., :3].astype(float) / 255
+        q = np.linspace(-np.pi, np.pi, 181)
+        q1, q2 = ds["q1"].values[:, None], ds["q2"].values[None, :]
+        block = (q1 > q[129]) & (q1 < q[160]) & (q2 > q[29]) & (q2 < q[60])
+        no = np.argwhere((ds["poc"].values == 0) & ~block)
+        xy = ax.transData.transform(
+            np.column_stack([ds["q1"].values[no[:, 0]], ds["q2"].values[no[:, 1]]])
+        )
+        rows = (pixels.shape[0] - xy[:, 1]).astype(int)
+        colours = pixels[rows, xy[:, 0].astype(int)]
+        red = np.linalg.norm(colours - to_rgb(VERDICT_COLORS[0]), axis=1) < 0.25
+        dark = colours.sum(axis=1) < 0.6
+        assert red.mean() > 0.9 and not dark.any(), (n, red.mean(), dark.sum())
+    png = save_map_plot(_thin_and_wide_no(), tmp_path / "thin.png", margin=False)
+    assert png.stat().st_size > 5_000
+
+
+def test_path_start_and_goal_on_the_edge_of_the_map_are_not_cut_off(paper_map):
+    from cdpm.plotting import plot_map
+
+    # start on the bottom edge, goal on the right edge of a 181 x 181 map
+    # (its cells are under 2 pixels wide: the markers reach beyond the panel)
+    path = {"q1": [0.5, 1.5, 2.5, np.pi], "q2": [-np.pi, -2.5, -2.5, -2.5]}
+    fig = plot_map(_thin_and_wide_no(), path=path, margin=False, output_view=False)
+    ax = fig.axes[0]
+    pixels = _render(fig)[..., :3].astype(int)
+    height, box = pixels.shape[0], ax.get_window_extent()
+    x, y = ax.transData.transform((np.pi, -2.5))
+    right = pixels[int(height - y) - 6 : int(height - y) + 4, int(box.x1) + 2 : int(box.x1) + 7]
+    x, y = ax.transData.transform((0.5, -np.pi))
+    below = pixels[int(height - box.y0) + 2 : int(height - box.y0) + 6, int(x) - 4 : int(x) + 5]
+    assert (right.sum(axis=-1) < 150).any()  # the black star beyond the right edge
+    assert (below.sum(axis=-1) < 150).any()  # the start circle's black rim below
+    # on the margin panel too
+    fig = plot_map(paper_map, path=path, output_view=False)
+    for ax in fig.axes[:2]:
+        (goal,) = [ln for ln in ax.get_lines() if ln.get_gid() == "goal"]
+        (start,) = [ln for ln in ax.get_lines() if ln.get_gid() == "start"]
+        assert not goal.get_clip_on() and not start.get_clip_on()
+
+
+@pytest.mark.parametrize("kind", ["grid", "samples", "one axis"])
+def test_region_outlines_only_over_the_poc_verdict(kind, vertical_map):
+    from cdpm.plotting import plot_map
+
+    if kind == "grid":
+        ds = vertical_map
+    elif kind == "samples":
+        from tests.conftest import MODELS
+
+        spec = MODELS / "two_link_vertical" / "two_link_vertical.yaml"
+        ranges = {"q1": (-np.pi, np.pi), "q2": (-np.pi, np.pi)}
+        ds = _with_regions(workspace_map(spec, ranges, samples=600, seed=4, workers=1))
+    else:
+        ds = vertical_map.isel(q2=25)
+        ds = ds.drop_vars("q2").assign_attrs(axes=["q1"])
+    verdict = plot_map(ds, margin=False, output_view=False).axes[0]
+    assert _region_numbers(verdict) and _gids(verdict, "region outlines") is not None
+    for variable in ("wrench_closure", "static_feasible"):
+        verdict = plot_map(ds, variable=variable, margin=False, output_view=False).axes[0]
+        assert not _region_numbers(verdict), variable
+        assert _gids(verdict, "region outlines") is None, variable
+        labels = [t.get_text() for t in verdict.get_legend().get_texts()]
+        assert not any("POC regions" in t for t in labels), labels
+
+
+def test_one_axis_margin_line_marks_stragglers_off_the_scale(paper_robot):
+    from cdpm.plotting import plot_map
+
+    ds = workspace_map(paper_robot, {"q1": np.linspace(-np.pi, np.pi, 181)}, workers=1)
+    values = ds["reach_margin"].values.copy()
+    values[40] = 692.7  # one huge margin among 181 (at most 1 % is clipped)
+    ds["reach_margin"].values = values
+    line = plot_map(ds, output_view=False).axes[1]
+    positive = np.delete(values, 40)
+    assert line.get_ylim()[1] == pytest.approx(1.5 * positive.max())
+    (marks,) = [ln for ln in line.get_lines() if ln.get_gid() == "off scale"]
+    assert marks.get_xdata() == pytest.approx([ds["q1"].values[40]])
+    assert marks.get_marker() == "^" and not marks.get_clip_on()
+    labels = [t.get_text() for t in line.get_legend().get_texts()]
+    assert f"$r_T$ above {positive.max():.2g}: off the scale (1)" in labels

@@ -11,15 +11,18 @@ Read a map written by `cdpm map ... --out STORE` and draw it, the map's first
 axis horizontal:
   - the verdict over the first two axes (slices along the third for more
     axes), with the outlines and numbers of the POC regions when the map has
-    them;
+    them (for --variable poc only);
   - the reach margin r_T [output units] within the map's horizon T on a log
-    colour scale (maps without it: the unit-impulse POC margin); zero margins
-    in red, poses not analysed in greys by reason;
+    colour scale (maps without it: the unit-impulse POC margin), a few
+    stragglers far beyond the 1st or 99th percentile clipped (the colour bar
+    says so); zero margins in red, poses not analysed in greys by reason;
+    no panel for a map made with --no-margin;
   - the poses in output space, coloured by verdict: by default the map's
     outputs (one output: against the first axis; two or more: the first two),
     or those named with --outputs.
 A map over one axis is drawn as a verdict band along that axis above a line
-of the margin. Maps of random samples are drawn as scatter plots."""
+of the margin. Maps of random samples are drawn as scatter plots. `cdpm path
+... --plot` draws a path over the verdict and margin panels."""
 EPILOG = """\
 examples:
   cdpm plot map.zarr -o map.png
