@@ -27,6 +27,7 @@ COMMAND_MODULES = (
     "cdpm.commands.map",
     "cdpm.commands.plot",
     "cdpm.commands.path",
+    "cdpm.commands.find",
     "cdpm.commands.import_caspr",
 )
 
@@ -84,7 +85,9 @@ def _protect_negative_numbers(argv: list[str]) -> list[str]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run the CLI; returns the process exit code (0 ok, 1 error, 2 usage)."""
+    """Run the CLI; returns the process exit code (0 ok, 1 error, 2 usage; some
+    commands add their own, listed in their --help: 3 analyze found no
+    equilibrium, 3 path found no connection)."""
     parser = build_parser()
     argv = sys.argv[1:] if argv is None else list(argv)
     args = parser.parse_args(_protect_negative_numbers(argv))

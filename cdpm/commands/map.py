@@ -7,6 +7,7 @@ import sys
 from typing import TYPE_CHECKING
 
 from cdpm.commands._reach import add_reach_arguments, reach_from_args
+from cdpm.commands._tension import add_tension_arguments
 
 if TYPE_CHECKING:  # pragma: no cover
     from cdpm.robot import CableRobot
@@ -17,9 +18,11 @@ DESCRIPTION = """\
 Sweep the robot over a grid of natural coordinates (or random samples), decide
 at every pose positive output controllability (seed paper Theorem 1), output
 and positive controllability, wrench closure and static feasibility, and write
-the map chunk by chunk into a zarr store. Re-running the same command on the
-same store resumes an interrupted map; coordinates not on an axis stay at the
-base pose."""
+the map chunk by chunk into a zarr store (--out) and/or draw it (--plot); one
+of them is required. Re-running the same command on the same store resumes an
+interrupted map; coordinates not on an axis stay at the base pose. Gravity,
+the cables' tension bounds and the pretension can be changed for the map
+without editing the spec; they are recorded in the store."""
 EPILOG = """\
 examples:
   cdpm map models/two_link_planar/two_link_planar.yaml \\
@@ -28,11 +31,16 @@ examples:
   cdpm map SPEC --axis q1=0:1.5:61 --base q2=pi/3 --workers 2 --out slice.zarr
   cdpm map SPEC --axis q1=-pi:pi:721 --axis q2=-pi:pi:721 --scheduler tcp://host:8786 \\
       --out big.zarr
+  cdpm map models/two_link_vertical --axis q1=-pi:pi:121 --axis q2=-pi:pi:121 \\
+      --tension pretension --pretension 5 --tension-bounds 0:60 --out pre.zarr
+  cdpm map SPEC --axis q1=-pi:pi:61 --gravity 0 0 0 --tension-bounds c1=0:inf --plot g0.png
 
 AXIS is NAME=LOW:HIGH:COUNT (a grid of COUNT values), NAME=V1,V2,... (given
 values) or, with --samples, NAME=LOW:HIGH (a sampling range); values accept
 arithmetic such as -pi/2. NAME is a coordinate of the robot (a joint name, or
-<joint>.x ... <joint>.yaw for a free-flyer; `cdpm analyze SPEC` lists them)."""
+<joint>.x ... <joint>.yaw for a free-flyer; `cdpm analyze SPEC` lists them).
+BOUNDS is MIN:MAX for every cable or CABLE=MIN:MAX for one (MAX may be inf);
+several --tension-bounds combine, one cable's over every cable's."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -44,8 +52,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="AXIS",
         help="NAME=LOW:HIGH:COUNT, NAME=V1,V2,... or (with --samples) NAME=LOW:HIGH",
     )
-    parser.add_argument("--out", metavar="STORE", help="zarr store to write (and resume)")
-    parser.add_argument("--plot", metavar="PNG", help="also draw the map into this image")
+    parser.add_argument(
+        "--out",
+        metavar="STORE",
+        help="zarr store to write and resume (a directory, e.g. map.zarr)",
+    )
+    parser.add_argument(
+        "--plot", metavar="IMAGE", help="also draw the map into this image (e.g. map.png)"
+    )
     parser.add_argument("--samples", type=int, metavar="N", help="N random poses instead of a grid")
     parser.add_argument("--seed", type=int, default=0, metavar="S", help="random seed (default 0)")
     parser.add_argument(
@@ -55,22 +69,20 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="pose of the other coordinates: a pose name, NAME=VALUE pairs or "
         "all values (default: the spec's first pose)",
     )
-    parser.add_argument(
-        "--tension",
-        metavar="METHOD",
-        help="equilibrium tension method: zero, min_norm or pretension (with the spec's "
-        "equilibrium.pretension) (default: the spec's method)",
-    )
+    add_tension_arguments(parser)
+    add_robot_arguments(parser)
     parser.add_argument(
         "--workers",
         type=int,
         metavar="N",
-        help="local worker processes (default: one per CPU; 1 = in this process)",
+        help="local processes computing chunks, this one included (default: one per CPU; "
+        "1 = in this process only); not with --scheduler",
     )
     parser.add_argument(
         "--scheduler",
         metavar="ADDR",
-        help="run on a Dask distributed scheduler, e.g. tcp://127.0.0.1:8786",
+        help="run on a Dask distributed scheduler, e.g. tcp://127.0.0.1:8786 (its workers "
+        "compute the chunks)",
     )
     parser.add_argument(
         "--chunk-size",
@@ -214,17 +226,178 @@ def _check_plot_path(path: str) -> None:
         raise InputError(f"--plot {path}: {exc}") from None
 
 
-def _check_tension(robot: CableRobot, method: str | None) -> None:
-    """The pretension method needs a pretension, which `cdpm map` takes
-    from the spec only."""
+def add_robot_arguments(parser: argparse.ArgumentParser) -> None:
+    """--gravity and --tension-bounds: the robot as mapped, without editing
+    its spec (``cdpm map`` records them in the store)."""
+    group = parser.add_argument_group(
+        "the robot's load and cables (instead of the spec's; recorded with the result)"
+    )
+    group.add_argument(
+        "--gravity",
+        nargs=3,
+        metavar=("GX", "GY", "GZ"),
+        help="gravity in the world frame [m/s^2], e.g. 0 0 -9.81, or 0 0 0 for none",
+    )
+    group.add_argument(
+        "--tension-bounds",
+        action="append",
+        metavar="BOUNDS",
+        help="tension bounds [N]: MIN:MAX for every cable, or CABLE=MIN:MAX for one "
+        "(MAX may be inf); repeat for several cables",
+    )
+
+
+def parse_gravity(tokens: list[str] | None):
+    """The gravity vector [m/s^2] from --gravity, or None."""
+    import math
+
+    from cdpm.errors import InputError
+    from cdpm.spec import parse_number
+
+    if tokens is None:
+        return None
+    values = []
+    for token in tokens:
+        try:
+            value = parse_number(token.strip())
+        except ValueError as exc:
+            raise InputError(
+                f"--gravity {' '.join(t.strip() for t in tokens)}: {exc}; give three numbers "
+                "in m/s^2, e.g. --gravity 0 0 -9.81 (or 0 0 0 for none)"
+            ) from exc
+        if not math.isfinite(value):
+            raise InputError(f"--gravity: {value} is not a finite acceleration in m/s^2")
+        values.append(value)
+    return values
+
+
+def parse_tension_bounds(texts: list[str] | None, robot: CableRobot):
+    """{cable: (min, max)} [N] from every --tension-bounds (MIN:MAX for
+    every cable, CABLE=MIN:MAX for one; one cable's over every cable's), or
+    None."""
+    from cdpm.errors import InputError
+    from cdpm.spec import parse_number
+
+    if not texts:
+        return None
+    form = "expected MIN:MAX (every cable) or CABLE=MIN:MAX (one cable), e.g. 0:50 or c1=0:inf"
+    every, per_cable = None, {}
+    for text in texts:
+        name, sep, pair = text.rpartition("=")
+        name = name.strip()
+        parts = pair.split(":")
+        if (sep and not name) or len(parts) != 2:
+            raise InputError(f"--tension-bounds {text!r}: {form}")
+        try:
+            bounds = tuple(parse_number(v.strip()) for v in parts)
+        except ValueError as exc:
+            raise InputError(f"--tension-bounds {text!r}: {exc}; {form}") from exc
+        if not sep:
+            if every is not None:
+                raise InputError(
+                    f"--tension-bounds MIN:MAX for every cable is given twice ({every[1]!r} and "
+                    f"{text!r}); give it once (and CABLE=MIN:MAX for single cables)"
+                )
+            every = (bounds, text)
+            continue
+        if name not in robot.cable_names:
+            raise InputError(
+                f"--tension-bounds {text!r}: no cable named {name!r} in "
+                f"{robot.spec.path.name}; cables: {', '.join(robot.cable_names)}"
+            )
+        if name in per_cable:
+            raise InputError(f"--tension-bounds: cable {name!r} is given twice; give it once")
+        per_cable[name] = bounds
+    out = {name: every[0] for name in robot.cable_names} if every else {}
+    out.update(per_cable)
+    return out
+
+
+def robot_from_args(args: argparse.Namespace):
+    """(robot, the spec's robot, tension setting) from SPEC, --gravity,
+    --tension-bounds, --tension and --pretension, all checked before any
+    work; the robot carries the overrides (:func:`cdpm.maps.override_robot`)."""
+    from cdpm.commands._tension import check_pretension, tension_argument
+    from cdpm.errors import InputError
+    from cdpm.maps import override_robot
+    from cdpm.robot import load_robot
+
+    spec_robot = load_robot(args.spec)
+    tension = tension_argument(args.tension)
+    _check_tension(spec_robot, tension, args.pretension)
+    check_pretension(spec_robot, tension, args.pretension)
+    robot = override_robot(spec_robot, gravity=parse_gravity(args.gravity))
+    bounds = parse_tension_bounds(args.tension_bounds, spec_robot)
+    try:
+        robot = override_robot(robot, tension_bounds=bounds, pretension=args.pretension)
+    except InputError as exc:
+        raise InputError(f"--tension-bounds: {exc}") from None
+    return robot, spec_robot, tension
+
+
+def describe_robot(robot: CableRobot, spec_robot: CableRobot) -> str | None:
+    """``overrides of SPEC: ...`` when the robot differs from its spec."""
+    from cdpm.maps._plan import describe_overrides, robot_overrides
+
+    overrides = robot_overrides(robot, spec_robot)
+    if not overrides:
+        return None
+    return f"overrides of {spec_robot.spec.path.name}: {describe_overrides(overrides, spec_robot)}"
+
+
+def _check_tension(robot: CableRobot, tension, pretension: float | None) -> None:
+    """The pretension method needs a pretension > 0 N, from --pretension or
+    the spec (with 0 N it is the min_norm method)."""
+    import math
+
     from cdpm.errors import InputError
 
+    method = tension if isinstance(tension, str) or tension is None else "given"
     method = method or robot.spec.equilibrium_method
-    if method == "pretension" and not robot.spec.pretension > 0:
+    if pretension is not None and not (math.isfinite(pretension) and pretension >= 0):
+        raise InputError(f"--pretension {pretension:g}: give a finite tension >= 0 N")
+    if method != "pretension":
+        return
+    if pretension is None and not robot.spec.pretension > 0:
         raise InputError(
             f"--tension pretension needs a pretension > 0 N, and {robot.spec.path.name} gives "
-            "none (with 0 it is the min_norm method): set equilibrium: {pretension: N} in the "
-            "spec, or use --tension min_norm"
+            "none (with 0 it is the min_norm method): add --pretension N, set "
+            "equilibrium: {pretension: N} in the spec, or use --tension min_norm"
+        )
+    if pretension == 0:
+        raise InputError(
+            "--pretension 0 makes the pretension method the min_norm method: give "
+            "--pretension N > 0, or use --tension min_norm"
+        )
+
+
+def _check_outputs(args: argparse.Namespace) -> None:
+    """Before any work: something keeps the map, --out names a store (not
+    an image), and --workers is not given with --scheduler."""
+    import os
+
+    from cdpm.errors import InputError
+    from cdpm.maps._store import store_path_problem
+
+    if not args.out and not args.plot:
+        raise InputError(
+            "nothing would keep this map: add --out STORE (a zarr store, e.g. --out map.zarr: "
+            "kept, resumable, read by cdpm plot, path and view) and/or --plot IMAGE "
+            "(e.g. --plot map.png)"
+        )
+    if args.out and store_path_problem(args.out):
+        stem = os.path.splitext(args.out)[0]
+        problem = store_path_problem(args.out)
+        if problem.startswith("an image"):
+            fix = f"give --out {stem}.zarr to keep the map, and --plot {args.out} to draw it"
+        else:
+            fix = f"give --out {stem}.zarr (xarray.open_zarr reads it)"
+        raise InputError(f"--out {args.out}: a map store is a zarr directory, not {problem}: {fix}")
+    if args.scheduler and args.workers is not None:
+        raise InputError(
+            f"--workers {args.workers} counts local processes, and with --scheduler the Dask "
+            "cluster's workers compute the chunks: leave out --workers (start more Dask workers "
+            f"with `dask worker {args.scheduler}`), or leave out --scheduler to run locally"
         )
 
 
@@ -264,26 +437,34 @@ def run(args: argparse.Namespace) -> int:
     from cdpm.errors import InputError
     from cdpm.maps import STATUS_CODES, VERDICT_CODES, workspace_map
     from cdpm.maps._store import StoreSettingsError
-    from cdpm.robot import load_robot
 
+    axes = parse_axes(args.axis, args.samples is not None)
+    base = parse_base(args.base)
+    _check_outputs(args)
     if args.plot:
         _check_plot_path(args.plot)
-    robot = load_robot(args.spec)
-    sampled = args.samples is not None
-    axes = parse_axes(args.axis, sampled)
-    base = parse_base(args.base)
+    robot, spec_robot, tension = robot_from_args(args)
     if isinstance(base, list):
         base = robot.configuration(base)
-    _check_tension(robot, args.tension)
+    overrides = describe_robot(robot, spec_robot)
+    if overrides:
+        print(overrides)
     reach = None if args.no_margin else reach_from_args(robot, args)
     if reach is not None:
         print(f"reach margin: {reach.describe()}")
+    runs = []
+
+    def announce(info) -> None:
+        runs.append(info)
+        for line in info.lines():
+            print(line, flush=True)
+
     try:
         ds = workspace_map(
             robot,
             axes,
             base=base,
-            tension=args.tension,
+            tension=tension,
             samples=args.samples,
             seed=args.seed,
             workers=args.workers,
@@ -295,6 +476,7 @@ def run(args: argparse.Namespace) -> int:
             margin=not args.no_margin,
             horizon=None if reach is None else reach.horizon,
             tension_budget=None if reach is None else reach.tension_budget,
+            announce=announce,
         )
     except KeyboardInterrupt:
         return _interrupted(args)
@@ -318,7 +500,8 @@ def run(args: argparse.Namespace) -> int:
     if flagged:
         print("flagged poses: " + ", ".join(f"{n} {k}" for n, k in flagged.items()))
     if args.out:
-        print(f"map written to {args.out}")
+        computed = not runs or runs[-1].todo_chunks > 0
+        print(f"map written to {args.out}" if computed else f"map read from {args.out}")
     if args.plot:
         from cdpm.plotting import save_map_plot
 

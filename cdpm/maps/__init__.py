@@ -23,8 +23,9 @@ from cdpm.maps._evaluate import (
     evaluate_poses,
     resolve_tension,
 )
-from cdpm.maps._plan import DEFAULT_CHUNK_SIZE, SampledAxes, sample_axes
-from cdpm.maps._store import StoreSettingsError, open_map
+from cdpm.maps._plan import DEFAULT_CHUNK_SIZE, SampledAxes, override_robot, sample_axes
+from cdpm.maps._runner import MapRunInfo
+from cdpm.maps._store import StoreSettingsError, open_map, store_path_problem
 from cdpm.numerics import SPAN_TOL
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -36,6 +37,8 @@ __all__ = [
     "SampledAxes",
     "open_map",
     "StoreSettingsError",
+    "override_robot",
+    "MapRunInfo",
     "evaluate_poses",
     "VERDICT_CODES",
     "STATUS_CODES",
@@ -75,6 +78,8 @@ def workspace_map(
     tol: float = SPAN_TOL,
     horizon: Any = None,
     tension_budget: Any = None,
+    pretension: float | None = None,
+    announce: Callable[[MapRunInfo], None] | None = None,
 ):
     """Map positive output controllability and classic criteria over poses.
 
@@ -90,22 +95,27 @@ def workspace_map(
             default the spec's first named pose (else neutral).
         tension: equilibrium tension: None (the spec's method), a method
             name (``zero``, ``min_norm``, ``pretension``) or tensions [N] (m,).
+            Other gravity or tension bounds: map
+            ``cdpm.maps.override_robot(robot, gravity=..., tension_bounds=...)``.
         samples: draw this many random poses uniformly in the ``axes`` ranges.
         seed: random seed for ``samples``.
         workers: local processes computing chunks, this one included
             (``workers - 1`` worker processes are started); default one per
             CPU (at most one per chunk); 1 runs in this process only.
         scheduler: address ``"tcp://host:port"`` of a Dask distributed
-            scheduler (or a ``distributed.Client``) to run the chunks on.
-        store: path of a zarr store to write chunk by chunk; an existing
-            store made with the same settings is resumed (only chunks not
-            yet done are computed). None keeps the map in memory.
+            scheduler (or a ``distributed.Client``) to run the chunks on
+            (its workers compute them: give no ``workers`` with it).
+        store: path of a zarr store (a directory, ``*.zarr`` by convention,
+            not an image or other file name) to write chunk by chunk; an
+            existing store made with the same settings is resumed (only
+            chunks not yet done are computed). None keeps the map in memory.
         overwrite: replace an existing ``store`` instead of resuming it.
         chunk_size: poses per chunk (default 16384; under load, when poses
             go through the analyser, 1024, or less for maps of fewer than
             16384 poses).
-        progress: True prints a progress bar on stderr; a callable is called
-            as ``progress(done_poses, total_poses, chunk_index)``.
+        progress: True prints what runs where (see ``announce``) and a
+            progress bar on stderr; a callable is called as
+            ``progress(done_poses, total_poses, chunk_index)``.
         margin: compute the reach margin (``reach_margin``); ``False``
             leaves it NaN (same verdicts, faster).
         tol: angle-like tolerance of the span decisions, as in
@@ -116,6 +126,13 @@ def workspace_map(
         tension_budget: tension increase [N] above equilibrium allowed to
             cables without an upper bound in the reach margin; default the
             model's (attribute ``tension_budget``).
+        pretension: least tension [N] of every cable for the ``pretension``
+            method (default: the spec's ``equilibrium.pretension``); only
+            with that method. Stored in the settings (a resume compares it).
+        announce: called once before the chunks run with a
+            :class:`MapRunInfo`: chunks already in the
+            store, chunks to compute, and where they run (``.lines()`` says
+            it in words).
 
     Returns:
         ``xarray.Dataset`` with dims the axis names (grid) or ``sample``, and
@@ -129,22 +146,35 @@ def workspace_map(
         dataset is lazily loaded.
 
     Raises:
-        InputError: unknown coordinates or bad values.
+        InputError: unknown coordinates or bad values; ``workers`` with
+            ``scheduler``; ``pretension`` with a method other than
+            ``pretension``; a ``store`` named like an image or other file.
         StoreSettingsError: ``store`` holds a map made with other settings
             (an InputError; the message names each difference).
     """
     from cdpm._version import __version__
     from cdpm.maps._evaluate import zero_equilibrium
     from cdpm.maps._plan import make_plan
-    from cdpm.maps._runner import ProgressPrinter, prestart_workers, run_chunks
+    from cdpm.maps._runner import ProgressPrinter, RobotSource, prestart_workers, run_chunks
     from cdpm.maps._store import MemorySink, ZarrSink
     from cdpm.maps.regions import attach_regions
     from cdpm.reach import reach_settings
     from cdpm.robot import CableRobot, load_robot
 
     _refuse_in_worker_bootstrap()
+    _check_executor(workers, scheduler)
+    if store is not None and store_path_problem(store):
+        name = os.fspath(store)
+        raise InputError(
+            f"store {name!r} is named like {store_path_problem(store)}, but a map store is a "
+            f"zarr directory: name it e.g. {os.path.splitext(name)[0]}.zarr, and draw an image "
+            "from the map with cdpm.plotting.save_map_plot(ds, path)"
+        )
     if not isinstance(robot, CableRobot):
         robot = load_robot(robot)
+    if pretension is not None:
+        _check_pretension_method(robot, tension, pretension)
+        robot = override_robot(robot, pretension=pretension)
     if samples is not None:
         if isinstance(axes, SampledAxes):
             raise InputError("give either samples=N with ranges, or sample_axes(...), not both")
@@ -157,7 +187,10 @@ def workspace_map(
             chunk_size = _per_pose_chunk_size(_n_poses(axes))
     tol = check_tol(tol)
     reach = reach_settings(robot, horizon, tension_budget) if margin else None
-    plan = make_plan(robot, axes, base, setting, chunk_size, __version__, margin, tol, reach)
+    source = RobotSource.from_robot(robot)  # with the robot's departures from its spec
+    plan = make_plan(
+        robot, axes, base, setting, chunk_size, __version__, margin, tol, reach, source.overrides
+    )
     if store is None:
         _check_in_memory_size(robot, plan)
     if workers is None:
@@ -170,12 +203,46 @@ def workspace_map(
     done = sink.done()
     todo = [k for k in range(plan.n_chunks) if k not in done]
     if progress is True:
-        progress = ProgressPrinter(sum(plan.chunk_size(k) for k in todo))
+        if announce is None:
+            announce = _print_to_stderr
+        progress = ProgressPrinter(sum(plan.chunk_size(k) for k in todo)) if todo else None
     elif progress is False:
         progress = None
     job = MapJob(setting, bool(margin), float(tol), tuple(plan.settings["variables"]), reach)
-    run_chunks(robot, plan, job, todo, sink, workers, scheduler, progress)
+    run_chunks(robot, plan, job, todo, sink, workers, scheduler, progress, announce, source)
     return attach_regions(sink.dataset(), store)
+
+
+def _print_to_stderr(info: MapRunInfo) -> None:
+    import sys
+
+    for line in info.lines():
+        print(line, file=sys.stderr)
+
+
+def _check_executor(workers: Any, scheduler: Any) -> None:
+    """``workers`` counts local processes: with a Dask scheduler its
+    workers compute the chunks, and a ``workers`` given too would be
+    ignored."""
+    if scheduler is not None and workers is not None:
+        raise InputError(
+            f"workers={workers!r} counts local processes, and with scheduler= the Dask "
+            "cluster's workers compute the chunks: leave out workers (add Dask workers with "
+            "`dask worker ADDRESS`), or leave out scheduler to run locally"
+        )
+
+
+def _check_pretension_method(robot: CableRobot, tension: Any, pretension: Any) -> None:
+    """A pretension only means something for the ``pretension`` method."""
+    if tension is None:
+        method = str(robot.spec.equilibrium_method)
+    else:
+        method = tension if isinstance(tension, str) else "given tensions"
+    if method != "pretension":
+        raise InputError(
+            f"pretension={pretension!r} applies only to the 'pretension' method, and this map "
+            f"uses {method!r}: pass tension='pretension', or leave out pretension"
+        )
 
 
 def _refuse_in_worker_bootstrap() -> None:

@@ -24,7 +24,16 @@ from cdpm.numerics import SPAN_TOL
 if TYPE_CHECKING:  # pragma: no cover
     from cdpm.robot import CableRobot
 
-__all__ = ["SampledAxes", "MapPlan", "sample_axes", "make_plan", "coordinate_units"]
+__all__ = [
+    "SampledAxes",
+    "MapPlan",
+    "sample_axes",
+    "make_plan",
+    "coordinate_units",
+    "override_robot",
+    "robot_overrides",
+    "describe_overrides",
+]
 
 #: default number of poses per chunk
 DEFAULT_CHUNK_SIZE = 16384
@@ -232,8 +241,14 @@ def make_plan(
     margin: bool = True,
     tol: float | None = None,
     reach=None,
+    overrides: Mapping[str, Any] | None = None,
 ) -> MapPlan:
-    """Validate the axes and the base pose and lay out the chunks."""
+    """Validate the axes and the base pose and lay out the chunks.
+
+    ``overrides`` (:func:`robot_overrides`) are the robot's departures from
+    its spec file; they enter the settings (compared when resuming) only
+    when there are any, so maps of the spec as it is keep their settings.
+    """
     if not isinstance(chunk_size, (int, np.integer)) or chunk_size < 1:
         raise InputError(f"chunk_size must be a positive integer, got {chunk_size!r}")
     coords = list(robot.coordinate_names)
@@ -301,6 +316,8 @@ def make_plan(
         settings["tension_budget"] = float(reach.tension_budget)
     if mode == "sample":
         settings["seed"] = axes.seed
+    if overrides:
+        settings["overrides"] = dict(overrides)
     return MapPlan(
         mode=mode,
         names=tuple(names),
@@ -329,6 +346,8 @@ def settings_difference(stored: dict, current: dict) -> list[str]:
                     )
         elif key == "spec_sha256":
             lines.append("the cable spec or its URDF changed (file hash differs)")
+        elif key == "overrides":
+            lines += _overrides_difference(a or {}, b or {})
         elif key not in stored:
             lines.append(
                 f"{key}: not recorded in the store (made by an earlier cdpm), now {b!r}; "
@@ -343,3 +362,213 @@ def _axis_text(info) -> str:
     if info is None:
         return "absent"
     return f"{info['size']} values in [{info['min']:.6g}, {info['max']:.6g}] (#{info['sha256']})"
+
+
+# --------------------------------------------------------------------------
+# the robot as a map sees it: the spec file with overrides
+
+
+#: what an override changes, in the order they are described
+_OVERRIDE_KEYS = ("gravity", "tension_bounds", "pretension", "external_wrench")
+
+
+def _finite_vector(what: str, value: Any, size: int) -> np.ndarray:
+    try:
+        arr = np.array(value, dtype=float).reshape(-1)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"{what} must be {size} numbers, got {value!r}") from exc
+    if arr.shape != (size,) or not np.all(np.isfinite(arr)):
+        raise InputError(f"{what} must be {size} finite numbers, got {value!r}")
+    return arr
+
+
+def _bound_pair(cable: str, value: Any) -> tuple[float, float]:
+    """(min, max) [N] of one cable, checked as the spec loader checks
+    ``tension: [min, max]``."""
+    try:
+        low, high = (float(v) for v in value)
+    except (TypeError, ValueError) as exc:
+        raise InputError(
+            f"tension bounds of cable {cable!r} must be (min, max) in N, got {value!r}"
+        ) from exc
+    if not (math.isfinite(low) and low >= 0):
+        raise InputError(
+            f"tension bounds of cable {cable!r}: minimum {low:g} N must be finite and >= 0 "
+            "(cables only pull)"
+        )
+    if not high >= low:
+        raise InputError(
+            f"tension bounds of cable {cable!r}: maximum {high:g} N must be >= minimum {low:g} N"
+        )
+    if high == 0:
+        raise InputError(
+            f"tension bounds of cable {cable!r}: maximum 0 N leaves the cable no tension"
+        )
+    return low, high
+
+
+def _bounds_by_cable(robot: CableRobot, tension_bounds: Any) -> dict[str, tuple[float, float]]:
+    """{cable: (min, max)} from one pair for every cable or a mapping
+    cable name -> pair."""
+    names = list(robot.cable_names)
+    if isinstance(tension_bounds, Mapping):
+        unknown = [k for k in tension_bounds if k not in names]
+        if unknown:
+            raise InputError(
+                f"no cable named {unknown[0]!r} in {robot.spec.path.name}; cables: "
+                f"{', '.join(names)}"
+            )
+        return {k: _bound_pair(k, v) for k, v in tension_bounds.items()}
+    return {name: _bound_pair(name, tension_bounds) for name in names}
+
+
+def override_robot(
+    robot: CableRobot,
+    *,
+    gravity: Any = None,
+    tension_bounds: Any = None,
+    pretension: float | None = None,
+    external_wrench: Any = None,
+) -> CableRobot:
+    """The robot with other gravity, tension bounds, pretension or load.
+
+    Builds a new :class:`~cdpm.robot.CableRobot` from a copy of the spec
+    (``dataclasses.replace``; the Pinocchio model is copied when gravity
+    changes): no file is written, and ``robot`` is left as it is. Maps
+    record such departures from the spec file in their settings
+    (:func:`robot_overrides`), and their worker processes rebuild the same
+    robot.
+
+    Args:
+        robot: the robot.
+        gravity: gravity in the world frame [m/s^2], shape (3,); None keeps it.
+        tension_bounds: (min, max) [N] for every cable, or a mapping cable
+            name -> (min, max); max may be ``inf``; None keeps the bounds.
+        pretension: least tension [N] of the ``pretension`` equilibrium
+            method (the spec's ``equilibrium.pretension``); None keeps it.
+        external_wrench: generalised external force w_ext, shape (nv,)
+            [N or N m]; None keeps it.
+
+    Returns:
+        A new robot, or ``robot`` itself when nothing is overridden.
+
+    Raises:
+        InputError: a value of the wrong shape, a bound a cable cannot have
+            (negative, max < min, max 0) or an unknown cable name.
+    """
+    import dataclasses
+
+    from cdpm.robot import CableRobot
+
+    spec = robot.spec
+    changes: dict[str, Any] = {}
+    if gravity is not None:
+        g = _finite_vector("gravity [m/s^2]", gravity, 3)
+        model = spec.model.copy()
+        model.gravity.linear = g
+        changes.update(gravity=g, model=model)
+    if tension_bounds is not None:
+        bounds = _bounds_by_cable(robot, tension_bounds)
+        changes["cables"] = tuple(
+            dataclasses.replace(c, tension_min=bounds[c.name][0], tension_max=bounds[c.name][1])
+            if c.name in bounds
+            else c
+            for c in spec.cables
+        )
+    if pretension is not None:
+        try:
+            value = float(pretension)
+        except (TypeError, ValueError) as exc:
+            raise InputError(f"pretension must be a number of newtons, got {pretension!r}") from exc
+        if not (math.isfinite(value) and value >= 0):
+            raise InputError(f"pretension must be finite and >= 0 N, got {pretension!r}")
+        changes["pretension"] = value
+    if external_wrench is not None:
+        changes["external_wrench"] = _finite_vector(
+            f"external wrench (nv={robot.nv} values)", external_wrench, robot.nv
+        )
+    if not changes:
+        return robot
+    return CableRobot(dataclasses.replace(spec, **changes))
+
+
+def robot_overrides(robot: CableRobot, reference: CableRobot) -> dict[str, Any]:
+    """What ``robot`` changes of ``reference`` (the robot of its spec file),
+    as JSON-able data that :func:`override_robot` takes back.
+
+    Returns:
+        ``{"gravity": [3 floats], "tension_bounds": {cable: [min, max]},
+        "pretension": float, "external_wrench": [nv floats]}`` with only
+        the items that differ (the cables whose bounds differ); ``{}`` when
+        ``robot`` is its spec file's.
+    """
+    out: dict[str, Any] = {}
+    if not np.array_equal(robot.gravity, reference.gravity):
+        out["gravity"] = [float(x) for x in robot.gravity]
+    bounds = {
+        name: [float(lo), float(hi)]
+        for name, lo, hi, lo0, hi0 in zip(
+            robot.cable_names,
+            robot.tension_min,
+            robot.tension_max,
+            reference.tension_min,
+            reference.tension_max,
+            strict=True,
+        )
+        if (lo, hi) != (lo0, hi0)
+    }
+    if bounds:
+        out["tension_bounds"] = bounds
+    if float(robot.spec.pretension or 0.0) != float(reference.spec.pretension or 0.0):
+        out["pretension"] = float(robot.spec.pretension or 0.0)
+    if not np.array_equal(robot.external_wrench, reference.external_wrench):
+        out["external_wrench"] = [float(x) for x in robot.external_wrench]
+    return out
+
+
+def _numbers(values) -> str:
+    return "[" + ", ".join(f"{float(v):g}" for v in values) + "]"
+
+
+def _override_text(key: str, value: Any, reference: CableRobot | None = None) -> str:
+    """The value of one override in words, with the spec's value when
+    ``reference`` (the robot of the spec file) is given."""
+    if key == "gravity":
+        was = f" (spec {_numbers(reference.gravity)})" if reference is not None else ""
+        return f"{_numbers(value)} m/s^2{was}"
+    if key == "tension_bounds":
+        items = []
+        for name, pair in value.items():
+            was = ""
+            if reference is not None and name in reference.cable_names:
+                i = reference.cable_names.index(name)
+                was = f" (spec {_numbers((reference.tension_min[i], reference.tension_max[i]))})"
+            items.append(f"{name} {_numbers(pair)}{was}")
+        return "[N] " + ", ".join(items)
+    if key == "pretension":
+        was = f" (spec {reference.spec.pretension:g} N)" if reference is not None else ""
+        return f"{float(value):g} N{was}"
+    return _numbers(value)
+
+
+def describe_overrides(overrides: Mapping[str, Any], reference: CableRobot | None = None) -> str:
+    """One line naming each override (``gravity [0, 0, 0] m/s^2; tension
+    bounds [N] c1 [0, 50]; ...``), with the spec's value when ``reference``
+    (the robot of the spec file) is given."""
+    return "; ".join(
+        f"{key.replace('_', ' ')} {_override_text(key, overrides[key], reference)}"
+        for key in _OVERRIDE_KEYS
+        if key in overrides
+    )
+
+
+def _overrides_difference(stored: Mapping[str, Any], current: Mapping[str, Any]) -> list[str]:
+    """One line per override that differs between a store and a request."""
+    lines = []
+    for key in _OVERRIDE_KEYS:
+        a, b = stored.get(key), current.get(key)
+        if a != b:
+            a_text = "the spec's" if a is None else _override_text(key, a)
+            b_text = "the spec's" if b is None else _override_text(key, b)
+            lines.append(f"{key.replace('_', ' ')}: stored {a_text}, now {b_text}")
+    return lines

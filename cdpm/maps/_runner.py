@@ -17,6 +17,7 @@ remote worker need not see the driver's files); both check the spec hash.
 
 from __future__ import annotations
 
+import json
 import multiprocessing
 import os
 import sys
@@ -24,7 +25,7 @@ import tempfile
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -34,30 +35,49 @@ from cdpm.maps._evaluate import MapJob
 if TYPE_CHECKING:  # pragma: no cover
     from cdpm.robot import CableRobot
 
-__all__ = ["RobotSource", "run_chunks", "ProgressPrinter"]
+__all__ = ["RobotSource", "MapRunInfo", "run_chunks", "ProgressPrinter"]
 
 
 @dataclass(frozen=True)
 class RobotSource:
-    """How a worker rebuilds the robot: the spec path, its hash, and the
-    bytes of the spec and URDF (relative paths under their common folder)."""
+    """How a worker rebuilds the robot: the spec path, its hash, the bytes
+    of the spec and URDF (relative paths under their common folder), and
+    the robot's departures from its spec file (gravity, tension bounds,
+    pretension, external wrench: :func:`~cdpm.maps._plan.robot_overrides`)."""
 
     spec_path: str
     sha256: str
     files: tuple[tuple[str, bytes], ...]
     spec_relpath: str
+    overrides: dict = field(default_factory=dict)
 
     @classmethod
     def from_robot(cls, robot) -> RobotSource:
+        from cdpm.maps._plan import robot_overrides
+
         spec = Path(robot.spec.path).resolve()
         urdf = Path(robot.spec.urdf_path).resolve()
         root = Path(os.path.commonpath([spec.parent, urdf.parent]))
-        files = tuple((str(p.relative_to(root)), p.read_bytes()) for p in (spec, urdf))
-        return cls(str(spec), robot.spec.sha256, files, str(spec.relative_to(root)))
+        try:
+            files = tuple((str(p.relative_to(root)), p.read_bytes()) for p in (spec, urdf))
+        except OSError as exc:
+            raise InputError(
+                f"cannot read the robot's spec or URDF ({exc}): a map hashes and ships both "
+                "files, so load the robot from files that exist"
+            ) from exc
+        source = cls(str(spec), robot.spec.sha256, files, str(spec.relative_to(root)))
+        overrides = robot_overrides(robot, source.load_spec_file())
+        return cls(source.spec_path, source.sha256, files, source.spec_relpath, overrides)
 
-    def load(self):
-        """The robot, from the spec path if it is there and unchanged, else
-        from the shipped bytes in a temporary folder."""
+    @property
+    def key(self) -> str:
+        """What identifies the robot: the spec hash and the overrides."""
+        return self.sha256 + json.dumps(self.overrides, sort_keys=True)
+
+    def load_spec_file(self):
+        """The robot of the spec file as it is (no overrides): from the spec
+        path if it is there and unchanged, else from the shipped bytes in a
+        temporary folder."""
         from cdpm.robot import load_robot
 
         if Path(self.spec_path).is_file():
@@ -74,6 +94,15 @@ class RobotSource:
             raise CdpmError("the shipped cable spec does not match its hash")  # pragma: no cover
         return robot
 
+    def load(self):
+        """The robot: its spec file's, with the overrides applied."""
+        from cdpm.maps._plan import override_robot
+
+        robot = self.load_spec_file()
+        if not self.overrides:
+            return robot
+        return override_robot(robot, **self.overrides)
+
 
 # --------------------------------------------------------------------------
 # worker side
@@ -82,14 +111,14 @@ _LOCAL = threading.local()
 
 
 def _state(source: RobotSource):
-    """The robot of this thread, built once per spec hash (robots hold
-    Pinocchio data buffers, so threads do not share them)."""
+    """The robot of this thread, built once per spec hash and overrides
+    (robots hold Pinocchio data buffers, so threads do not share them)."""
     cache = getattr(_LOCAL, "cache", None)
     if cache is None:
         cache = _LOCAL.cache = {}
-    if source.sha256 not in cache:
-        cache[source.sha256] = source.load()
-    return cache[source.sha256]
+    if source.key not in cache:
+        cache[source.key] = source.load()
+    return cache[source.key]
 
 
 def compute_chunk(source: RobotSource, job: MapJob, index: int, natural) -> tuple[int, dict]:
@@ -199,6 +228,88 @@ def _clock(seconds: float) -> str:
 
 
 # --------------------------------------------------------------------------
+# what runs where
+
+
+def _count(n: int, word: str, plural: str | None = None) -> str:
+    """``1 chunk``, ``2 chunks``."""
+    return f"{n} {word}" if n == 1 else f"{n} {plural or word + 's'}"
+
+
+@dataclass(frozen=True)
+class MapRunInfo:
+    """What a map run computes and where, for the line a caller prints
+    before the chunks start (:meth:`lines`).
+
+    Attributes:
+        n_chunks, n_poses: chunks and poses of the whole map.
+        done_chunks, done_poses: those already in the store (resumed).
+        store: the store's path, or None for a map in memory.
+        executor: ``"none"`` (nothing to compute), ``"this process"``,
+            ``"local"`` (worker processes and this one) or ``"dask"``.
+        processes: local processes computing chunks, this one included.
+        workers_asked: the ``workers`` asked for (local runs).
+        scheduler: the Dask scheduler's address.
+        dask_workers, dask_threads: the Dask cluster's workers and threads.
+    """
+
+    n_chunks: int
+    n_poses: int
+    done_chunks: int = 0
+    done_poses: int = 0
+    store: str | None = None
+    executor: str = "none"
+    processes: int = 0
+    workers_asked: int | None = None
+    scheduler: str | None = None
+    dask_workers: int = 0
+    dask_threads: int = 0
+
+    @property
+    def todo_chunks(self) -> int:
+        return self.n_chunks - self.done_chunks
+
+    @property
+    def todo_poses(self) -> int:
+        return self.n_poses - self.done_poses
+
+    def lines(self) -> list[str]:
+        """What is resumed and where the chunks run, in words."""
+        if self.todo_chunks == 0:
+            return [
+                f"the store {self.store} already holds the whole map "
+                f"({_count(self.n_chunks, 'chunk')}, {self.n_poses} poses); nothing to compute"
+            ]
+        lines = []
+        if self.done_chunks:
+            lines.append(
+                f"resuming {self.store}: {self.done_chunks} of {self.n_chunks} chunks done "
+                f"({self.done_poses} of {self.n_poses} poses); computing the remaining "
+                f"{_count(self.todo_chunks, 'chunk')} ({self.todo_poses} poses)"
+            )
+        what = f"running {_count(self.todo_chunks, 'chunk')} ({self.todo_poses} poses)"
+        if self.executor == "dask":
+            where = (
+                f"on the Dask scheduler {self.scheduler} ({_count(self.dask_workers, 'worker')}, "
+                f"{_count(self.dask_threads, 'thread')})"
+            )
+        elif self.executor == "local":
+            where = (
+                f"in {self.processes} local processes: this one and "
+                f"{_count(self.processes - 1, 'worker process', 'worker processes')}"
+            )
+            if self.workers_asked and self.workers_asked > self.processes:
+                where += f" ({self.workers_asked} asked for; at most one per chunk)"
+        else:
+            where = "in this process"
+            if self.workers_asked and self.workers_asked > 1:
+                where += f" ({self.workers_asked} asked for; at most one per chunk)"
+            else:
+                where += " (no worker processes)"
+        return lines + [f"{what} {where}"]
+
+
+# --------------------------------------------------------------------------
 # driver side
 
 
@@ -211,10 +322,35 @@ def run_chunks(
     workers: int,
     scheduler,
     progress: Callable[[int, int, int], None] | None,
+    announce: Callable[[MapRunInfo], None] | None = None,
+    source: RobotSource | None = None,
 ) -> None:
     """Compute the chunks ``todo`` and write each to ``sink`` as it finishes;
-    ``job`` is the :class:`~cdpm.maps._evaluate.MapJob` every chunk runs."""
+    ``job`` is the :class:`~cdpm.maps._evaluate.MapJob` every chunk runs.
+
+    ``announce`` is called once, before the first chunk, with a
+    :class:`MapRunInfo` saying what runs where (also when nothing is left
+    to compute); ``source`` (default: built from ``robot``) is how workers
+    rebuild the robot.
+    """
     total = sum(plan.chunk_size(k) for k in todo)
+    pending = set(todo)
+    done = [k for k in range(plan.n_chunks) if k not in pending]
+    info = MapRunInfo(
+        n_chunks=plan.n_chunks,
+        n_poses=plan.n_poses,
+        done_chunks=len(done),
+        done_poses=sum(plan.chunk_size(k) for k in done),
+        store=None if getattr(sink, "path", None) is None else str(sink.path),
+        workers_asked=None if scheduler is not None else workers,
+    )
+
+    def started(**where) -> None:
+        if announce is not None:
+            announce(replace(info, **where))
+        if progress is not None and todo:
+            progress(0, total, -1)
+
     state = {"done": 0}
 
     def finished(index: int, data: dict | None) -> None:
@@ -224,23 +360,20 @@ def run_chunks(
         if progress is not None:
             progress(state["done"], total, index)
 
-    if progress is not None:
-        progress(0, total, -1)
     if not todo:
+        started(executor="none")
         return
+    source = source or RobotSource.from_robot(robot)
     with single_threaded_blas():
-        _run(robot, plan, job, todo, sink, workers, scheduler, finished)
-
-
-def _run(robot: CableRobot, plan, job, todo, sink, workers, scheduler, finished) -> None:
-    if scheduler is not None:
-        _run_dask(robot, plan, job, todo, finished, scheduler)
-    elif workers <= 1 or len(todo) == 1:
-        for index in todo:
-            finished(index, job.evaluate(robot, plan.natural(index)))
-    else:
-        writer = getattr(sink, "writer", None)
-        _run_processes(robot, plan, job, todo, finished, workers, writer)
+        if scheduler is not None:
+            _run_dask(plan, job, todo, finished, scheduler, source, started)
+        elif workers <= 1 or len(todo) == 1:
+            started(executor="this process", processes=1)
+            for index in todo:
+                finished(index, job.evaluate(robot, plan.natural(index)))
+        else:
+            writer = getattr(sink, "writer", None)
+            _run_processes(robot, plan, job, todo, finished, workers, writer, source, started)
 
 
 #: modules the fork server imports once, so that workers start warm
@@ -290,7 +423,9 @@ def prestart_workers() -> None:
     _start_fork_server(_context())
 
 
-def _run_processes(robot: CableRobot, plan, job, todo, finished, workers: int, writer=None) -> None:
+def _run_processes(
+    robot: CableRobot, plan, job, todo, finished, workers: int, writer, source, started
+) -> None:
     """Chunks on ``workers - 1`` local worker processes plus this process.
 
     Each worker builds the robot once (initializer) and then gets only
@@ -302,9 +437,9 @@ def _run_processes(robot: CableRobot, plan, job, todo, finished, workers: int, w
     from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
     from concurrent.futures.process import BrokenProcessPool
 
-    source = RobotSource.from_robot(robot)
     pending = list(reversed(todo))
     n_proc = min(workers - 1, len(todo) - 1)
+    started(executor="local", processes=n_proc + 1)
     ctx = _context()
     executor = ProcessPoolExecutor(
         max_workers=n_proc,
@@ -351,7 +486,7 @@ def _run_processes(robot: CableRobot, plan, job, todo, finished, workers: int, w
     executor.shutdown(wait=True)
 
 
-def _run_dask(robot: CableRobot, plan, job, todo, finished, scheduler) -> None:
+def _run_dask(plan, job, todo, finished, scheduler, source, started) -> None:
     try:
         import distributed
     except ImportError as exc:
@@ -371,8 +506,14 @@ def _run_dask(robot: CableRobot, plan, job, todo, finished, scheduler) -> None:
     else:
         client = scheduler
     try:
-        source = RobotSource.from_robot(robot)
-        n_workers = max(1, sum(client.nthreads().values()))
+        threads = client.nthreads()
+        n_workers = max(1, sum(threads.values()))
+        started(
+            executor="dask",
+            scheduler=str(client.scheduler.address if not own else scheduler),
+            dask_workers=len(threads),
+            dask_threads=sum(threads.values()),
+        )
         pending = list(reversed(todo))
         queue = distributed.as_completed()
 

@@ -30,9 +30,57 @@ from cdpm.maps.criteria import CRITERIA
 if TYPE_CHECKING:  # pragma: no cover
     from cdpm.robot import CableRobot
 
-__all__ = ["ZarrSink", "MemorySink", "ChunkWriter", "open_map", "variable_specs"]
+__all__ = [
+    "ZarrSink",
+    "MemorySink",
+    "ChunkWriter",
+    "open_map",
+    "variable_specs",
+    "store_path_problem",
+]
 
 _META = ".cdpm"
+
+#: extensions of image and document files: a store named so is a mistake
+#: (a store is a zarr directory; images are drawn from it)
+IMAGE_SUFFIXES = frozenset(
+    {".png", ".jpg", ".jpeg", ".gif", ".bmp", ".tif", ".tiff", ".webp", ".avif"}
+    | {".svg", ".svgz", ".pdf", ".eps", ".ps", ".pgf", ".raw", ".rgba"}
+)
+
+#: extensions of other data files -> their format's name
+DATA_SUFFIXES = {
+    ".nc": "netCDF",
+    ".h5": "HDF5",
+    ".hdf5": "HDF5",
+    ".csv": "CSV",
+    ".json": "JSON",
+    ".npy": "NumPy",
+    ".npz": "NumPy",
+    ".parquet": "Parquet",
+    ".pkl": "pickle",
+    ".txt": "text",
+    ".yaml": "YAML",
+    ".yml": "YAML",
+}
+
+
+def store_path_problem(path) -> str | None:
+    """What is wrong with ``path`` as the name of a map store, or None.
+
+    A store is a zarr directory; a path ending like an image (``m.png``) or
+    another file format (``m.nc``) would become a directory of that name.
+
+    Returns:
+        e.g. ``"an image (.png)"`` or ``"a netCDF file (.nc)"``; None for a
+        name without such an extension (``m.zarr`` by convention).
+    """
+    suffix = Path(path).suffix.lower()
+    if suffix in IMAGE_SUFFIXES:
+        return f"an image ({suffix})"
+    if suffix in DATA_SUFFIXES:
+        return f"a {DATA_SUFFIXES[suffix]} file ({suffix})"
+    return None
 
 
 def variable_specs(robot: CableRobot, plan: MapPlan) -> dict[str, tuple]:
@@ -43,6 +91,12 @@ def variable_specs(robot: CableRobot, plan: MapPlan) -> dict[str, tuple]:
 
 def _attrs(robot: CableRobot, plan: MapPlan) -> dict:
     s = plan.settings
+    bounds = {
+        name: [float(lo), float(hi)]
+        for name, lo, hi in zip(
+            robot.cable_names, robot.tension_min, robot.tension_max, strict=True
+        )
+    }
     return {
         "title": f"cdpm workspace map of {robot.spec.path.name}",
         "cdpm_version": s["cdpm_version"],
@@ -55,6 +109,12 @@ def _attrs(robot: CableRobot, plan: MapPlan) -> dict:
         "tension": json.dumps(s["tension"]),
         "chunk_size": s["chunk_size"],
         **{k: s[k] for k in ("reach_horizon", "tension_budget") if k in s},
+        # the robot as mapped: gravity [m/s^2], bounds [N], pretension [N],
+        # and what of them differs from the spec file
+        "gravity": [float(x) for x in robot.gravity],
+        "cable_tension_bounds": json.dumps(bounds),
+        "pretension": float(robot.spec.pretension or 0.0),
+        "overrides": json.dumps(s.get("overrides", {}), sort_keys=True),
         "cdpm_settings": json.dumps(s, sort_keys=True),
     }
 
