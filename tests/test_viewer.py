@@ -12,6 +12,7 @@ import sys
 import tempfile
 import textwrap
 import time
+import urllib.request
 from pathlib import Path
 
 import numpy as np
@@ -393,10 +394,10 @@ def test_viewer_display_and_map(viewer, paper_robot):
 def test_viewer_marker_has_the_verdict_colour(viewer, paper_robot, monkeypatch, code):
     import cdpm.viewer.scene
 
-    def with_verdict(robot, q, geometry=None):
+    def with_verdict(robot, q, geometry=None, **analysis):
         from dataclasses import replace
 
-        return replace(pose_state(robot, q, geometry), verdict=_verdict(code))
+        return replace(pose_state(robot, q, geometry, **analysis), verdict=_verdict(code))
 
     monkeypatch.setattr(cdpm.viewer.scene, "pose_state", with_verdict)
     viewer.display("nominal")
@@ -461,14 +462,17 @@ def _start_command(*args: str) -> subprocess.Popen:
     )
 
 
-def _viewer_url(proc: subprocess.Popen, timeout: float = 60) -> str:
-    """The URL a viewer command prints on its ``viewer: URL`` line ("" if none)."""
+def _viewer_url(proc: subprocess.Popen, timeout: float = 60, seen: list | None = None) -> str:
+    """The URL a viewer command prints on its ``viewer: URL`` line ("" if none);
+    the lines before it are appended to ``seen``."""
     url = ""
     deadline = time.monotonic() + timeout
     while not url and time.monotonic() < deadline:
         line = proc.stdout.readline()
         if line.startswith("viewer: "):
             url = line.split()[1]
+        elif seen is not None:
+            seen.append(line)
         if not line and proc.poll() is not None:
             break
     return url
@@ -762,7 +766,7 @@ def test_import_viewer_loads_no_heavy_dependencies():
 def test_viewer_modules_import_only_modules_below_them():
     import ast
 
-    layers = ["state", "server", "overlay", "scene", "inspector"]
+    layers = ["state", "coordinates", "server", "overlay", "scene", "inspector", "panel", "page"]
     package = ROOT / "cdpm" / "viewer"
     for k, name in enumerate(layers):
         tree = ast.parse((package / f"{name}.py").read_text())
@@ -783,7 +787,8 @@ def test_view_command_serves_then_stops(capsys):
 
     assert main(["view", str(PAPER_SPEC), "--q", "0", "0", "--seconds", "0.2"]) == 0
     out = capsys.readouterr().out
-    assert "POC: NO" in out
+    assert "Positive output controllability (POC): NO (nilpotent); reach margin r_T = 0 m" in out
+    assert "note: singular pose: the output Jacobian dy/dq has rank 0 < p = 1" in out
     assert "viewer: http://127.0.0.1:" in out
 
 
@@ -791,9 +796,15 @@ def test_view_command_ctrl_c_exits_130_and_stops_the_server():
     pytest.importorskip("meshcat")
     proc = _start_command("view", str(PAPER_SPEC), "--pose", "nominal")
     try:
-        url = _viewer_url(proc)
-        assert url.startswith("http://127.0.0.1:"), proc.stderr.read()
-        port = int(url.split(":")[2].split("/")[0])
+        lines: list[str] = []
+        url = _viewer_url(proc, seen=lines)
+        assert url.startswith("http://127.0.0.1:") and url.endswith("/"), proc.stderr.read()
+        (scene,) = [line.split()[2] for line in lines if line.startswith("scene alone: ")]
+        assert scene.startswith("http://127.0.0.1:") and scene.endswith("/static/")
+        ports = [int(u.split(":")[2].split("/")[0]) for u in (url, scene)]
+        assert ports[0] != ports[1]
+        with urllib.request.urlopen(url, timeout=30) as page:  # the inspection page
+            assert '<aside id="panel"' in page.read().decode()
         proc.send_signal(signal.SIGINT)
         assert proc.wait(timeout=30) == 130
     finally:
@@ -801,7 +812,8 @@ def test_view_command_ctrl_c_exits_130_and_stops_the_server():
             proc.kill()
             proc.wait()
     if os.path.exists("/proc/net/tcp"):
-        assert _listening(port) == []
+        for port in ports:  # the page's server and the meshcat server
+            assert _listening(port) == []
 
 
 def test_view_command_bad_map(tmp_path, capsys):
@@ -938,7 +950,13 @@ def test_view_command_refuses_a_map_of_another_spec(paper_map, write_spec, capsy
     err = capsys.readouterr().err
     assert err.startswith(f"cdpm view: error: map {paper_map} was made from {PAPER_SPEC} ")
     assert f"not from {other} " in err
-    assert f"re-run `cdpm map {other} ... --out {paper_map} --overwrite`" in err
+    # the other robot's map is kept: the advice is a new store, never --overwrite
+    new_store = paper_map.parent / f"{other.stem}.zarr"
+    assert (
+        f"make a map of this spec into a new store (`cdpm map {other} ... --out {new_store}`)"
+        in err
+    )
+    assert "--overwrite" not in err
     assert "--allow-other-spec" in err and len(err.strip().splitlines()) == 1
     # the Python check says the same, naming its own override
     dataset = cdpm.open_map(paper_map)
@@ -951,14 +969,19 @@ def test_view_command_refuses_a_map_of_another_spec(paper_map, write_spec, capsy
 
 
 def test_map_of_an_edited_spec_is_refused(write_spec):
+    pytest.importorskip("zarr")
     text = PAPER_SPEC.read_text().replace("two_link_planar.urdf", "arm.urdf")
     spec = write_spec(text)
-    dataset = cdpm.workspace_map(cdpm.load_robot(spec), {"q1": [0.1, 0.2]}, workers=1)
+    store = spec.parent / "arm.zarr"
+    cdpm.workspace_map(cdpm.load_robot(spec), {"q1": [0.1, 0.2]}, store=store, workers=1)
+    dataset = cdpm.open_map(store)
     cdpm.viewer.check_map_spec(dataset, cdpm.load_robot(spec))
     spec.write_text(text.replace("nominal", "home"))
     edited = cdpm.load_robot(spec)
-    with pytest.raises(InputError, match=f"an earlier version of {spec} or its URDF"):
+    with pytest.raises(InputError, match=f"an earlier version of {spec} or its URDF") as info:
         cdpm.viewer.check_map_spec(dataset, edited)
+    # this spec's own stale map: remaking it in place is the fix
+    assert f"re-run `cdpm map {spec} ... --out {store} --overwrite`" in str(info.value)
     # a map without the hash (made by hand) is not checked
     dataset.attrs.pop("spec_sha256")
     cdpm.viewer.check_map_spec(dataset, edited)

@@ -1,4 +1,5 @@
-"""``cdpm view``: serve a meshcat 3-D view of a pose until interrupted."""
+"""``cdpm view``: serve the inspection page of a pose (3-D view and verdict panel)
+until interrupted."""
 
 from __future__ import annotations
 
@@ -7,23 +8,29 @@ import signal
 import sys
 import time
 
-from cdpm.commands._play import _port
+from cdpm.commands._play import _port, _seconds
 from cdpm.commands._pose import Q_HELP, add_pose_arguments, pose_from_args
 from cdpm.commands.plot import argument_type
 
 NAME = "view"
-HELP = "serve a 3-D view of a pose in the browser (robot, cables, POC verdict)"
+HELP = "inspect poses in the browser: 3-D view, sliders and every verdict (127.0.0.1)"
 DESCRIPTION = """\
-Start a meshcat viewer on 127.0.0.1 (never on other interfaces), draw the
-robot at one pose with its cables coloured by state (taut: blue, darker with
-more tension; slack: pink; unavailable: grey) and the output frame marker
-coloured by the positive output controllability verdict (green YES, red NO,
-amber MARGINAL), print the URL and serve until Ctrl-C. With --map, overlay a
-workspace map made by `cdpm map` from the same spec (output positions
-coloured by the POC verdict, its margin or another map variable, --color-by;
---allow-other-spec for a map made from another spec file). Needs the viz
-extra: pip install "cdpm[viz]". From another machine, forward the port:
-ssh -L 7000:127.0.0.1:7000 HOST."""
+Serve an inspection page on 127.0.0.1 (never on other interfaces): the
+meshcat 3-D view of the robot beside a panel with a slider per natural
+coordinate, the verdicts at the pose (positive output controllability with
+its method and reach margin, Brammer positive controllability, output
+controllability, wrench closure, static feasibility), each cable's state
+and tension, the outputs, the spec's named poses and a "copy as --q"
+button. Moving a slider updates the scene and the panel. Cables are
+coloured by state (taut: blue, darker with more tension; slack: pink;
+unavailable: grey), the output frame marker by the POC verdict (green YES,
+red NO, amber MARGINAL). With --map, overlay a workspace map made by `cdpm
+map` from the same spec (output positions coloured by the POC verdict, its
+margin or another map variable, --color-by; --allow-other-spec for a map
+made from another spec file), with a toggle on the page. Prints the
+verdicts and the URL, then serves until Ctrl-C. Needs the viz extra: pip
+install "cdpm[viz]". From another machine, forward both ports it prints:
+ssh -L 7000:127.0.0.1:7000 -L 7001:127.0.0.1:7001 HOST."""
 EPILOG = (
     """\
 examples:
@@ -42,7 +49,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--port",
         type=argument_type(_port),
         default=None,
-        help="web port, 1-65535 (default: first free from 7000)",
+        help="port of the page, 1-65535 (default: first free from 7000; the 3-D scene "
+        "takes the next free one)",
     )
     parser.add_argument(
         "--map", metavar="STORE", help="workspace map to overlay (zarr store from cdpm map)"
@@ -69,7 +77,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--seconds",
-        type=float,
+        type=argument_type(_seconds),
         default=None,
         help="serve this long then exit (default: until Ctrl-C)",
     )
@@ -81,12 +89,15 @@ def _exit_on_sigterm(signum, frame) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from cdpm.robot import load_robot
-    from cdpm.viewer import Viewer, check_map_spec
+    from cdpm.viewer import check_map_spec
+    from cdpm.viewer.page import InspectionPage
+    from cdpm.viewer.scene import _import_meshcat
 
-    # a plain `kill` also closes the viewer (and stops its server process)
+    # a plain `kill` also closes the page (and stops the meshcat server process)
     signal.signal(signal.SIGTERM, _exit_on_sigterm)
     robot = load_robot(args.spec)
     q = pose_from_args(robot, args)
+    _import_meshcat()  # a missing viz extra fails before anything is loaded
     dataset = None
     if args.map:
         from cdpm.maps import open_map
@@ -95,15 +106,23 @@ def run(args: argparse.Namespace) -> int:
         dataset = open_map(args.map)
         if not args.allow_other_spec:
             check_map_spec(dataset, robot, override="--allow-other-spec")
-    with Viewer(robot, q, port=args.port, geometry=args.geometry) as viewer:
+    with InspectionPage(
+        robot,
+        q,
+        port=args.port,
+        dataset=dataset,
+        map_name=args.map,
+        color_by=args.color_by,
+        geometry=args.geometry,
+    ) as page:
         if dataset is not None:
-            n = viewer.show_map(dataset, color_by=args.color_by, check_spec=False)  # checked
-            print(f"map: {n} poses from {args.map}, coloured by {args.color_by}")
-        print(viewer.state)
-        print(f"viewer: {viewer.url()}  (Ctrl-C to stop)", flush=True)
+            print(f"map: {page.map_points} poses from {args.map}, coloured by {args.color_by}")
+        print(page.panel)
+        print(f"scene alone: {page.viewer.url()}")
+        print(f"viewer: {page.url}  (Ctrl-C to stop)", flush=True)
         try:
             if args.seconds is not None:
-                time.sleep(max(args.seconds, 0.0))
+                time.sleep(args.seconds)
             else:
                 while True:
                     time.sleep(3600)

@@ -27,16 +27,24 @@ and imported only when a viewer, a widget or a picture is made.
 Modules, each importing only those above it:
 
 - :mod:`cdpm.viewer.state`: the pose state and colours (no meshcat);
+- :mod:`cdpm.viewer.coordinates`: slider ranges and units of the coordinates;
 - :mod:`cdpm.viewer.server`: the meshcat server process (loopback only);
 - :mod:`cdpm.viewer.overlay`: workspace-map points and their colours;
 - :mod:`cdpm.viewer.scene`: the meshcat scene, :class:`Viewer`;
-- :mod:`cdpm.viewer.inspector`: sliders, :class:`PoseInspector`.
+- :mod:`cdpm.viewer.inspector`: notebook sliders, :class:`PoseInspector`;
+- :mod:`cdpm.viewer.panel`: every verdict at a pose, :func:`pose_panel`;
+- :mod:`cdpm.viewer.page`: the inspection page of ``cdpm view``,
+  :class:`InspectionPage` (the standard library's HTTP server; the page's
+  files are in ``cdpm/viewer/static``).
 """
 
 from __future__ import annotations
 
-from cdpm.viewer.inspector import PoseInspector, coordinate_ranges
+from cdpm.viewer.coordinates import CoordinateRange, coordinate_ranges, coordinate_sliders
+from cdpm.viewer.inspector import PoseInspector
 from cdpm.viewer.overlay import VERDICT_CODES, check_map_spec, map_points  # noqa: F401
+from cdpm.viewer.page import InspectionPage
+from cdpm.viewer.panel import PosePanel, pose_panel
 from cdpm.viewer.scene import Viewer
 from cdpm.viewer.server import LOOPBACK, check_port
 from cdpm.viewer.state import (  # noqa: F401
@@ -56,8 +64,13 @@ __all__ = [
     "PoseState",
     "pose_state",
     "coordinate_ranges",
+    "coordinate_sliders",
+    "CoordinateRange",
     "Viewer",
     "PoseInspector",
+    "PosePanel",
+    "pose_panel",
+    "InspectionPage",
     "check_map_spec",
     "check_port",
     "LOOPBACK",

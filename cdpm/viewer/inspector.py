@@ -1,8 +1,9 @@
 """Interactive pose inspection: sliders over the natural coordinates.
 
 :class:`PoseInspector` drives a :class:`cdpm.viewer.Viewer` (or only a text
-panel) from one slider per natural coordinate; :func:`coordinate_ranges`
-gives the slider ranges. ipywidgets is imported when the widget is made.
+panel) from one slider per natural coordinate in a notebook;
+:func:`coordinate_ranges` (:mod:`cdpm.viewer.coordinates`) gives the slider
+ranges. ipywidgets is imported when the widget is made.
 """
 
 from __future__ import annotations
@@ -11,9 +12,8 @@ import math
 import time
 from typing import TYPE_CHECKING, Any
 
-import numpy as np
-
 from cdpm.errors import InputError, MissingExtraError
+from cdpm.viewer.coordinates import coordinate_ranges
 from cdpm.viewer.state import PoseState, default_pose, pose_state
 
 if TYPE_CHECKING:  # pragma: no cover - for static type checkers only
@@ -21,53 +21,6 @@ if TYPE_CHECKING:  # pragma: no cover - for static type checkers only
     from cdpm.viewer.scene import Viewer
 
 __all__ = ["PoseInspector", "coordinate_ranges"]
-
-
-def coordinate_ranges(robot: CableRobot, natural: Any = None) -> dict[str, tuple[float, float]]:
-    """Slider range of each natural coordinate, from the URDF joint limits.
-
-    Finite limits (``robot.model.lowerPositionLimit``/``upperPositionLimit``)
-    are used as they are; an angle without them gets [-pi, pi] (pitch of a
-    ball joint [-pi/2, pi/2]); a length without them gets the current value
-    +- 1 m. The range always contains the current value.
-
-    Args:
-        robot: a :class:`~cdpm.robot.CableRobot`.
-        natural: current natural coordinates (nv,); default the neutral pose.
-
-    Returns:
-        ``{coordinate name: (low, high)}`` in the order of ``robot.coordinate_names``.
-    """
-    model = robot.model
-    natural = robot.to_natural(robot.neutral() if natural is None else robot.as_q(natural))
-    lower, upper = np.asarray(model.lowerPositionLimit), np.asarray(model.upperPositionLimit)
-    names = list(robot.coordinate_names)
-    ranges: dict[str, tuple[float, float]] = {}
-    for j in range(1, model.njoints):
-        joint = model.joints[j]
-        kind = joint.shortname()
-        for k in range(joint.nv):
-            iv = joint.idx_v + k
-            name = names[iv]
-            suffix = name.rsplit(".", 1)[-1] if "." in name else ""
-            # JointModelPX/PY/PZ/PrismaticUnaligned, Translation: lengths
-            prismatic = kind.startswith(("JointModelP", "JointModelTranslation"))
-            is_length = (joint.nq == joint.nv and prismatic) or (
-                joint.nq != joint.nv and suffix in ("x", "y", "z")
-            )
-            if joint.nq == joint.nv or (joint.nq != joint.nv and is_length):
-                lo, hi = float(lower[joint.idx_q + k]), float(upper[joint.idx_q + k])
-            else:
-                lo, hi = -math.inf, math.inf
-            if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
-                if is_length:
-                    lo, hi = natural[iv] - 1.0, natural[iv] + 1.0
-                elif suffix == "pitch":
-                    lo, hi = -math.pi / 2, math.pi / 2
-                else:
-                    lo, hi = -math.pi, math.pi
-            ranges[name] = (min(lo, float(natural[iv])), max(hi, float(natural[iv])))
-    return ranges
 
 
 class PoseInspector:

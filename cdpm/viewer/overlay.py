@@ -60,11 +60,30 @@ def check_map_spec(dataset, robot, *, override: str = "check_spec=False") -> Non
     else:
         source = f"{made_from} (sha256 {stored[:12]}), not from {spec} (sha256 {now[:12]})"
     what = f"map {store}" if store else "the map"
-    rerun = f"`cdpm map {spec} ... --out {store} --overwrite`" if store else "it with this spec"
+    if str(made_from) == str(spec):  # this spec's own map, made before an edit: remake it
+        rerun = f"`cdpm map {spec} ... --out {store} --overwrite`" if store else "it with this spec"
+        fix = f"re-run {rerun}"
+    else:  # another robot's map: keep it, make this spec's map into a new store
+        new = f"`cdpm map {spec} ... --out {_new_store(store, spec)}`"
+        fix = f"make a map of this spec into a new store ({new})"
     raise InputError(
-        f"{what} was made from {source}; re-run {rerun} or view it with the spec it was made "
+        f"{what} was made from {source}; {fix} or view it with the spec it was made "
         f"from ({override} overlays it anyway)"
     )
+
+
+def _new_store(store, spec) -> str:
+    """A store path for a map of ``spec`` that is neither ``store`` nor an
+    existing path: ``SPEC_STEM.zarr`` beside ``store`` (numbered if taken)."""
+    from pathlib import Path
+
+    folder = Path(store).parent if store else Path(".")
+    stem = Path(spec).stem
+    for k in range(1, 1000):
+        candidate = folder / (f"{stem}.zarr" if k == 1 else f"{stem}-{k}.zarr")
+        if not candidate.exists() and (not store or candidate != Path(store)):
+            return str(candidate)
+    return str(folder / f"{stem}-new.zarr")
 
 
 def map_points(dataset, *, color_by: str = "verdict", position: str = "output_frame_position"):

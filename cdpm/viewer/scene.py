@@ -244,6 +244,11 @@ class Viewer:
         return None if self._server is None else self._server.process.pid
 
     @property
+    def cable_colors(self) -> tuple[tuple[float, float, float] | None, ...]:
+        """RGB colour (0..1) each cable is drawn in now (None before the first draw)."""
+        return tuple(self._cable_colors)
+
+    @property
     def zmq_url(self) -> str:
         """zmq address of the meshcat server (tcp://127.0.0.1:PORT)."""
         return self._window.zmq_url
@@ -427,17 +432,20 @@ class Viewer:
 
     # ------------------------------------------------------------ updating
 
-    def display(self, q: Any) -> PoseState:
+    def display(self, q: Any, *, report: Any = None, reason: str | None = None) -> PoseState:
         """Move the robot, cables and output to q and recolour by state and verdict.
 
         Args:
             q: a pose name, a configuration vector (nq,) or natural coordinates (nv,).
+            report, reason: what :func:`cdpm.analyze_pose` gave at q, to show
+                without analysing again (see :func:`pose_state`).
 
         Returns:
             The :class:`PoseState` shown (also kept as :attr:`state`).
         """
         t0 = time.perf_counter()
-        state = pose_state(self.robot, q, self._geometry)  # also updates the kinematics
+        # pose_state also updates the kinematics
+        state = pose_state(self.robot, q, self._geometry, report=report, reason=reason)
         t1 = time.perf_counter()
         scale = self._tension_scale or tension_scale(self.robot, state.tension)
         self._draw(state.q, cable_colors(state, scale), state.verdict_rgb)

@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from cdpm.errors import CdpmError
+from cdpm.errors import CdpmError, InputError
 from cdpm.linearisation import linearise
 from cdpm.verdicts import VERDICT_CODES, VERDICT_RGB, verdict_code
 
@@ -353,23 +353,58 @@ def _analyse(robot: CableRobot, q: np.ndarray):
     return lin.tension, slack, poc.verdict, float(margin), None
 
 
-def pose_state(robot: CableRobot, q: Any, geometry: PoseGeometry | None = None) -> PoseState:
+def _from_report(report) -> tuple:
+    """:func:`_analyse`'s tuple from a :class:`cdpm.PoseReport` (no new analysis)."""
+    lin = report.linearisation
+    slack = np.asarray(lin.input_sign > 0, dtype=bool)
+    return lin.tension, slack, report.poc.verdict, float(report.reach_margin[0]), None
+
+
+def pose_state(
+    robot: CableRobot,
+    q: Any,
+    geometry: PoseGeometry | None = None,
+    *,
+    report: Any = None,
+    reason: str | None = None,
+) -> PoseState:
     """What the viewer shows at q: positions, tensions, cable states, verdict.
 
     Args:
         robot: a :class:`~cdpm.robot.CableRobot`.
         q: a pose name, a configuration vector (nq,) or natural coordinates (nv,).
         geometry: reuse a :class:`PoseGeometry` (the viewer keeps one); built if None.
+        report: the :class:`cdpm.PoseReport` of :func:`cdpm.analyze_pose` at
+            q (with the spec's tension method and the model's reach
+            settings): its tensions, cable states, verdict and reach margin
+            are shown instead of analysing the pose again.
+        reason: the pose could not be analysed, for this reason (e.g. the
+            message of the error :func:`cdpm.analyze_pose` raised): its
+            cables and verdict are shown ``unavailable`` without analysing
+            again. Not with ``report``.
 
     Returns:
         The :class:`PoseState`. A pose that cannot be linearised is not an
         error: its cables and verdict are ``unavailable`` with the reason.
+
+    Raises:
+        InputError: both ``report`` and ``reason`` are given, or the report
+            is of another pose.
     """
+    if report is not None and reason is not None:
+        raise InputError("pose_state takes a report or a reason, not both")
     q = robot.as_q(q)
     geometry = geometry or PoseGeometry(robot)
     geometry.update(q)
     points = geometry.points()
-    tension, slack, verdict, margin, reason = _analyse(robot, q)
+    if report is not None:
+        if not np.allclose(report.linearisation.q, q, rtol=0.0, atol=1e-12):
+            raise InputError("the report is of another pose than q; analyse q itself")
+        tension, slack, verdict, margin, reason = _from_report(report)
+    elif reason is not None:
+        tension, slack, verdict, margin = None, None, None, None
+    else:
+        tension, slack, verdict, margin, reason = _analyse(robot, q)
     if tension is None:
         states = (CableState.UNAVAILABLE,) * robot.n_cables
     else:

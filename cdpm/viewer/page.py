@@ -1,0 +1,450 @@
+"""The inspection page of ``cdpm view``: the 3-D scene beside a live panel.
+
+:class:`InspectionPage` serves one page on 127.0.0.1: meshcat's own viewer
+(an iframe on the web port of the :class:`~cdpm.viewer.Viewer`'s meshcat
+server) beside a panel with a slider per natural coordinate, the verdicts at
+the pose, a colour legend, each cable's state and tension, the outputs, a
+picker of the spec's named poses, a "copy as --q" button and, with a
+workspace map, a toggle of its overlay. The page's files are
+``cdpm/viewer/static/page.{html,js,css}``; each pose is one request to a JSON
+endpoint, answered by one :func:`~cdpm.viewer.panel.pose_panel` call (one
+:func:`cdpm.analyze_pose`, then the scene drawn from that report).
+
+Endpoints (loopback only; requests naming another host are refused):
+
+- ``GET /``: the page; ``GET /static/page.js`` and ``/static/page.css``;
+- ``GET /api/model``: sliders, named poses, legend, map, the current panel;
+- ``POST /api/pose``: ``{"natural": [nv numbers]}`` [rad or m] or
+  ``{"pose": NAME}`` -> the panel at that pose;
+- ``POST /api/map``: ``{"visible": true|false}`` -> the map overlay shown or hidden.
+
+The server is the standard library's threading HTTP server (HTTP/1.1,
+kept-alive connections), in a thread of the process that holds the robot;
+one pose is analysed and drawn at a time (the viewer's zmq socket is not
+shared between threads). The page itself keeps one request in flight and
+coalesces slider moves that arrive meanwhile into the next one.
+"""
+
+from __future__ import annotations
+
+import errno
+import http.server
+import json
+import math
+import threading
+from importlib import resources
+from typing import TYPE_CHECKING, Any
+from urllib.parse import urlsplit
+
+import numpy as np
+
+from cdpm.errors import CdpmError, InputError
+from cdpm.verdicts import VERDICT_COLORS, VERDICT_LABELS, VERDICT_ORDER
+from cdpm.viewer.coordinates import coordinate_sliders
+from cdpm.viewer.panel import PosePanel, pose_panel, rgb_hex
+from cdpm.viewer.scene import Viewer
+from cdpm.viewer.server import LOOPBACK, check_port
+from cdpm.viewer.state import COLORS, default_pose
+
+if TYPE_CHECKING:  # pragma: no cover - for static type checkers only
+    from cdpm.robot import CableRobot
+
+__all__ = ["InspectionPage", "PAGE_PORTS"]
+
+#: Ports tried, in order, when no port is given: the first free one is used.
+PAGE_PORTS = range(7000, 7100)
+
+#: Slider steps across each coordinate's range.
+SLIDER_STEPS = 1000
+
+#: Largest request body accepted [bytes].
+_MAX_BODY = 1 << 20
+
+#: The page's files (in ``cdpm/viewer/static``) and their content types.
+_STATIC = {
+    "page.html": "text/html; charset=utf-8",
+    "page.js": "text/javascript; charset=utf-8",
+    "page.css": "text/css; charset=utf-8",
+}
+
+#: Host names a request may name (a page on another host is refused).
+_LOCAL_HOSTS = {"127.0.0.1", "localhost", "::1"}
+
+
+def _plain(value: Any) -> Any:
+    """``value`` with numpy scalars as Python numbers and NaN/inf as None (JSON)."""
+    if isinstance(value, dict):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_plain(v) for v in value]
+    if isinstance(value, np.generic):
+        value = value.item()
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
+class InspectionPage:
+    """The inspection page of a robot, served on 127.0.0.1 until closed.
+
+    Starts a :class:`~cdpm.viewer.Viewer` (meshcat server on its own
+    loopback port, the first free from 7000) and the page's server on
+    ``port``; open :attr:`url` in a browser. Use it as a context manager or
+    call :meth:`close`.
+
+    Args:
+        robot: a :class:`~cdpm.robot.CableRobot`.
+        q: first pose (name, configuration or natural coordinates); default
+            the spec's first pose, else neutral.
+        port: port of the page, 1-65535 (default: the first free of
+            :data:`PAGE_PORTS`).
+        dataset: a workspace map (``xarray.Dataset`` from ``cdpm map``) to
+            overlay, already checked against the robot's spec, or None.
+        map_name: what the page calls the map (e.g. its store's path).
+        color_by: colour of the map points (see :meth:`Viewer.show_map`).
+        geometry: link geometry of the viewer (``"auto"``, ``"urdf"``, ``"generated"``).
+
+    Attributes:
+        robot: the robot.
+        viewer: the :class:`~cdpm.viewer.Viewer` drawing the scene.
+        panel: the :class:`~cdpm.viewer.panel.PosePanel` shown now.
+        pose_name: the named pose shown now, or None.
+        map_points: points of the map overlay (0 without a map).
+        map_visible: whether the map overlay is shown.
+
+    Raises:
+        InputError: a port outside 1-65535, or a port in use.
+        CdpmError: the meshcat server could not start.
+    """
+
+    def __init__(
+        self,
+        robot: CableRobot,
+        q: Any = None,
+        *,
+        port: int | None = None,
+        dataset=None,
+        map_name: str | None = None,
+        color_by: str = "verdict",
+        geometry: str = "auto",
+    ) -> None:
+        self.robot = robot
+        self._lock = threading.Lock()
+        self._thread: threading.Thread | None = None
+        self.viewer: Viewer | None = None
+        self._http = _bind(None if port is None else check_port(port))  # before meshcat's port
+        try:
+            q = default_pose(robot) if q is None else q
+            self.pose_name = q if isinstance(q, str) else None
+            q0 = robot.as_q(q)
+            self.viewer = Viewer(robot, q0, geometry=geometry)
+            self._dataset, self._map_name, self._color_by = dataset, map_name, color_by
+            self.map_points, self.map_visible = 0, False
+            if dataset is not None:
+                self.set_map_visible(True)
+            self._sliders = _slider_model(robot, robot.to_natural(q0))
+            self.panel = pose_panel(robot, q0, viewer=self.viewer)
+        except BaseException:
+            self.close()
+            raise
+        self._http.page = self
+        self._thread = threading.Thread(
+            target=self._http.serve_forever, kwargs={"poll_interval": 0.1}, daemon=True
+        )
+        self._thread.start()
+
+    # ------------------------------------------------------------ lifecycle
+
+    @property
+    def port(self) -> int:
+        """The page's port on 127.0.0.1."""
+        return int(self._http.server_address[1])
+
+    @property
+    def url(self) -> str:
+        """URL of the page (http://127.0.0.1:PORT/)."""
+        return f"http://{LOOPBACK}:{self.port}/"
+
+    def close(self) -> None:
+        """Stop the page's server and the viewer's meshcat server."""
+        if self._thread is not None:
+            self._http.shutdown()
+            self._thread.join()
+            self._thread = None
+        self._http.server_close()
+        if self.viewer is not None:
+            self.viewer.close()
+
+    def __enter__(self) -> InspectionPage:
+        return self
+
+    def __exit__(self, *exc_info) -> None:
+        self.close()
+
+    def __repr__(self) -> str:
+        return f"InspectionPage({self.robot.spec.path.name!r}, url={self.url!r})"
+
+    # ------------------------------------------------------------ actions
+
+    def set_pose(self, natural: Any = None, *, pose: str | None = None) -> PosePanel:
+        """Analyse and show a pose: what a slider move or the picker does.
+
+        Args:
+            natural: natural coordinates (nv,) [rad or m].
+            pose: a named pose of the spec instead.
+
+        Raises:
+            InputError: neither or both given, not nv finite numbers, or an unknown pose.
+        """
+        if (natural is None) == (pose is None):
+            raise InputError("give natural coordinates or a pose name, not both or neither")
+        if pose is not None:
+            q = self.robot.configuration(str(pose))  # unknown names fail, listing the poses
+        else:
+            q = self.robot.configuration(_natural(self.robot, natural))
+        with self._lock:
+            self.panel = pose_panel(self.robot, q, viewer=self.viewer)
+            self.pose_name = None if pose is None else str(pose)
+        return self.panel
+
+    def set_map_visible(self, visible: bool) -> None:
+        """Show or hide the workspace map overlay.
+
+        Raises:
+            InputError: there is no map to show.
+        """
+        if self._dataset is None:
+            raise InputError("no workspace map to show; start cdpm view with --map STORE")
+        with self._lock:
+            if visible:
+                self.map_points = self.viewer.show_map(
+                    self._dataset, color_by=self._color_by, check_spec=False
+                )
+            else:
+                self.viewer.hide_map()
+            self.map_visible = bool(visible)
+
+    # ------------------------------------------------------------ content
+
+    def panel_dict(self) -> dict:
+        """The current panel as the page gets it (JSON-serialisable)."""
+        return _plain({**self.panel.as_dict(), "pose": self.pose_name})
+
+    def model_dict(self) -> dict:
+        """What the page loads first: sliders, poses, legend, map, panel."""
+        robot = self.robot
+        web = urlsplit(self.viewer.url())
+        return _plain(
+            {
+                "model": robot.spec.path.name,
+                "coordinates": self._sliders,
+                "poses": [
+                    {"name": name, "natural": robot.to_natural(q).tolist()}
+                    for name, q in robot.poses.items()
+                ],
+                "scene": {"port": web.port, "path": web.path},
+                "legend": _legend(robot),
+                "map": None
+                if self._dataset is None
+                else {
+                    "name": self._map_name,
+                    "points": self.map_points,
+                    "color_by": self._color_by,
+                    "visible": self.map_visible,
+                },
+                "panel": self.panel_dict(),
+            }
+        )
+
+
+def _natural(robot: CableRobot, natural: Any) -> np.ndarray:
+    """Natural coordinates from a request: nv finite numbers."""
+    names = ", ".join(robot.coordinate_names)
+    try:
+        values = np.array(natural, dtype=float).reshape(-1)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"natural must be {robot.nv} numbers ({names}), got {natural!r}") from exc
+    if values.size != robot.nv or not np.all(np.isfinite(values)):
+        raise InputError(f"natural must be {robot.nv} finite numbers ({names}), got {natural!r}")
+    return values
+
+
+def _nice_step(span: float) -> float:
+    """The largest of 1, 2, 5 x 10^k [rad or m] that cuts ``span`` into at
+    least :data:`SLIDER_STEPS` steps."""
+    raw = span / SLIDER_STEPS
+    if not (math.isfinite(raw) and raw > 0):
+        return 1e-3
+    exponent = math.floor(math.log10(raw))
+    for mantissa in (5, 2, 1):
+        step = float(f"{mantissa}e{exponent}")
+        if step <= raw:
+            return step
+    return float(f"1e{exponent - 1}")
+
+
+def _slider_model(robot: CableRobot, natural: np.ndarray) -> list[dict]:
+    """One slider per coordinate: range (:func:`coordinate_sliders`, widened
+    to hold every named pose), unit and step.
+
+    The step is a round number and the ends are multiples of it within the
+    range, so the browser's slider (which snaps to ``min + k step`` in
+    decimal arithmetic) reaches round values such as 0 exactly; the number
+    field beside it takes any value.
+    """
+    sliders = coordinate_sliders(robot, natural)
+    named = [robot.to_natural(q) for q in robot.poses.values()]
+    out = []
+    for i, s in enumerate(sliders):
+        low = min([s.low, *(n[i] for n in named)])
+        high = max([s.high, *(n[i] for n in named)])
+        step = _nice_step(high - low)
+        digits = max(0, -math.floor(math.log10(step))) + 1
+        out.append(
+            {
+                "name": s.name,
+                "low": round(math.ceil(low / step - 1e-9) * step, digits),
+                "high": round(math.floor(high / step + 1e-9) * step, digits),
+                "step": step,
+                "unit": s.unit,
+            }
+        )
+    return out
+
+
+def _legend(robot: CableRobot) -> dict:
+    """Verdict and cable colours (hex) with their labels."""
+    from cdpm.viewer.state import tension_scale
+
+    upper = robot.tension_max[np.isfinite(robot.tension_max)]
+    if upper.size == robot.n_cables and upper.size:
+        scale = f"navy at {tension_scale(robot, None):g} N (the largest upper bound)"
+    else:
+        scale = "navy at the largest tension of the pose"
+    return {
+        "verdicts": [
+            {
+                "label": "unavailable" if code < 0 else VERDICT_LABELS[code].upper(),
+                "color": VERDICT_COLORS[code],
+            }
+            for code in reversed(VERDICT_ORDER)
+        ],
+        "cables": [
+            {
+                "label": "taut",
+                "color": rgb_hex(COLORS["taut_low"]),
+                "to": rgb_hex(COLORS["taut_high"]),
+                "meaning": f"tension above its lower bound: light blue at 0 N, {scale}",
+            },
+            {
+                "label": "slack",
+                "color": rgb_hex(COLORS["slack"]),
+                "meaning": "at its lower bound (zero tension by default): it can only pull harder",
+            },
+            {
+                "label": "unavailable",
+                "color": rgb_hex(COLORS["unavailable"]),
+                "meaning": "no equilibrium or linearisation at this pose",
+            },
+        ],
+    }
+
+
+def _bind(port: int | None) -> http.server.ThreadingHTTPServer:
+    """The page's HTTP server bound to 127.0.0.1:port (or the first free port)."""
+    ports = [port] if port is not None else list(PAGE_PORTS)
+    for p in ports:
+        try:
+            server = http.server.ThreadingHTTPServer((LOOPBACK, p), _Handler)
+        except OSError as exc:
+            if exc.errno != errno.EADDRINUSE:
+                raise CdpmError(f"cannot serve the page on {LOOPBACK}:{p}: {exc}") from exc
+            continue
+        server.daemon_threads = True
+        server.page = None
+        return server
+    if port is not None:
+        raise InputError(f"port {port} is in use; choose another port or omit --port")
+    raise CdpmError(f"no free port in {PAGE_PORTS.start}-{PAGE_PORTS.stop - 1} for the page")
+
+
+def _static(name: str) -> bytes:
+    return resources.files("cdpm.viewer").joinpath("static", name).read_bytes()
+
+
+class _Handler(http.server.BaseHTTPRequestHandler):
+    """Requests to the page's server (see the module's docstring)."""
+
+    protocol_version = "HTTP/1.1"  # keep connections alive between slider moves
+    server_version = "cdpm"
+    # headers and body go out in two writes: without TCP_NODELAY the body
+    # waits for the client's delayed ACK of the headers (some 40 ms)
+    disable_nagle_algorithm = True
+
+    def log_message(self, format: str, *args) -> None:  # noqa: A002 - the base's name
+        pass  # the terminal shows the verdict panel, not a request log
+
+    def _send(self, status: int, body: bytes, content_type: str) -> None:
+        self.send_response(status)
+        self.send_header("Content-Type", content_type)
+        self.send_header("Content-Length", str(len(body)))
+        self.send_header("Cache-Control", "no-store")
+        self.end_headers()
+        self.wfile.write(body)
+
+    def _json(self, status: int, content: Any) -> None:
+        self._send(status, json.dumps(content).encode(), "application/json")
+
+    def _local(self) -> bool:
+        """Refuse requests that name another host (e.g. DNS rebinding)."""
+        host = urlsplit("//" + self.headers.get("Host", "")).hostname or ""
+        if host in _LOCAL_HOSTS:
+            return True
+        self._json(403, {"error": f"host {host!r} refused: the page is served on {LOOPBACK}"})
+        return False
+
+    def do_GET(self) -> None:
+        if not self._local():
+            return
+        path = urlsplit(self.path).path
+        name = "page.html" if path in ("/", "/index.html") else path.removeprefix("/static/")
+        if name in _STATIC and (path.startswith("/static/") or name == "page.html"):
+            self._send(200, _static(name), _STATIC[name])
+        elif path == "/api/model":
+            self._json(200, self.server.page.model_dict())
+        else:
+            self._json(404, {"error": f"no page {path}; open /"})
+
+    def do_POST(self) -> None:
+        if not self._local():
+            return
+        path = urlsplit(self.path).path
+        try:
+            length = int(self.headers.get("Content-Length", "0"))
+        except ValueError:
+            length = -1
+        if not 0 <= length <= _MAX_BODY:
+            self.close_connection = True
+            self._json(400, {"error": f"a request body of 0-{_MAX_BODY} bytes is expected"})
+            return
+        raw = self.rfile.read(length)
+        page = self.server.page
+        try:
+            try:
+                body = json.loads(raw or b"{}")
+            except ValueError as exc:
+                raise InputError(f"the request body is not JSON: {exc}") from exc
+            if not isinstance(body, dict):
+                raise InputError("the request body must be a JSON object")
+            if path == "/api/pose":
+                page.set_pose(body.get("natural"), pose=body.get("pose"))
+                self._json(200, page.panel_dict())
+            elif path == "/api/map":
+                page.set_map_visible(bool(body.get("visible")))
+                self._json(200, {"visible": page.map_visible, "points": page.map_points})
+            else:
+                self._json(404, {"error": f"no endpoint {path}"})
+        except InputError as exc:
+            self._json(400, {"error": str(exc)})
+        except CdpmError as exc:  # e.g. the meshcat server stopped answering
+            self._json(500, {"error": str(exc)})
