@@ -1,42 +1,15 @@
 """The POC neighbourhood of a pose: how far around it every pose is POC.
 
 The seed paper (Section IV-C, Lemma 1, Remark 10) places its nominal pose
-in a positive output controllable region because a ball of POC equilibria
-surrounds it. :func:`poc_neighbourhood` measures that ball on a local
-refined map: it decides positive output controllability (Theorem 1) at the
-poses of a grid around q with the map pipeline
-(:func:`cdpm.maps._evaluate.evaluate_batch`, as :func:`cdpm.workspace_map`
-and :func:`cdpm.analyze_pose` do) and reports the largest radius within
-which every sampled pose is YES.
-
-Distances are taken in *scaled natural coordinates*: the offset of a pose
-from q is ``s_i = dq_i / scale_i`` over the varied coordinates (all nv, or
-the ones named), with ``scale_i = 1`` by default, so a radius is in rad
-for angles and m for lengths, and in a mixed box (a free-flyer) 1 m of
-translation counts as 1 rad of rotation unless ``scale`` says otherwise.
-The box is ``|s|_inf <= R``.
-
-What is sampled (``k`` varied coordinates, ``n`` points per axis, odd):
-
-- the grid ``s = (i_1, ..., i_k) * h``, ``|i_j| <= (n - 1) / 2``,
-  ``h = 2 R / (n - 1)`` (so q itself is a grid point);
-- when ``n < RAY_POINTS`` (coarse grids, many coordinates), also the
-  ``2k`` axis rays ``t R (+-e_j)`` and, for ``k <= MAX_CORNER_RAY_COORDINATES``,
-  the ``2^k`` corner rays ``t R (+-1, ..., +-1)``, at
-  ``t = 1/M, 2/M, ..., 1`` with ``M = (RAY_POINTS - 1) / 2``.
-
-The default ``n`` is the largest odd number (at most
-``MAX_DEFAULT_POINTS``) whose grid has at most ``DEFAULT_MAX_POSES`` poses
-when the map's zero-load path decides them in closed form (no gravity,
-load, damping or pretension and nv <= 2, a few microseconds a pose), else
-``DEFAULT_MAX_POSES_LOADED`` (the analyser at about 0.3 ms a pose); when
-even ``3^k`` poses exceed that, the grid is q alone plus the rays.
-
-Every pose that is not YES counts against the radius: NO, MARGINAL
-(undecided) and not analysed (zero-length cable, singular mass matrix, no
-equilibrium, analysis failed). Poses outside the URDF joint limits are
-evaluated like the others (a map does too; a revolute joint limited to
-+-pi wraps) and counted in ``outside_limits``.
+in a POC region because a ball of POC equilibria surrounds it.
+:func:`poc_neighbourhood` measures that ball: it decides POC (Theorem 1) and
+the reach margin r_T on a grid around q with the map pipeline
+(:func:`cdpm.maps._evaluate.evaluate_batch`) and reports the largest radius
+within which every sampled pose is YES and r_T stays clear of 0 between
+neighbouring samples (:func:`cdpm.paths.suspect_edges`). Distances are in
+scaled natural coordinates ``s = dq / scale`` (rad for angles, m for
+lengths at scale 1); the box is ``|s|_inf <= R``. docs/analysis.md, "The
+POC neighbourhood", gives the sampling rules, the defaults and examples.
 """
 
 from __future__ import annotations
@@ -54,13 +27,14 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from cdpm.errors import InputError
-from cdpm.numerics import SPAN_TOL
+from cdpm.numerics import SPAN_TOL, SUSPECT_LIPSCHITZ_SAFETY
 from cdpm.verdicts import NOT_ANALYSED, STATUS_CODES, STATUS_LABELS, VERDICT_CODES, YES, verdict_key
 
 if TYPE_CHECKING:  # pragma: no cover
+    from cdpm.reach import ReachSettings
     from cdpm.robot import CableRobot
 
-__all__ = ["Neighbourhood", "NonYesPose", "poc_neighbourhood"]
+__all__ = ["Neighbourhood", "SampledPose", "NonYesPose", "poc_neighbourhood"]
 
 #: default grid budget on the closed-form (zero-load, nv <= 2) path [poses]
 DEFAULT_MAX_POSES = 20000
@@ -79,17 +53,16 @@ _CHUNK = 4096
 
 
 @dataclass(frozen=True)
-class NonYesPose:
-    """A sampled pose whose verdict is not YES.
+class SampledPose:
+    """A sampled pose that is not YES, or an end of a suspect edge.
 
     Attributes:
         natural: its natural coordinates, shape (nv,) [rad or m].
         offset: ``dq`` over the varied coordinates, shape (k,) [rad or m].
-        distance_box: ``|dq / scale|_inf`` [rad or m, scaled].
-        distance_ball: ``|dq / scale|_2`` [rad or m, scaled].
-        verdict: its POC verdict code (:data:`cdpm.verdicts.VERDICT_CODES`).
-        status: its status code (:data:`cdpm.verdicts.STATUS_CODES`).
+        distance_box, distance_ball: ``|dq / scale|`` in the inf- and 2-norm.
+        verdict, status: its POC verdict and status codes (cdpm.verdicts).
         outside_limits: it lies outside the URDF joint limits.
+        margin: its reach margin r_T [m] (NaN when not analysed).
     """
 
     natural: np.ndarray
@@ -99,10 +72,15 @@ class NonYesPose:
     verdict: int
     status: int
     outside_limits: bool
+    margin: float = math.nan
 
     def describe(self) -> str:
         """The verdict in words: ``NO``, ``MARGINAL`` or ``not analysed (no equilibrium)``."""
         return _describe(self.verdict, self.status)
+
+    def where(self, names: Sequence[str], varied: Sequence[str]) -> str:
+        """The pose as ``"q1 = 1.4636, q2 = 1.6072"`` (the varied coordinates)."""
+        return ", ".join(f"{c} = {self.natural[list(names).index(c)]:.5g}" for c in varied)
 
     def as_dict(self, coordinate_names: Sequence[str]) -> dict:
         """Plain JSON data (coordinates by name)."""
@@ -114,15 +92,17 @@ class NonYesPose:
             "status": STATUS_LABELS.get(self.status, str(self.status)),
             "description": self.describe(),
             "outside_limits": self.outside_limits,
+            "reach_margin": self.margin if math.isfinite(self.margin) else None,
         }
+
+
+NonYesPose = SampledPose  # the nearest non-YES poses are SampledPose too
 
 
 @dataclass(frozen=True)
 class Neighbourhood:
-    """The POC neighbourhood of a pose, measured on a local refined map.
-
-    Distances are in scaled natural coordinates ``s = dq / scale`` over the
-    varied coordinates (module docstring), in :attr:`unit`.
+    """The POC neighbourhood of a pose, measured on a local refined map;
+    distances in scaled natural coordinates ``s = dq / scale``, in :attr:`unit`.
 
     Attributes:
         model_name: name of the spec file.
@@ -130,35 +110,34 @@ class Neighbourhood:
         natural: natural coordinates of the pose, shape (nv,).
         coordinate_names: names of all nv natural coordinates.
         coordinates: the k varied coordinates (the box's axes), in robot order.
-        units: ``"rad"`` or ``"m"`` per varied coordinate, (k,).
-        scale: scale per varied coordinate [its unit per unit of R], (k,).
+        units, scale: ``"rad"`` or ``"m"``, and the scale [unit per unit of
+            R], per varied coordinate (k,).
         radius: R, the box's half-width [scaled units].
         points: grid points per axis n (odd; 1: q alone, rays only).
         step: grid step per varied coordinate [its unit], (k,): ``2 R
             scale / (n - 1)`` (NaN for n = 1).
-        axis_rays, corner_rays: numbers of rays sampled besides the grid.
-        ray_points: sampled points per ray (beyond q), 0 without rays.
+        axis_rays, corner_rays, ray_points: rays sampled besides the grid
+            and points per ray (beyond q).
         n_poses: poses evaluated (q included; 1 when q is not YES).
         verdict, status: POC verdict and status codes at q.
-        box_radius: the largest sampled shell radius r <= R fully YES: every
-            sampled pose with ``|s|_inf <= r`` is YES (0 when q is not, R
-            when every sampled pose is).
-        box_bracket: (box_radius, inf-norm distance of the nearest non-YES
-            pose, one grid step more on a grid; None when there is none).
-        ball_radius, ball_bracket: the same in the 2-norm ``|s|_2``, over
-            the sampled poses with ``|s|_2 <= R``.
-        whole_box_yes: every sampled pose is YES (the radii are then R: at
-            least R, as far as the samples show).
-        nearest: the non-YES pose nearest in the inf-norm (ties: in the
-            2-norm), or None; nearest_ball: the nearest in the 2-norm with
-            ``|s|_2 <= R``, or None.
-        counts: verdict name -> number of sampled poses.
-        status_counts: status name -> number of sampled poses (those > 0).
+        box_radius: the largest sampled radius r <= R within which every
+            sampled pose is YES and no suspect edge starts (``|s|_inf``).
+        box_bracket: (box_radius, where the region may end: the nearest
+            non-YES pose or far end of a suspect edge; None: nothing does).
+        ball_radius, ball_bracket: the same in the 2-norm ``|s|_2 <= R``.
+        whole_box_yes: every sampled pose is YES and no edge is suspect
+            (the radii are then R: at least R, as far as the samples show).
+        nearest: the non-YES pose nearest in the inf-norm (ties: 2-norm), or
+            None; nearest_ball: the nearest in the 2-norm inside the ball.
+        suspect_edges: number of suspect edges sampled; nearest_suspect:
+            the ends (nearer first) of the one whose nearer end is nearest.
+        reach: the reach margin's horizon and tension budget.
+        counts, status_counts: verdict and status name -> sampled poses.
         outside_limits: sampled poses outside the URDF joint limits.
-        tension: the equilibrium tension setting (method name or tensions [N]).
-        pretension: the pretension [N] passed, or None (the spec's).
-        tol: the span tolerance of the decisions [rad].
-        seconds: wall time [s]; reason: what limits the radius, in words.
+        tension, pretension: the equilibrium tension setting (method name
+            or tensions [N]) and the pretension [N] passed (None: the spec's).
+        tol: the span tolerance [rad]; seconds: wall time [s]; reason: what
+            limits the radius, in words.
     """
 
     model_name: str
@@ -182,8 +161,11 @@ class Neighbourhood:
     ball_radius: float
     ball_bracket: tuple[float, float | None]
     whole_box_yes: bool
-    nearest: NonYesPose | None
-    nearest_ball: NonYesPose | None
+    nearest: SampledPose | None
+    nearest_ball: SampledPose | None
+    suspect_edges: int
+    nearest_suspect: tuple[SampledPose, SampledPose] | None
+    reach: ReachSettings
     counts: dict[str, int]
     status_counts: dict[str, int]
     outside_limits: int
@@ -212,43 +194,57 @@ class Neighbourhood:
     def lines(self) -> list[str]:
         """The neighbourhood in words, for the pose report (first line: the
         summary)."""
-        u, R = self.unit, self.radius
+        u, R, (lo, hi) = self.unit, self.radius, self.box_bracket
         if self.verdict != YES:
             return [f"POC neighbourhood: radius 0: {self.reason} (no neighbourhood evaluated)"]
-        head = (
-            f"POC neighbourhood: every sampled pose within {self.box_radius:.4g} {u} (box, "
-            f"inf-norm) of the pose is YES on a {self.grid_shape} grid"
-            + (" plus rays" if self.axis_rays else "")
-            + f" of half-width {R:.4g} {u}"
-        )
+        grid = f"{self.grid_shape} grid{' plus rays' if self.axis_rays else ''} of half-width"
+        grid = f"on a {grid} {R:.4g} {u}"
+        clear = "is YES and r_T stays clear of 0 between neighbouring samples"
         if self.whole_box_yes:
-            out = [head + f": the whole box, so the radius is at least {R:.4g} {u}"]
+            head = f"every sampled pose within {R:.4g} {u} (box, inf-norm) of the pose {clear}, "
+            out = [f"{head}{grid}: the whole box, so the radius is at least {R:.4g} {u}"]
+        elif lo > 0:
+            head = f"radius {lo:.4g} {u} (box, inf-norm) {grid}: every sampled pose within it "
+            out = [f"{head}{clear}"]
         else:
-            near = self.nearest
-            index = [self.coordinate_names.index(c) for c in self.coordinates]
-            where = ", ".join(f"{self.coordinate_names[i]} = {near.natural[i]:.5g}" for i in index)
-            lo, hi = self.box_bracket
-            out = [
-                head + f"; nearest non-YES pose ({where}) is {near.describe()}",
-                f"  box radius in [{lo:.4g}, {hi:.4g}] {u}: a non-YES pose at {hi:.4g}, every "
-                f"sampled pose below it YES (between samples nothing is known)",
-            ]
-            if self.ball_bracket[1] is None:
-                out.append(f"  ball (2-norm): every sampled pose within {R:.4g} {u} is YES")
-            else:
-                out.append(
-                    f"  ball (2-norm): every sampled pose within {self.ball_radius:.4g} {u} is "
-                    f"YES, a non-YES pose at {self.ball_bracket[1]:.4g}"
-                )
+            out = [f"radius 0 {grid}: the pose is YES, but {self.reason}"]
+        out[0] = "POC neighbourhood: " + out[0]
+        if not self.whole_box_yes:
+            out.append(
+                f"  box radius in [{lo:.4g}, {hi:.4g}] {u}: it stops at the nearest non-YES pose "
+                "or where r_T comes within one step's change of 0, where a NO set thinner than "
+                "the grid may pass (the region may end between the two)"
+            )
+        names, varied, near = self.coordinate_names, self.coordinates, self.nearest
+        if near is not None:
+            where = f"{near.describe()} at ({near.where(names, varied)})"
+            out.append(f"  nearest non-YES pose: {where}, {near.distance_box:.4g} {u} away")
+        if self.nearest_suspect is not None:
+            a, b = self.nearest_suspect
+            out.append(
+                f"  nearest suspect edge: r_T = {a.margin:.3g} and {b.margin:.3g} m at "
+                f"({a.where(names, varied)}) and ({b.where(names, varied)}), "
+                f"{a.distance_box:.4g} and {b.distance_box:.4g} {u} away "
+                f"({self.suspect_edges} suspect edges in all)"
+            )
+        ball, end = self.ball_bracket
+        out.append(
+            f"  ball (2-norm): every sampled pose within {R:.4g} {u} {clear}"
+            if end is None
+            else f"  ball (2-norm): radius {ball:.4g} {u}, the region may end at {end:.4g}"
+        )
         out.append("  " + self._sampled_text())
+        out.append(
+            f"  r_T: T {self.reach.horizon:.3g} s, budget {self.reach.tension_budget:.3g} N; "
+            f"suspect: r(a) + r(b) <= {SUSPECT_LIPSCHITZ_SAFETY:g} L h, L the largest slope of "
+            "r_T sampled at a or b (a heuristic)"
+        )
         if u == "m or rad":
             out.append("  mixed units: 1 m of translation counts as 1 rad (set scale= to change)")
         elif u == "scaled units":
-            parts = ", ".join(
-                f"{c} {x:g} {unit}"
-                for c, x, unit in zip(self.coordinates, self.scale, self.units, strict=True)
-            )
-            out.append(f"  distances in dq / scale; scale: {parts}")
+            parts = zip(self.coordinates, self.scale, self.units, strict=True)
+            scales = ", ".join(f"{c} {x:g} {unit}" for c, x, unit in parts)
+            out.append(f"  distances in dq / scale; scale: {scales}")
         counts = ", ".join(f"{v} {k.replace('_', ' ')}" for k, v in self.counts.items() if v)
         out.append(f"  verdicts: {counts}")
         if self.outside_limits:
@@ -260,20 +256,16 @@ class Neighbourhood:
         return out
 
     def _sampled_text(self) -> str:
-        u = self.unit
         names = ", ".join(self.coordinates)
         if self.points > 1:
-            steps = sorted(
-                {f"{s:.3g} {unit}" for s, unit in zip(self.step, self.units, strict=True)}
-            )
-            text = f"sampled: {self.grid_shape} grid over {names}, step {' / '.join(steps)}"
+            steps = {f"{s:.3g} {unit}" for s, unit in zip(self.step, self.units, strict=True)}
+            text = f"sampled: {self.grid_shape} grid over {names}, step {' / '.join(sorted(steps))}"
         else:
             text = f"sampled: over {names}, no grid beyond q"
-        rays = self.axis_rays + self.corner_rays
-        if rays:
+        if self.axis_rays + self.corner_rays:
             text += (
                 f", plus {self.axis_rays} axis and {self.corner_rays} corner rays of "
-                f"{self.ray_points} points (step {self.radius / self.ray_points:.3g} {u})"
+                f"{self.ray_points} points (step {self.radius / self.ray_points:.3g} {self.unit})"
             )
         return text + f"; {self.n_poses} poses in {self.seconds:.2g} s"
 
@@ -287,45 +279,36 @@ class Neighbourhood:
         """JSON-serialisable content (None for an unbounded bracket)."""
         from cdpm.analysis._common import to_plain
 
-        names = self.coordinate_names
+        names, varied, suspect = self.coordinate_names, self.coordinates, self.nearest_suspect
+
+        def plain(pose):
+            return None if pose is None else pose.as_dict(names)
+
+        same = (
+            "radius points ray_points n_poses box_radius box_bracket ball_radius ball_bracket "
+            "whole_box_yes suspect_edges counts status_counts outside_limits tension pretension "
+            "tol seconds reason"
+        )
         return to_plain(
             {
                 "model": self.model_name,
                 "pose": self.pose_name,
                 "coordinates": dict(zip(names, self.natural.tolist(), strict=True)),
-                "varied": list(self.coordinates),
+                "varied": list(varied),
                 "units": list(self.units),
                 "unit": self.unit,
-                "scale": dict(zip(self.coordinates, self.scale.tolist(), strict=True)),
-                "radius": self.radius,
-                "points": self.points,
+                "scale": dict(zip(varied, self.scale.tolist(), strict=True)),
                 "grid": self.grid_shape,
-                "step": dict(zip(self.coordinates, self.step.tolist(), strict=True)),
+                "step": dict(zip(varied, self.step.tolist(), strict=True)),
                 "rays": {"axis": self.axis_rays, "corner": self.corner_rays},
-                "ray_points": self.ray_points,
-                "n_poses": self.n_poses,
                 "verdict": verdict_key(self.verdict),
                 "status": STATUS_LABELS.get(self.status, str(self.status)),
-                "box_radius": self.box_radius,
-                "box_bracket": list(self.box_bracket),
-                "ball_radius": self.ball_radius,
-                "ball_bracket": list(self.ball_bracket),
-                "whole_box_yes": self.whole_box_yes,
-                **{
-                    key: None if pose is None else pose.as_dict(names)
-                    for key, pose in (
-                        ("nearest", self.nearest),
-                        ("nearest_ball", self.nearest_ball),
-                    )
-                },
-                "counts": self.counts,
-                "status_counts": self.status_counts,
-                "outside_limits": self.outside_limits,
-                "tension": self.tension,
-                "pretension": self.pretension,
-                "tol": self.tol,
-                "seconds": self.seconds,
-                "reason": self.reason,
+                "nearest": plain(self.nearest),
+                "nearest_ball": plain(self.nearest_ball),
+                "nearest_suspect": None if suspect is None else [plain(p) for p in suspect],
+                "suspect_lipschitz_safety": SUSPECT_LIPSCHITZ_SAFETY,
+                "reach": self.reach.as_dict(),
+                **{key: getattr(self, key) for key in same.split()},
             }
         )
 
@@ -359,9 +342,7 @@ def _check_points(points: Any, k: int) -> int:
         raise InputError(f"points must be an odd integer >= 1 (points per axis), got {points!r}")
     n = int(points)
     if n < 1 or n % 2 == 0:
-        raise InputError(
-            f"points must be odd and >= 1 so that q itself is a grid point, got {points!r}"
-        )
+        raise InputError(f"points must be odd and >= 1 so that q is a grid point, got {points!r}")
     if n > 1 and n**k > MAX_POSES:
         raise InputError(
             f"points={n} over {k} coordinates is a grid of {n**k:,} poses; at most "
@@ -390,21 +371,19 @@ def _check_coordinates(robot: CableRobot, coordinates: Any) -> list[int]:
 
 def _check_scale(robot: CableRobot, scale: Any, columns: list[int]) -> np.ndarray:
     out = np.ones(len(columns))
-    if scale is None:
-        return out
-    if not isinstance(scale, Mapping):
+    if scale is not None and not isinstance(scale, Mapping):
         raise InputError(f"scale must be a mapping coordinate -> positive number, got {scale!r}")
     varied = [robot.coordinate_names[i] for i in columns]
-    for name, value in scale.items():
+    for name, value in (scale or {}).items():
         if name not in varied:
             raise InputError(
                 f"scale given for {name!r}, which is not a varied coordinate ({', '.join(varied)})"
             )
         try:
-            x = float(value)
+            x = math.nan if isinstance(value, bool) else float(value)
         except (TypeError, ValueError):
             x = math.nan
-        if isinstance(value, bool) or not (math.isfinite(x) and x > 0):
+        if not (math.isfinite(x) and x > 0):
             raise InputError(f"scale of {name!r} must be a positive number, got {value!r}")
         out[varied.index(name)] = x
     return out
@@ -428,12 +407,8 @@ def _resolve_setting(robot: CableRobot, tension: Any, pretension: Any):
 
 
 def _default_points(k: int, budget: int) -> int:
-    if 3**k > budget:
-        return 1
-    n = 3
-    while n + 2 <= MAX_DEFAULT_POINTS and (n + 2) ** k <= budget:
-        n += 2
-    return n
+    odd = [n for n in range(3, MAX_DEFAULT_POINTS + 1, 2) if n**k <= budget]
+    return odd[-1] if odd else 1
 
 
 def _limits(robot: CableRobot) -> tuple[np.ndarray, np.ndarray]:
@@ -442,33 +417,28 @@ def _limits(robot: CableRobot) -> tuple[np.ndarray, np.ndarray]:
     from cdpm.configuration import _kind
 
     model = robot.model
-    lower_q = np.asarray(model.lowerPositionLimit, dtype=float)
-    upper_q = np.asarray(model.upperPositionLimit, dtype=float)
-    lower = np.full(robot.nv, -np.inf)
-    upper = np.full(robot.nv, np.inf)
-    for j in range(1, model.njoints):
-        joint = model.joints[j]
-        kind = _kind(joint)
-        count = {"euclidean": joint.nv, "freeflyer": 3, "planar": 2}.get(kind, 0)
+    limits_q = np.array([model.lowerPositionLimit, model.upperPositionLimit], dtype=float)
+    limits = np.array([np.full(robot.nv, -np.inf), np.full(robot.nv, np.inf)])
+    for joint in list(model.joints)[1:]:
+        count = {"euclidean": joint.nv, "freeflyer": 3, "planar": 2}.get(_kind(joint), 0)
         iq, iv = joint.idx_q, joint.idx_v
-        lower[iv : iv + count] = lower_q[iq : iq + count]
-        upper[iv : iv + count] = upper_q[iq : iq + count]
-    return lower, upper
+        limits[:, iv : iv + count] = limits_q[:, iq : iq + count]
+    return limits[0], limits[1]
 
 
-def _lattice(k: int, n: int, rays: bool) -> tuple[np.ndarray, int, int, int]:
-    """Sampled offsets as integers: ``U`` (N, k) with ``s = U R / L``.
-
-    Returns:
-        (U without the zero row, L, axis rays, corner rays).
-    """
+def _lattice(k: int, n: int, rays: bool) -> tuple[np.ndarray, int, int, int, np.ndarray]:
+    """Sampled offsets as integers ``U`` (N, k), ``s = U R / L``: (U without
+    the zero row, L, axis rays, corner rays, the steps (V, k) between
+    neighbouring samples: the grid step along each axis and a ray step
+    along each ray, one sign each)."""
     half = (n - 1) // 2
     m = (RAY_POINTS - 1) // 2 if rays else 1
     L = math.lcm(max(half, 1), m)
-    parts = []
+    parts, steps = [], []
     if half:
         axis = np.arange(-half, half + 1) * (L // half)
         parts.append(np.stack(np.meshgrid(*[axis] * k, indexing="ij"), -1).reshape(-1, k))
+        steps.append(np.eye(k, dtype=np.int64) * (L // half))
     n_axis = n_corner = 0
     if rays:
         eye = np.eye(k, dtype=np.int64)
@@ -480,40 +450,64 @@ def _lattice(k: int, n: int, rays: bool) -> tuple[np.ndarray, int, int, int]:
         d = np.vstack(directions)
         t = np.arange(1, m + 1) * (L // m)
         parts.append((d[:, None, :] * t[None, :, None]).reshape(-1, k))
+        first = d[np.arange(d.shape[0]), np.argmax(d != 0, axis=1)]
+        steps.append(d[first > 0] * (L // m))
     U = np.unique(np.vstack(parts).astype(np.int64), axis=0)
-    U = U[np.any(U != 0, axis=1)]
-    return U, L, n_axis, n_corner
+    return U[np.any(U != 0, axis=1)], L, n_axis, n_corner, np.unique(np.vstack(steps), axis=0)
 
 
-def _evaluate(robot, natural, setting, pretension, tol) -> tuple[np.ndarray, np.ndarray]:
-    """POC verdict and status codes (N,) of the poses ``natural`` (N, nv),
-    by the map pipeline in chunks."""
+def _edges(U: np.ndarray, steps: np.ndarray, refined: int) -> np.ndarray:
+    """Pairs (2, E) of rows i, j of ``U`` (N, k) with ``U[j] = U[i] + v``
+    for a step v of ``steps``: the neighbouring samples; grid steps of
+    length ``refined`` along an axis through q, where the finer axis rays
+    sample, are left out."""
+    U = np.ascontiguousarray(U, dtype=np.int64)
+    row = {u.tobytes(): i for i, u in enumerate(U)}
+    out = [np.zeros((2, 0), dtype=np.intp)]
+    for v in steps.astype(np.int64):
+        j = np.fromiter((row.get(u.tobytes(), -1) for u in U + v), dtype=np.intp, count=len(U))
+        i = np.flatnonzero(j >= 0)
+        if np.count_nonzero(v) == 1 and np.abs(v).max() == refined:
+            i = i[np.any((U[i] != 0) & (v == 0), axis=1)]  # off the axis through q
+        out.append(np.stack([i, j[i]]))
+    return np.concatenate(out, axis=1)
+
+
+def _evaluate(robot, natural, setting, pretension, tol, reach):
+    """POC verdict and status codes (N,) and reach margins r_T (N,) [m] of
+    the poses ``natural`` (N, nv), by the map pipeline in chunks."""
     from cdpm.maps._evaluate import evaluate_batch
     from cdpm.maps.criteria import CRITERIA
 
     n = natural.shape[0]
     poc = np.full(n, NOT_ANALYSED, dtype=np.int8)
     status = np.full(n, STATUS_CODES["pending"], dtype=np.int8)
+    margin = np.full(n, np.nan)
     for start in range(0, n, _CHUNK):
         stop = min(n, start + _CHUNK)
         batch = evaluate_batch(
-            robot, natural[start:stop], setting, margin=False, tol=tol, pretension=pretension
+            robot, natural[start:stop], setting, tol=tol, pretension=pretension, reach=reach
         )
         poc[start:stop] = CRITERIA["poc"].compute(batch)
         status[start:stop] = CRITERIA["status"].compute(batch)
-    return poc, status
+        margin[start:stop] = CRITERIA["reach_margin"].compute(batch)
+    return poc, status, margin
 
 
-def _shell(distance: np.ndarray, good: np.ndarray, within: np.ndarray, unit: float, root: bool):
-    """(largest sampled distance fully YES, distance of the nearest non-YES
-    pose) over the poses ``within``, from exact integer distances (squared
-    when ``root``) times ``unit``; None for the second when all are YES."""
-    bad = within & ~good
-    if not bad.any():
+def _radius(distance, within, bad, ends, unit: float, root: bool):
+    """(radius, where the region may end) from integer distances (squared
+    when ``root``) times ``unit``: the largest sampled distance ``within``
+    below every ``bad`` pose and not beyond the nearer end of a suspect
+    edge (``ends`` (2, E); one on a shell counts like a bad pose there)."""
+    near, far = ends.min(axis=0), ends.max(axis=0)
+    strict = np.concatenate([distance[bad & within], near[near == far]])
+    upper = np.concatenate([distance[bad & within], far])
+    if upper.size == 0:
         return None, None
-    first = distance[bad].min()
-    below = within & good & (distance < first)
-    pair = np.array([distance[below].max() if below.any() else 0, first], dtype=float)
+    top = np.iinfo(np.int64).max
+    ok = within & (distance < strict.min(initial=top))
+    ok &= distance <= near[near < far].min(initial=top)
+    pair = np.array([distance[ok].max(), upper.min()], dtype=float)
     lo, hi = (np.sqrt(pair) if root else pair) * unit
     return float(lo), float(hi)
 
@@ -530,55 +524,61 @@ def poc_neighbourhood(
     scale: Mapping[str, float] | None = None,
     rays: bool | None = None,
     tol: float = SPAN_TOL,
+    horizon: Any = None,
+    tension_budget: Any = None,
+    pose_name: str | None = None,
 ) -> Neighbourhood:
     """How far around the pose q every sampled pose is positive output
-    controllable (module docstring: what is sampled, the units).
+    controllable, with r_T clear of 0 between neighbouring samples.
 
     Args:
         robot: a :class:`~cdpm.robot.CableRobot` or the path of its cable spec.
         q: a pose name from the spec, a configuration vector (nq,) or
             natural coordinates (nv,) (as :func:`cdpm.analyze_pose`).
         radius: R > 0, the half-width of the box ``|dq_i / scale_i| <= R``
-            [rad for angles, m for lengths]; a number or an expression
-            such as ``"pi/20"``.
-        points: grid points per axis n, odd (q is the centre point; 1: q
-            and the rays only); default from the pose budget.
-        coordinates: names of the coordinates to vary (default all nv);
-            the others stay at q.
+            [rad or m]; a number or an expression such as ``"pi/20"``.
+        points: grid points per axis n, odd (q is the centre; 1: q and the
+            rays only); default from the pose budget. More points refine it.
+        coordinates: names of the coordinates to vary (default all nv).
         tension: equilibrium tension: None (the spec's method), a method
             name (``zero``, ``min_norm``, ``pretension``) or tensions [N] (m,).
-        pretension: least tension [N] for the ``pretension`` method (None:
-            the spec's).
+        pretension: least tension [N] for ``pretension`` (None: the spec's).
         scale: coordinate name -> positive scale (default 1): that
             coordinate spans ``+-R scale`` and its distances are divided by
-            the scale (e.g. ``{"platform_joint.x": 0.5}`` counts 0.5 m of
-            translation as 1 unit of R).
+            it (``{"platform_joint.x": 0.5}``: 0.5 m counts as 1 unit of R).
         rays: sample the axis and corner rays; default when n < RAY_POINTS.
         tol: angle-like tolerance of the span decisions [rad] (as for maps).
+        horizon, tension_budget: T [s] and tension budget [N] of r_T
+            (:func:`cdpm.reach.reach_settings`; default: the model's).
+        pose_name: the pose's name in the result when q is given as numbers
+            (default: q when q is a name, else None).
 
     Returns:
-        :class:`Neighbourhood` (radii, brackets, nearest non-YES pose, counts).
+        :class:`Neighbourhood`: radii, brackets, what limits them, counts.
 
     Raises:
-        InputError: a radius that is not a positive finite number, points
-            not an odd integer (or beyond MAX_POSES poses), unknown or
-            repeated coordinates, a bad scale, tension, pretension, tol or q.
+        InputError: a radius not positive and finite, points not an odd
+            integer (or beyond MAX_POSES poses), unknown or repeated
+            coordinates, a bad scale, tension, pretension, tol, horizon,
+            tension budget or q.
     """
     from cdpm.equilibrium import EquilibriumWarning
     from cdpm.maps._evaluate import check_tol, zero_equilibrium
     from cdpm.maps._plan import coordinate_units
     from cdpm.maps._runner import single_threaded_blas
+    from cdpm.paths import suspect_edges
+    from cdpm.reach import reach_settings
     from cdpm.robot import CableRobot, load_robot
 
     started = time.perf_counter()
-    if not isinstance(robot, CableRobot):
-        robot = load_robot(robot)
+    robot = robot if isinstance(robot, CableRobot) else load_robot(robot)
     R = _check_radius(radius)
     columns = _check_coordinates(robot, coordinates)
     k = len(columns)
     scale_k = _check_scale(robot, scale, columns)
     tol = check_tol(tol)
     setting, pretension, uses_pretension = _resolve_setting(robot, tension, pretension)
+    reach = reach_settings(robot, horizon, tension_budget)
     if points is None:  # the map's zero-load path decides in closed form (cheap)?
         closed = robot.nv <= 2 and zero_equilibrium(robot, setting)
         closed = closed and not (uses_pretension and pretension)
@@ -588,102 +588,107 @@ def poc_neighbourhood(
     with_rays = n < RAY_POINTS if rays is None else bool(rays)
     if n == 1 and not with_rays:
         raise InputError("points=1 samples q alone: leave rays on (rays=None or True)")
-    pose_name = q if isinstance(q, str) else None
+    pose_name = q if pose_name is None and isinstance(q, str) else pose_name
     natural = robot.to_natural(robot.as_q(q))
-    units = [coordinate_units(robot.model)[i] for i in columns]
-    names = [robot.coordinate_names[i] for i in columns]
-    step = 2 * R * scale_k / (n - 1) if n > 1 else np.full(k, np.nan)
-    U, L, n_axis, n_corner = _lattice(k, n, with_rays)
-    lower, upper = _limits(robot)
-
-    offsets = np.zeros((U.shape[0] + 1, robot.nv))
-    offsets[1:, columns] = U * (R / L) * scale_k
-    poses = natural + offsets  # (N, nv), q first
+    U, L, n_axis, n_corner, steps = _lattice(k, n, with_rays)
+    U = np.vstack([np.zeros((1, k), dtype=np.int64), U])  # q first
+    offsets = np.zeros((U.shape[0], robot.nv))
+    offsets[:, columns] = U * (R / L) * scale_k
+    poses = natural + offsets
     with single_threaded_blas(), warnings.catch_warnings():
         # the pipeline repeats, per chunk, the tension warning given above
         warnings.simplefilter("ignore", EquilibriumWarning)
-        poc0, status0 = _evaluate(robot, natural[None], setting, pretension, tol)
-        verdict, status = int(poc0[0]), int(status0[0])
+        args = (setting, pretension, tol, reach)
+        poc, status_all, margin = _evaluate(robot, poses[:1], *args)
+        verdict, status = int(poc[0]), int(status_all[0])
         if verdict == YES:
-            poc_rest, status_rest = _evaluate(robot, poses[1:], setting, pretension, tol)
-            poc = np.concatenate([poc0, poc_rest])
-            status_all = np.concatenate([status0, status_rest])
-        else:
-            poses, poc, status_all = poses[:1], poc0, status0
-    n_eval = poses.shape[0]
-    U_all = np.vstack([np.zeros((1, k), dtype=np.int64), U])[:n_eval]
-    inf_int = np.abs(U_all).max(axis=1)
-    sq_int = (U_all**2).sum(axis=1)
+            rest = _evaluate(robot, poses[1:], *args)
+            poc, status_all, margin = (
+                np.concatenate(p) for p in zip(*[(poc, status_all, margin), rest], strict=True)
+            )
+        U, offsets, poses = U[: poc.size], offsets[: poc.size], poses[: poc.size]
+    inf_int, sq_int = np.abs(U).max(axis=1), (U**2).sum(axis=1)
+    lower, upper = _limits(robot)
     outside = np.any((poses < lower - 1e-12) | (poses > upper + 1e-12), axis=1)
-    good = poc == YES
-    in_ball = sq_int <= L * L
+    good, in_ball = poc == YES, sq_int <= L * L
 
-    def pose_at(index: int) -> NonYesPose:
-        return NonYesPose(
-            natural=poses[index].copy(),
-            offset=offsets[index, columns].copy(),
-            distance_box=float(inf_int[index] * R / L),
-            distance_ball=float(math.sqrt(sq_int[index]) * R / L),
-            verdict=int(poc[index]),
-            status=int(status_all[index]),
-            outside_limits=bool(outside[index]),
-        )
+    def pose_at(i: int) -> SampledPose:
+        d = float(inf_int[i] * R / L), float(math.sqrt(sq_int[i]) * R / L)
+        codes = int(poc[i]), int(status_all[i]), bool(outside[i]), float(margin[i])
+        return SampledPose(poses[i].copy(), offsets[i, columns].copy(), *d, *codes)
 
+    nearest = nearest_ball = nearest_suspect = None
+    edges = np.zeros((2, 0), dtype=np.intp)
     if verdict != YES:
         box = ball = (0.0, 0.0)
         nearest = nearest_ball = pose_at(0)
         reason = f"the pose itself is {_describe(verdict, status)}"
     else:
-        box = _shell(inf_int, good, np.ones(n_eval, dtype=bool), R / L, False)
-        ball = _shell(sq_int, good, in_ball, R / L, True)
-        box, ball = [(R, None) if lo is None else (lo, hi) for lo, hi in (box, ball)]
+        edges = _edges(U, steps, L // ((n - 1) // 2) if n_axis and 1 < n < RAY_POINTS else 0)
+        lengths = np.linalg.norm(U[edges[1]] - U[edges[0]], axis=1) * (R / L)
+        edges = edges[:, suspect_edges(edges, lengths, margin, good[edges].all(axis=0))]
+        ends = [sq_int[edges].min(0), inf_int[edges].max(0), inf_int[edges].min(0)]
+        edges = edges[:, np.lexsort(ends)]  # nearest first; on a shell before across one
+        if edges.size:
+            pair = sorted(edges[:, 0], key=lambda i: (inf_int[i], sq_int[i]))
+            nearest_suspect = (pose_at(pair[0]), pose_at(pair[1]))
+        box, ball = (
+            _radius(d, w, ~good, d[edges][:, w[edges].all(axis=0)], R / L, root)
+            for d, w, root in ((inf_int, np.ones_like(good), False), (sq_int, in_ball, True))
+        )
+        box, ball = ((R, None) if lo is None else (lo, hi) for lo, hi in (box, ball))
         bad = np.flatnonzero(~good)
-        nearest = nearest_ball = None
         if bad.size:
             nearest = pose_at(int(bad[np.lexsort((sq_int[bad], inf_int[bad]))[0]]))
-            bad_ball = bad[in_ball[bad]]
-            if bad_ball.size:
-                nearest_ball = pose_at(
-                    int(bad_ball[np.lexsort((inf_int[bad_ball], sq_int[bad_ball]))[0]])
-                )
+        if np.any(in_ball[bad]):
+            inside = bad[in_ball[bad]]
+            nearest_ball = pose_at(int(inside[np.lexsort((inf_int[inside], sq_int[inside]))[0]]))
+        by_poses = _radius(inf_int, good | ~good, ~good, np.zeros((2, 0), np.int64), R / L, False)
+        if box[1] is None:
+            reason = "every sampled pose in the box is YES and no edge is suspect"
+        elif nearest is not None and by_poses[0] == box[0]:  # the poses alone stop it there
             reason = (
                 f"the nearest non-YES sampled pose is {nearest.describe()} at "
                 f"{nearest.distance_box:.3g} (inf-norm)"
             )
         else:
-            reason = "every sampled pose in the box is YES"
-    counts = {name: int(np.count_nonzero(poc == code)) for name, code in VERDICT_CODES.items()}
-    status_counts = {
-        STATUS_LABELS[code]: int(np.count_nonzero(status_all == code))
-        for code in STATUS_CODES.values()
-        if np.any(status_all == code)
-    }
+            reason = (
+                "r_T comes within one step's change of 0 between sampled poses at "
+                + " and ".join(f"{p.distance_box:.3g}" for p in nearest_suspect)
+                + " (inf-norm), where a NO set thinner than the grid may pass"
+            )
+    codes = status_all.tolist()
     return Neighbourhood(
         model_name=robot.spec.path.name,
         pose_name=pose_name,
         natural=natural,
         coordinate_names=tuple(robot.coordinate_names),
-        coordinates=tuple(names),
-        units=tuple(units),
+        coordinates=tuple(robot.coordinate_names[i] for i in columns),
+        units=tuple(coordinate_units(robot.model)[i] for i in columns),
         scale=scale_k,
         radius=R,
         points=n,
-        step=step,
+        step=2 * R * scale_k / (n - 1) if n > 1 else np.full(k, np.nan),
         axis_rays=n_axis,
         corner_rays=n_corner,
         ray_points=(RAY_POINTS - 1) // 2 if with_rays else 0,
-        n_poses=int(n_eval),
+        n_poses=int(poc.size),
         verdict=verdict,
         status=status,
         box_radius=box[0],
         box_bracket=box,
         ball_radius=ball[0],
         ball_bracket=ball,
-        whole_box_yes=bool(verdict == YES and good.all()),
+        whole_box_yes=bool(verdict == YES and good.all() and not edges.size),
         nearest=nearest,
         nearest_ball=nearest_ball,
-        counts=counts,
-        status_counts=status_counts,
+        suspect_edges=int(edges.shape[1]),
+        nearest_suspect=nearest_suspect,
+        reach=reach,
+        counts={name: int(np.count_nonzero(poc == c)) for name, c in VERDICT_CODES.items()},
+        status_counts={
+            STATUS_LABELS[c]: codes.count(c) for c in STATUS_CODES.values() if c in codes
+        },
         outside_limits=int(np.count_nonzero(outside)),
         tension=setting,
         pretension=pretension,

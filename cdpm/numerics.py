@@ -141,6 +141,12 @@ REGION_RADIUS_FACTOR = 3.0
 REGION_WRAP_RTOL = 1e-3
 #: tolerance [rad or m] of a pose's coordinates that are not on a map axis
 REGION_BASE_ATOL = 1e-6
+#: safety factor on the Lipschitz bound of the reach margin r_T estimated from
+#: sampled slopes: an edge of length h between neighbouring YES samples a, b
+#: is suspect (a NO set thinner than the samples may cross it) when
+#: r(a) + r(b) <= SUSPECT_LIPSCHITZ_SAFETY * L * h, L the largest slope
+#: |r(x) - r(y)| / |x - y| over the sampled edges at a or b
+SUSPECT_LIPSCHITZ_SAFETY = 2.0
 
 # --------------------------------------------------------------------------
 # spec

@@ -16,7 +16,16 @@ nearest the start to the one nearest the goal.
   The bottleneck is found by bisection over the edges' margins (an edge's
   margin is the smaller of its two poses'): the largest threshold t for
   which the edges with margin >= t still join start and goal (connected
-  components); then the shortest path on those edges.
+  components); then the shortest path on those edges. Steps that may cross
+  a NO set thinner than the map's resolution (:func:`suspect_edges`) are
+  avoided when a path without them exists.
+
+A map sees the NO set only at its poses: a NO curve of zero area can pass
+between two neighbouring YES poses. Where the map has the reach margin r_T
+(continuous in the pose, 0 on every NO pose) a step from a to b of length h
+can meet such a curve only if r(a) + r(b) <= L h, L a Lipschitz bound of
+r_T; :func:`suspect_edges` estimates L from the slopes sampled around each
+step and flags those steps (``POCPath.suspect_steps``).
 """
 
 from __future__ import annotations
@@ -35,19 +44,24 @@ from cdpm.maps.regions import (
     distinct,
     grid_index,
     map_layout,
+    map_robot,
+    named_pose,
     nearest_index,
     region_labels,
     sample_edges,
 )
+from cdpm.numerics import SUSPECT_LIPSCHITZ_SAFETY
 from cdpm.verdicts import STATUS_LABELS, VERDICT_LABELS, YES
 
-__all__ = ["POCPath", "NotConnectedError", "poc_path", "MARGIN_VARIABLES"]
+__all__ = ["POCPath", "NotConnectedError", "poc_path", "suspect_edges", "MARGIN_VARIABLES"]
 
 #: margin variables a path reads, in order of preference
 MARGIN_VARIABLES = ("reach_margin", "poc_margin")
 
 #: waypoints printed in full; longer paths print the first and last halves
 PRINT_WAYPOINTS = 16
+#: suspect steps printed with a warning line each; the others are listed
+PRINT_SUSPECT = 4
 
 
 class NotConnectedError(InputError):
@@ -84,7 +98,7 @@ class POCPath:
             the map's base pose with the axis values filled in.
         natural_names: names of the columns of ``natural``.
         region: the region label (``poc_region``).
-        region_size: poses in that region.
+        region_size: poses in that region (a pose on a full-turn seam once).
         margins: margin at each waypoint (k,) (NaN when the map has none).
         margin_variable: the map variable ``margins`` come from, or None.
         length: the sum of the step lengths in axis units (angles across a
@@ -93,6 +107,12 @@ class POCPath:
         units: axis -> unit (``"rad"``, ``"m"``).
         seam_crossings: steps i (waypoint i to i+1) that cross the seam of an
             axis that wraps (the coordinates jump there by about a turn).
+        suspect_steps: steps i (waypoint i to i+1) that may cross a NO set
+            thinner than the map's resolution: r(i) + r(i+1) <= factor L h
+            with r the reach margin (:func:`suspect_edges`); None when the
+            map has no ``reach_margin`` (not checked).
+        start_pose, goal_pose: the map poses nearest the start and the goal
+            given, {axis: value} (the first and last waypoints).
     """
 
     dims: tuple[str, ...]
@@ -109,6 +129,9 @@ class POCPath:
     maximise_margin: bool = False
     units: dict[str, str] = field(default_factory=dict)
     seam_crossings: tuple[int, ...] = ()
+    suspect_steps: tuple[int, ...] | None = None
+    start_pose: dict[str, float] = field(default_factory=dict)
+    goal_pose: dict[str, float] = field(default_factory=dict)
 
     @property
     def n_waypoints(self) -> int:
@@ -126,26 +149,35 @@ class POCPath:
         m = self.margins
         return float(np.nanmin(m)) if np.any(np.isfinite(m)) else float("nan")
 
+    def waypoint(self, i: int) -> dict[str, float]:
+        """{axis: value} of waypoint i [rad or m]."""
+        return {a: float(self.coordinates[a][i]) for a in self.axes}
+
     def as_dict(self) -> dict:
-        """JSON-serialisable content."""
+        """JSON-serialisable content: ``waypoints`` lists {axis: value} per
+        waypoint (``n_waypoints`` of them), ``margins`` the margin at each."""
         return {
             "region": self.region,
             "region_size": self.region_size,
-            "waypoints": self.n_waypoints,
+            "start_pose": dict(self.start_pose),
+            "goal_pose": dict(self.goal_pose),
+            "n_waypoints": self.n_waypoints,
             "steps": self.steps,
             "length": self.length,
             "maximise_margin": self.maximise_margin,
             "margin_variable": self.margin_variable,
             "min_margin": _json_float(self.min_margin),
+            "suspect_steps": None if self.suspect_steps is None else list(self.suspect_steps),
+            "seam_crossings": list(self.seam_crossings),
             "dims": list(self.dims),
             "axes": list(self.axes),
             "units": dict(self.units),
+            "waypoints": [self.waypoint(i) for i in range(self.n_waypoints)],
+            "margins": [_json_float(x) for x in self.margins],
             "indices": self.indices.tolist(),
             "coordinates": {a: v.tolist() for a, v in self.coordinates.items()},
             "natural_names": list(self.natural_names),
             "natural": self.natural.tolist(),
-            "margins": [_json_float(x) for x in self.margins],
-            "seam_crossings": list(self.seam_crossings),
         }
 
     def _unit_text(self) -> str:
@@ -154,17 +186,37 @@ class POCPath:
             return next(iter(units)) or "axis units"
         return "axis units: " + ", ".join(f"{a} {self.units.get(a, '?')}" for a in self.axes)
 
+    def warnings(self) -> list[str]:
+        """One line per suspect step: where the path may cross a NO set
+        thinner than the map's resolution (empty when none or not checked)."""
+        out = []
+        for i in self.suspect_steps or ():
+            moves = ", ".join(
+                f"{a} {self.coordinates[a][i]:.4g} -> {self.coordinates[a][i + 1]:.4g}"
+                for a in self.axes
+                if self.coordinates[a][i] != self.coordinates[a][i + 1]
+            )
+            out.append(
+                f"warning: the path may cross a NO set thinner than the map's resolution "
+                f"between waypoints {i} and {i + 1} ({moves}): their reach margins "
+                f"{self.margins[i]:.4g} and {self.margins[i + 1]:.4g} are within one step's "
+                f"change of 0 ({SUSPECT_LIPSCHITZ_SAFETY:g} times the largest slope of r_T "
+                "sampled nearby)"
+            )
+        return out
+
     def __str__(self) -> str:
         kind = "largest smallest margin" if self.maximise_margin else "shortest"
+        k = self.n_waypoints
         lines = [
             f"POC path ({kind}) in region {self.region} ({self.region_size} poses): "
-            f"{self.n_waypoints} waypoints, {self.steps} steps, length {self.length:.4g} "
-            f"[{self._unit_text()}]"
+            f"{k} waypoint{'s' if k != 1 else ''}, {self.steps} step"
+            f"{'s' if self.steps != 1 else ''}, length {self.length:.4g} [{self._unit_text()}]"
         ]
         if self.margin_variable is not None and np.any(np.isfinite(self.margins)):
-            k = int(np.nanargmin(self.margins))
+            at = int(np.nanargmin(self.margins))
             lines.append(
-                f"  smallest {self.margin_variable} along it: {self.min_margin:.4g} (waypoint {k})"
+                f"  smallest {self.margin_variable} along it: {self.min_margin:.4g} (waypoint {at})"
             )
         else:
             lines.append("  no margins in this map")
@@ -173,9 +225,19 @@ class POCPath:
                 f"  crosses the seam of a full-turn axis after waypoint(s) "
                 f"{', '.join(map(str, self.seam_crossings))}"
             )
+        if self.suspect_steps is None and self.steps:
+            lines.append(
+                "  no reach_margin in this map: thin NO sets between waypoints not checked"
+            )
+        lines += ["  " + line for line in self.warnings()[:PRINT_SUSPECT]]
+        rest = (self.suspect_steps or ())[PRINT_SUSPECT:]
+        if rest:
+            lines.append(
+                f"  warning: {len(rest)} more such step{'s' if len(rest) > 1 else ''}, from "
+                f"waypoint{'s' if len(rest) > 1 else ''} {', '.join(map(str, rest))} to the next"
+            )
         head = "  waypoints:  #  " + " ".join(f"{a:>10}" for a in self.axes)
         lines.append(head + ("  margin" if self.margin_variable else ""))
-        k = self.n_waypoints
         show = list(range(k))
         if k > PRINT_WAYPOINTS:
             half = PRINT_WAYPOINTS // 2
@@ -188,6 +250,13 @@ class POCPath:
             margin = f"  {self.margins[i]:.4g}" if self.margin_variable else ""
             lines.append(f"  {'':>10}{i:>3}  {row}{margin}")
         return "\n".join(lines)
+
+    def __repr__(self) -> str:
+        return (
+            f"POCPath(region={self.region}, waypoints={self.n_waypoints}, "
+            f"length={self.length:.4g}, min_margin={self.min_margin:.4g}, "
+            f"suspect_steps={self.suspect_steps})"
+        )
 
     def _repr_html_(self) -> str:
         return f"<pre>{html.escape(str(self))}</pre>"
@@ -208,12 +277,11 @@ def _margin_values(ds, dims: tuple[str, ...]) -> tuple[np.ndarray | None, str | 
     return None, None
 
 
-def _grid_graph(layout, index, yes: np.ndarray):
-    """Edges (2, E) between face-adjacent YES poses of the distinct grid
-    (flat C-order ids), wrap edges included, and their lengths (E,)."""
+def _grid_graph(layout, index):
+    """Edges (2, E) between face-adjacent poses of the distinct grid (flat
+    C-order ids), wrap edges included, and their lengths (E,)."""
     shape = index.shape
     ids = np.arange(int(np.prod(shape))).reshape(shape)
-    flat_yes = yes.reshape(-1)
     edges, lengths = [], []
     for axis, m in enumerate(shape):
         vals = layout.values[axis][index.order[axis]]
@@ -230,10 +298,44 @@ def _grid_graph(layout, index, yes: np.ndarray):
             lengths.append(np.full(a.size, 2 * math.pi - (vals[-1] - vals[0])))
     if not edges:
         return np.zeros((2, 0), dtype=np.intp), np.zeros(0)
-    e = np.concatenate(edges, axis=1)
-    length = np.concatenate(lengths)
-    keep = flat_yes[e[0]] & flat_yes[e[1]]
-    return e[:, keep], length[keep]
+    return np.concatenate(edges, axis=1), np.concatenate(lengths)
+
+
+def suspect_edges(
+    edges: np.ndarray, lengths: np.ndarray, margins: np.ndarray, candidates: np.ndarray
+) -> np.ndarray:
+    """Edges between neighbouring samples that a NO set thinner than the
+    samples may cross, judged by the reach margin r_T.
+
+    r_T is continuous in the pose and 0 on every NO pose, so along an edge
+    of length h from a to b it can reach 0 only if r(a) + r(b) <= L h, L a
+    Lipschitz bound of r_T on the edge. L is estimated from the samples:
+    SUSPECT_LIPSCHITZ_SAFETY times the largest slope |r(x) - r(y)| / |x - y|
+    over the edges (x, y) at a or at b (the edge itself included). A bound
+    over the whole map would be set by its steepest place (a cable of nearly
+    zero length turns fast) and flag every edge; this local one is a
+    heuristic: it can miss a NO set where r_T bends more sharply than the
+    samples show, and flags valleys of r_T that do not reach 0.
+
+    Args:
+        edges: node ids (2, E) of every sampled edge, candidates or not
+            (their slopes enter the estimate).
+        lengths: edge lengths h (E,) [the samples' units].
+        margins: r_T at each node (n,) [m]; NaN where unknown (not used).
+        candidates: the edges to judge (E,) bool, e.g. those between YES poses.
+
+    Returns:
+        (E,) bool: candidate edges with r(a) + r(b) <= factor L h.
+    """
+    a, b = edges
+    ra, rb = margins[a], margins[b]
+    known = np.isfinite(ra) & np.isfinite(rb) & (lengths > 0)
+    slope = np.zeros(margins.size)
+    s = np.abs(ra - rb)[known] / lengths[known]
+    np.maximum.at(slope, a[known], s)
+    np.maximum.at(slope, b[known], s)
+    bound = SUSPECT_LIPSCHITZ_SAFETY * np.maximum(slope[a], slope[b]) * lengths
+    return np.asarray(candidates, dtype=bool) & known & (ra + rb <= bound)
 
 
 def _csgraph(n: int, edges: np.ndarray, weights: np.ndarray):
@@ -296,23 +398,29 @@ def poc_path(map: Any, start: Any, goal: Any, *, maximise_margin: bool = False) 
     Args:
         map: a map (``xarray.Dataset``) or the path of its store.
         start, goal: poses as for :func:`cdpm.maps.regions.region_of`:
-            ``{coordinate: value}``, values in the map's axis order, or the
-            robot's natural coordinates; each is moved to its nearest map pose.
+            ``{coordinate: value}``, values in the map's axis order, the
+            robot's natural coordinates, or a pose name of the map's spec;
+            each is moved to its nearest map pose.
         maximise_margin: maximise the smallest margin (``reach_margin``, else
             ``poc_margin``) along the path, then take the shortest such path;
             default: the shortest path (fewest steps on a grid, least length
-            on a sampled map).
+            on a sampled map). Suspect steps (:func:`suspect_edges`) are left
+            out when start and goal stay joined without them.
 
     Returns:
-        :class:`POCPath`.
+        :class:`POCPath`, with the steps that may cross a NO set thinner than
+        the map's resolution in ``suspect_steps``.
 
     Raises:
         NotConnectedError: the start or goal is in no region, or they are in
             different regions (the message names both, with their sizes).
-        InputError: a pose off the map or of the wrong length; a map
-            without margins with ``maximise_margin``.
+        InputError: a pose off the map, of the wrong length or an unknown
+            pose name; a map without margins with ``maximise_margin``.
     """
     ds = as_dataset(map)
+    if isinstance(start, str) or isinstance(goal, str):
+        robot = map_robot(ds, "a pose name")
+        start, goal = (named_pose(ds, p, robot) if isinstance(p, str) else p for p in (start, goal))
     layout = map_layout(ds)
     labels_da = region_labels(ds)
     labels = np.asarray(labels_da.transpose(*layout.dims).values)
@@ -328,42 +436,65 @@ def poc_path(map: Any, start: Any, goal: Any, *, maximise_margin: bool = False) 
         raise _not_connected(ds, layout, labels, s_idx, g_idx)
     poc = np.asarray(ds["poc"].transpose(*layout.dims).values)
     margin, margin_name = _margin_values(ds, layout.dims)
+    reach = margin if margin_name == "reach_margin" else None
     if layout.mode == "grid":
         index = grid_index(layout)
-        yes = distinct(poc == YES, layout, index)
-        edges, lengths = _grid_graph(layout, index, yes)
-        n = yes.size
-        s, g = (_distinct_id(index, yes.shape, i) for i in (s_idx, g_idx))
+        yes = distinct(poc == YES, layout, index).reshape(-1)
+        edges, lengths = _grid_graph(layout, index)
+        s, g = (_distinct_id(index, index.shape, i) for i in (s_idx, g_idx))
         node_margin = None if margin is None else distinct(margin, layout, index).reshape(-1)
     else:
         yes = poc == YES
-        edges, lengths = sample_edges(layout, yes, float(radius))
-        n, s, g = yes.size, int(s_idx[0]), int(g_idx[0])
+        sampled = yes if reach is None else yes | np.isfinite(reach)
+        edges, lengths = sample_edges(layout, sampled, float(radius))
+        s, g = int(s_idx[0]), int(g_idx[0])
         node_margin = margin
-    unweighted = layout.mode == "grid"
+    n = yes.size
+    keep = yes[edges[0]] & yes[edges[1]]
+    suspect = None
+    if reach is not None:  # the node margins are r_T (distinct on a grid)
+        suspect = suspect_edges(edges, lengths, node_margin, keep)[keep]
+    edges, lengths = edges[:, keep], lengths[keep]
     if maximise_margin:
-        if node_margin is None or not np.any(np.isfinite(node_margin[yes.reshape(-1)])):
+        if node_margin is None or not np.any(np.isfinite(node_margin[yes])):
             raise InputError(
                 "this map has no margins (no reach_margin, or poc_margin all NaN: made with "
                 "margin=False / --no-margin); make the map with margins to maximise the margin, "
                 "or ask for the shortest path"
             )
         node_margin = np.where(np.isfinite(node_margin), node_margin, -np.inf)
+        if suspect is not None and suspect.any() and _connected(n, edges[:, ~suspect], s, g):
+            edges, lengths, suspect = edges[:, ~suspect], lengths[~suspect], suspect[~suspect]
         if s != g:
             t = _bottleneck(n, edges, node_margin, s, g)
-            keep = np.minimum(node_margin[edges[0]], node_margin[edges[1]]) >= t
-            edges, lengths = edges[:, keep], lengths[keep]
-    route = _route(n, edges, lengths, s, g, unweighted)
+            wide = np.minimum(node_margin[edges[0]], node_margin[edges[1]]) >= t
+            edges, lengths = edges[:, wide], lengths[wide]
+            suspect = None if suspect is None else suspect[wide]
+    route = _route(n, edges, lengths, s, g, layout.mode == "grid")
     if route is None:  # stored labels that disagree with the map's adjacency
         raise _not_connected(ds, layout, labels, s_idx, g_idx, joined=False)
+    steps = None if suspect is None else _suspect_steps(n, edges, suspect, route)
     if layout.mode == "grid":
         indices, seams = _grid_indices(layout, index, route, s_idx, g_idx)
     else:
         indices = np.array(route, dtype=np.intp).reshape(-1, 1)
         seams = _seams(layout, [v[indices[:, 0]] for v in layout.values])
     return _make_path(
-        ds, layout, indices, seams, s_label, labels, margin, margin_name, maximise_margin
+        ds, layout, indices, (seams, steps), s_label, labels, margin, margin_name, maximise_margin
     )
+
+
+def _suspect_steps(n: int, edges: np.ndarray, suspect: np.ndarray, route) -> tuple[int, ...]:
+    """Steps k (route[k] -> route[k + 1]) along suspect edges."""
+    from scipy.sparse import csr_matrix
+
+    if len(route) < 2:
+        return ()
+    # 1 + flag, so that csr keeps the edges that are not suspect
+    flag = csr_matrix((1.0 + suspect, (edges[0], edges[1])), shape=(n, n))
+    flag = flag + flag.T
+    a, b = np.array(route[:-1]), np.array(route[1:])
+    return tuple(int(k) for k in np.flatnonzero(np.asarray(flag[a, b]).ravel() >= 2))
 
 
 def _distinct_id(index, shape: tuple[int, ...], dataset_index: tuple) -> int:
@@ -410,7 +541,9 @@ def _seams(layout, shown: list[np.ndarray]) -> tuple[int, ...]:
     return tuple(sorted(seams))
 
 
-def _make_path(ds, layout, indices, seams, label, labels, margin, margin_name, maximise):
+def _make_path(ds, layout, indices, crossings, label, labels, margin, margin_name, maximise):
+    """The :class:`POCPath` of dataset indices (k, d); ``crossings`` is
+    (seam crossings, suspect steps or None)."""
     from cdpm.maps.regions import sample_distance
 
     k = indices.shape[0]
@@ -451,7 +584,10 @@ def _make_path(ds, layout, indices, seams, label, labels, margin, margin_name, m
         length=length,
         maximise_margin=bool(maximise),
         units=dict(zip(layout.axes, layout.units, strict=True)),
-        seam_crossings=seams,
+        seam_crossings=crossings[0],
+        suspect_steps=crossings[1],
+        start_pose=map_pose(layout, tuple(indices[0])),
+        goal_pose=map_pose(layout, tuple(indices[-1])),
     )
 
 

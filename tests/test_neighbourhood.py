@@ -42,18 +42,25 @@ def test_paper_nominal_pose_lies_in_a_ball_of_poc_poses(nominal, paper_robot):
     assert nb.verdict == YES and nb.pose_name == "nominal"
     assert (nb.points, nb.n_poses, nb.axis_rays) == (101, 101**2, 0)
     np.testing.assert_allclose(nb.step, [0.02, 0.02])
-    # every grid pose within 0.92 rad is YES; a NO pose at 0.94 (one step)
-    assert nb.box_radius == pytest.approx(0.92, abs=1e-12)
-    lo, hi = nb.box_bracket
-    assert hi - lo == pytest.approx(0.02, abs=1e-12)
-    assert not nb.whole_box_yes and nb.nearest.verdict == NO
-    assert nb.nearest.distance_box == pytest.approx(hi)
-    # inside the box of half-width 1 no 2-norm ball pose is NO: ball radius R
-    assert nb.ball_bracket == (1.0, None) and nb.nearest_ball is None
+    # the radius stops at a suspect edge from 0.16 to 0.18 rad (a diagonal NO
+    # line passes between its ends), far before the first NO grid pose at 0.94
+    assert nb.box_bracket == pytest.approx((0.16, 0.18), abs=1e-12)
+    near, far = nb.nearest_suspect
+    assert (near.distance_box, far.distance_box) == pytest.approx((0.16, 0.18), abs=1e-12)
+    assert near.verdict == far.verdict == YES and 0 < far.margin < near.margin < 0.02
+    assert not nb.whole_box_yes and nb.suspect_edges > 0
+    assert nb.nearest.verdict == NO and nb.nearest.distance_box == pytest.approx(0.94)
+    np.testing.assert_allclose(nb.nearest.natural, [1.4636, 1.6072], atol=1e-4)
+    assert nb.ball_bracket == pytest.approx((math.hypot(0.2, 0.08), math.hypot(0.2, 0.1)))
     assert nb.counts["yes"] + nb.counts["no"] == nb.n_poses and nb.counts["no"] > 0
-    assert nb.lines()[0].startswith(
-        "POC neighbourhood: every sampled pose within 0.92 rad (box, inf-norm) of the pose "
-        "is YES on a 101x101 grid of half-width 1 rad; nearest non-YES pose (q1 = 1.4636"
+    assert nb.lines()[0] == (
+        "POC neighbourhood: radius 0.16 rad (box, inf-norm) on a 101x101 grid of half-width 1 "
+        "rad: every sampled pose within it is YES and r_T stays clear of 0 between neighbouring "
+        "samples"
+    )
+    assert (
+        "or where r_T comes within one step's change of 0, where a NO set thinner than the "
+        "grid may pass" in nb.lines()[1]
     )
 
 
@@ -68,12 +75,35 @@ def test_paper_radius_agrees_with_the_per_pose_analysis(nominal, paper_robot):
         assert _poc(paper_robot, pose) == cdpm.Verdict.YES, pose
 
 
+#: a NO pose of the paper's arm on a diagonal NO line (c1 and c3 change sign
+#: together there), 0.178 rad (inf-norm) from the nominal pose
+THIN_NO = np.array([0.22 * math.pi, 0.39 * math.pi])
+
+
+def test_a_no_line_between_grid_poses_stops_the_radius(paper_robot):
+    assert _poc(paper_robot, THIN_NO) == cdpm.Verdict.NO
+    distance = float(np.abs(THIN_NO - [math.pi / 6, math.pi / 3]).max())
+    radii = {}
+    for R in (0.5, 1.0, "pi/6"):
+        nb = poc_neighbourhood(paper_robot, "nominal", R)
+        assert not nb.whole_box_yes, R  # the 0.5 grid misses the line's poses
+        assert nb.box_radius < distance, R
+        radii[R] = (nb.box_radius, float(nb.step.max()))
+    # the three boxes agree on the radius up to their grid steps
+    values = [r for r, _ in radii.values()]
+    assert max(values) - min(values) <= max(h for _, h in radii.values()) + 1e-12
+    assert radii[0.5][0] == pytest.approx(0.16) and radii["pi/6"][0] == pytest.approx(
+        0.1676, abs=1e-4
+    )
+
+
 def test_whole_box_yes_gives_at_least_r(paper_robot):
-    nb = poc_neighbourhood(paper_robot, "nominal", 0.5, points=21)
-    assert nb.whole_box_yes and nb.nearest is None
-    assert nb.box_bracket == (0.5, None) and nb.ball_bracket == (0.5, None)
+    nb = poc_neighbourhood(paper_robot, "nominal", 0.1, points=21)
+    assert nb.whole_box_yes and nb.nearest is None and nb.nearest_suspect is None
+    assert nb.box_bracket == (0.1, None) and nb.ball_bracket == (0.1, None)
     assert nb.counts == {"yes": 441, "no": 0, "marginal": 0, "not_analysed": 0}
-    assert "the whole box, so the radius is at least 0.5 rad" in nb.lines()[0]
+    assert nb.suspect_edges == 0
+    assert "the whole box, so the radius is at least 0.1 rad" in nb.lines()[0]
 
 
 def test_growing_the_box_beyond_the_region_keeps_the_radius(paper_robot):
@@ -81,19 +111,25 @@ def test_growing_the_box_beyond_the_region_keeps_the_radius(paper_robot):
     small = poc_neighbourhood(paper_robot, "nominal", 1.2, points=61)
     large = poc_neighbourhood(paper_robot, "nominal", 2.0, points=101)
     assert small.box_bracket == pytest.approx(large.box_bracket, abs=1e-12)
-    assert small.box_radius == pytest.approx(0.92, abs=1e-12)
+    assert small.box_bracket == pytest.approx((0.12, 0.16), abs=1e-12)
     np.testing.assert_allclose(small.nearest.natural, large.nearest.natural, atol=1e-12)
-    # the 2-norm ball reaches a NO pose in both
+    for a, b in zip(small.nearest_suspect, large.nearest_suspect, strict=True):
+        np.testing.assert_allclose(a.natural, b.natural, atol=1e-12)
     assert small.ball_bracket == pytest.approx(large.ball_bracket, abs=1e-12)
-    assert 1.0 < large.ball_radius < large.ball_bracket[1] < 1.1
+
+
+def test_refining_narrows_the_bracket(paper_robot):
+    fine = poc_neighbourhood(paper_robot, "nominal", 1.0, points=201)
+    assert fine.box_bracket == pytest.approx((0.16, 0.17), abs=1e-12)
 
 
 def test_pose_at_the_edge_of_a_region_has_a_small_radius(two_cables):
     # at q1 = 0 the two-cable arm is YES for q2 in about (-pi/2, -0.684)
     nb = poc_neighbourhood(two_cables, [0.0, -0.70], 0.2)
     assert nb.verdict == YES
-    assert nb.box_radius == pytest.approx(0.012, abs=1e-12)
-    assert nb.box_bracket[1] == pytest.approx(0.016, abs=1e-12)
+    # r_T nearly 0 on the last YES poses: the radius stops a step before them
+    assert nb.box_bracket == pytest.approx((0.008, 0.012), abs=1e-12)
+    assert nb.nearest.distance_box == pytest.approx(0.016, abs=1e-12)
     assert nb.nearest.verdict == NO
     assert _poc(two_cables, nb.nearest.natural) == cdpm.Verdict.NO
     assert _poc(two_cables, nb.natural + [0.012, 0.012]) == cdpm.Verdict.YES
@@ -151,7 +187,15 @@ def test_pretension_reaches_the_pipeline():
 def test_coordinates_scale_and_rays(paper_robot):
     nb = poc_neighbourhood(paper_robot, "nominal", 1.0, coordinates=["q2"], points=11, rays=False)
     assert nb.coordinates == ("q2",) and nb.n_poses == 11
-    assert nb.whole_box_yes
+    # every sampled pose is YES, but r_T falls from 0.15 to 0.03 over the first
+    # step and to about 7e-5 at dq2 = 0.262 (a NO line passes): radius 0
+    assert nb.counts["yes"] == 11 and nb.nearest is None and not nb.whole_box_yes
+    assert nb.box_bracket == pytest.approx((0.0, 0.2), abs=1e-12)
+    assert [p.distance_box for p in nb.nearest_suspect] == pytest.approx([0.0, 0.2])
+    assert nb.lines()[0].startswith(
+        "POC neighbourhood: radius 0 on a 11-point grid of half-width 1 rad: the pose is YES, "
+        "but r_T comes within one step's change of 0 between sampled poses at 0 and 0.2"
+    )
     scaled = poc_neighbourhood(paper_robot, "nominal", 1.0, scale={"q2": 0.5})
     np.testing.assert_allclose(scaled.step, [0.02, 0.01])
     assert scaled.unit == "scaled units"
@@ -159,7 +203,12 @@ def test_coordinates_scale_and_rays(paper_robot):
     assert abs(scaled.nearest.offset[1]) / 0.5 <= scaled.nearest.distance_box + 1e-12
     rays = poc_neighbourhood(paper_robot, "nominal", 0.3, points=1)
     assert (rays.axis_rays, rays.corner_rays, rays.n_poses) == (4, 4, 1 + 8 * 10)
-    assert rays.whole_box_yes and math.isnan(rays.step[0])
+    assert math.isnan(rays.step[0]) and rays.counts["yes"] == 81
+    # the (+1, +1) corner ray crosses the diagonal NO line between 0.15 and 0.18
+    assert rays.box_bracket == pytest.approx((0.15, 0.18), abs=1e-12)
+    np.testing.assert_allclose(
+        rays.nearest_suspect[1].natural - rays.natural, [0.18, 0.18], atol=1e-12
+    )
 
 
 def test_poses_outside_the_joint_limits_are_counted(paper_robot):
@@ -216,4 +265,28 @@ def test_bad_pose_raises_input_error(paper_robot):
 def test_radius_as_expression(paper_robot):
     nb = poc_neighbourhood(paper_robot, [math.pi / 6, math.pi / 3], "pi/8", points=5)
     assert nb.radius == pytest.approx(math.pi / 8)
-    assert nb.pose_name is None and nb.whole_box_yes
+    assert nb.pose_name is None and nb.to_plain()["pose"] is None
+    # the axis rays (step pi/80) refine the grid steps along the axes through q
+    assert nb.box_bracket == pytest.approx((3 * math.pi / 80, 4 * math.pi / 80), abs=1e-12)
+
+
+def test_pose_name_and_reach_settings_reach_the_result(paper_robot):
+    q = paper_robot.configuration("nominal")
+    nb = poc_neighbourhood(
+        paper_robot, q, 0.1, points=5, rays=False, pose_name="nominal", horizon=0.5
+    )
+    plain = json.loads(json.dumps(nb.to_plain()))
+    assert plain["pose"] == "nominal" and nb.pose_name == "nominal"
+    assert plain["reach"]["horizon"] == 0.5 and nb.reach.horizon == 0.5
+    assert plain["suspect_lipschitz_safety"] >= 2
+
+
+def test_radius_zero_reads_as_such():
+    # held by one cable, the gravity arm's nominal pose has no equilibrium a step away
+    nb = poc_neighbourhood(VERTICAL, "nominal", 0.3)
+    assert nb.verdict == YES and nb.box_radius == 0.0
+    assert nb.lines()[0].startswith(
+        "POC neighbourhood: radius 0 on a 63x63 grid of half-width 0.3 rad: the pose is YES, "
+        "but the nearest non-YES sampled pose is not analysed (no equilibrium) at 0.00968"
+    )
+    assert "within 0 rad" not in str(nb)

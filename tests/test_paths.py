@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import heapq
 import inspect
 import json
@@ -19,7 +20,7 @@ from cdpm.cli import main
 from cdpm.errors import InputError
 from cdpm.maps.regions import attach_regions, label_regions
 from cdpm.paths import NotConnectedError, POCPath, poc_path
-from cdpm.verdicts import NO, YES
+from cdpm.verdicts import NO, NOT_ANALYSED, YES
 from tests.conftest import MODELS, PAPER_SPEC
 
 VERTICAL_SPEC = MODELS / "two_link_vertical" / "two_link_vertical.yaml"
@@ -246,8 +247,78 @@ def test_sampled_path_steps_within_the_radius():
 
 
 def test_path_as_dict_is_json(paper):
-    data = json.loads(json.dumps(poc_path(paper, NOMINAL, [1.0, 0.5]).as_dict()))
-    assert data["region"] == 1 and data["waypoints"] == len(data["coordinates"]["q1"])
+    path = poc_path(paper, NOMINAL, [1.0, 0.5])
+    data = json.loads(json.dumps(path.as_dict()))
+    assert data["region"] == 1 and data["n_waypoints"] == len(data["coordinates"]["q1"]) == 6
+    assert data["waypoints"][0] == data["start_pose"] == {"q1": TURN[18], "q2": TURN[20]}
+    assert data["waypoints"][-1] == data["goal_pose"] == {"q1": TURN[20], "q2": TURN[17]}
+    assert data["suspect_steps"] == list(path.suspect_steps)
+
+
+def test_path_repr_is_short(paper):
+    path = poc_path(paper, NOMINAL, [1.0, 0.5])
+    assert repr(path) == (
+        f"POCPath(region=1, waypoints=6, length={path.length:.4g}, "
+        f"min_margin={path.min_margin:.4g}, suspect_steps={path.suspect_steps})"
+    )
+    one = poc_path(paper, [0.6, 1.0], [0.62, 1.03])
+    assert "1 waypoint, 0 steps" in str(one)
+
+
+def test_pose_names_in_python(paper):
+    by_name = poc_path(paper, "nominal", [1.0, 0.5])
+    assert by_name.start_pose == poc_path(paper, NOMINAL, [1.0, 0.5]).start_pose
+    assert cdpm.region_of(paper, "nominal") == cdpm.region_of(paper, NOMINAL) == 1
+    with pytest.raises(InputError, match="pose 'home' not in spec"):
+        cdpm.region_of(paper, "home")
+
+
+def _thin_line_map() -> xr.Dataset:
+    """11 x 7 grid (step 0.1 m): r_T 0.1, but 0.05 on columns q1 = 0.4 and 0.5
+    of rows q2 <= 0.2 (a thin NO line may pass between them); a wall of
+    unanalysed poses above, and at q2 = 0.6 a way round with r_T = 0.045."""
+    poc = np.full((11, 7), YES, dtype=np.int8)
+    r = np.full((11, 7), 0.1)
+    r[4:6, :3] = 0.05
+    poc[4:6, 3:6], r[4:6, 3:6] = NOT_ANALYSED, np.nan
+    r[3:7, 6] = [0.06, 0.045, 0.045, 0.06]
+    q1, q2 = np.linspace(0.0, 1.0, 11), np.linspace(0.0, 0.6, 7)
+    units = {"units": "m"}
+    return xr.Dataset(
+        {"poc": (("q1", "q2"), poc), "reach_margin": (("q1", "q2"), r)},
+        coords={"q1": ("q1", q1, units), "q2": ("q2", q2, units)},
+    )
+
+
+def test_suspect_steps_are_flagged_and_avoided_by_maximin():
+    ds = _thin_line_map()
+    shortest = poc_path(ds, [0.0, 0.0], [1.0, 0.0])
+    assert shortest.steps == 10 and shortest.suspect_steps == (4,)
+    assert shortest.coordinates["q1"][4:6].tolist() == pytest.approx([0.4, 0.5])
+    assert (
+        "may cross a NO set thinner than the map's resolution between waypoints 4 and 5 "
+        "(q1 0.4 -> 0.5)" in str(shortest)
+    )
+    # the widest path over all steps would cross there (bottleneck 0.05 > 0.045)
+    widest = poc_path(ds, [0.0, 0.0], [1.0, 0.0], maximise_margin=True)
+    assert widest.suspect_steps == () and widest.min_margin == pytest.approx(0.045)
+    assert np.max(widest.coordinates["q2"]) == pytest.approx(0.6)
+    # without reach_margin nothing is checked
+    plain = poc_path(ds.drop_vars("reach_margin"), [0.0, 0.0], [1.0, 0.0])
+    assert plain.suspect_steps is None and "not checked" in str(plain)
+
+
+def test_sampled_path_across_a_thin_no_line_is_flagged():
+    # the gravity arm is NO on the line q2 = 0 (straight under gravity); random
+    # samples never land on it, so one region spans both sides
+    ds = cdpm.workspace_map(
+        VERTICAL_SPEC, {"q1": (-3.0, 3.0), "q2": (-3.0, 3.0)}, samples=2000, seed=1, workers=1
+    )
+    for maximise in (False, True):
+        path = poc_path(ds, [0.0, -1.0], [-2.6, 2.4], maximise_margin=maximise)
+        q2 = path.coordinates["q2"]
+        crossings = [k for k in range(path.steps) if np.sign(q2[k]) != np.sign(q2[k + 1])]
+        assert crossings and set(crossings) <= set(path.suspect_steps), (crossings, path)
 
 
 # --------------------------------------------------------------------- CLI
@@ -259,7 +330,9 @@ def test_path_help(capsys):
     assert info.value.code == 0
     out = capsys.readouterr().out
     assert "--from V [V ...]" in out and "--maximin" in out and "--steer" in out
-    assert "exit codes: 0 a path was found; 3 the start and goal are not joined" in out
+    assert "exit codes: 0 a path was found (and, with --steer, every leg reached" in out
+    assert "3 the start and goal are not joined" in out and "4 with\n--steer, a leg missed" in out
+    assert "2 usage\nerrors" in out
 
 
 def test_path_command_prints_the_path(stores, capsys):
@@ -319,9 +392,49 @@ def test_path_command_steers_the_gravity_arm(stores, capsys):
     for leg in data["steering"]:
         assert math.isfinite(leg["miss"]) and leg["miss"] < 0.1 * leg["distance"]
         assert leg["distance"] > 0.1  # a grid step moves the tip by about 0.2 m
+    assert data["legs_reached"] == 2
+    assert data["start_pose"] == {"q1": TURN[16], "q2": TURN[19]}
     assert main(argv) == 0
     out = capsys.readouterr().out
     assert "steering the nonlinear robot along 2 leg(s)" in out and "miss [m]" in out
+    assert out.rstrip().endswith("2 of 2 legs reached their waypoint's output")
+
+
+def test_path_command_exits_4_when_a_leg_misses(stores, capsys, monkeypatch):
+    import cdpm.steering
+
+    real = cdpm.steering.steer
+
+    def missing_second_leg(robot, q, target, **kwargs):
+        result = real(robot, q, target, **kwargs)
+        if abs(robot.to_natural(q)[1] - TURN[20]) < 1e-9:  # the second leg's start
+            return dataclasses.replace(result, reached=False)
+        return result
+
+    monkeypatch.setattr(cdpm.steering, "steer", missing_second_leg)
+    store = str(stores["vertical"])
+    argv = ["path", store, "--from", "0.2", "0.8", "--to", "0.2", "1.25", "--steer", "--legs", "2"]
+    assert main(argv) == 4
+    out = capsys.readouterr().out
+    assert out.rstrip().endswith("1 of 2 legs reached their waypoint's output")
+
+
+def test_path_command_warns_of_suspect_steps(stores, paper, capsys):
+    # the 31 x 31 grid (step 0.21 rad) cannot rule out the paper's diagonal NO lines
+    expected = poc_path(paper, NOMINAL, [1.0, 0.5]).suspect_steps
+    assert expected
+    argv = ["path", str(stores["paper"]), "--from", "nominal", "--to", "1", "0.5"]
+    assert main(argv) == 0
+    out = capsys.readouterr().out
+    k = expected[0]
+    assert (
+        "  warning: the path may cross a NO set thinner than the map's resolution between "
+        f"waypoints {k} and {k + 1} (" in out
+    )
+    assert main([*argv, "--json"]) == 0
+    out, err = capsys.readouterr()
+    assert json.loads(out)["suspect_steps"] == list(expected)
+    assert err.count("cdpm path: warning: the path may cross") == len(expected)
 
 
 @pytest.mark.skipif(

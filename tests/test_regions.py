@@ -331,3 +331,27 @@ def test_region_of_on_a_sampled_map(sampled_map):
     ds = sampled_map.isel(sample=np.flatnonzero(sampled_map.q1.values < 0))
     with pytest.raises(InputError, match="off the map: its nearest sample"):
         region_of(ds, [1.5, 0.0])
+
+
+def test_region_sizes_count_a_seam_pose_once(paper_map):
+    # the paper's arm is YES almost everywhere: one region; its size counts
+    # the 60 x 60 distinct poses, not the 61 x 61 grid values
+    labels = label_regions(paper_map)
+    size = _regions(labels)[0]["size"]
+    yes = int(np.count_nonzero(paper_map.poc.values == YES))
+    distinct_yes = int(np.count_nonzero(paper_map.poc.values[:-1, :-1] == YES))
+    assert size <= distinct_yes < yes
+    assert "a pose on a full-turn seam" in labels.attrs["description"]
+    assert (
+        "is counted once, so they can sum to fewer than the YES poses"
+        in (labels.attrs["description"])
+    )
+
+
+def test_region_of_takes_a_pose_name_of_the_maps_spec(paper_map, tmp_path):
+    assert region_of(paper_map, "nominal") == region_of(paper_map, [math.pi / 6, math.pi / 3])
+    with pytest.raises(InputError, match="pose 'home' not in spec"):
+        region_of(paper_map, "home")
+    moved = paper_map.assign_attrs(spec=str(tmp_path / "gone.yaml"))
+    with pytest.raises(InputError, match="spec .*gone.yaml is not found"):
+        region_of(moved, "nominal")

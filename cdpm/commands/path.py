@@ -24,27 +24,35 @@ Remark 10: along it pull-only cables can drive the output from pose to pose).
 Grid maps step between face-adjacent poses (wrapping around angles that span a
 full turn), sampled maps between samples within the neighbourhood radius.
 Prints the region, the number of waypoints, the length, the smallest margin
-and the waypoints; --maximin maximises the smallest margin along the path
-instead of taking the shortest. --plot draws the map with the path, --view
-plays the path in the 3-D viewer, --steer steers the simulated nonlinear
-robot from waypoint to waypoint and prints the miss at each."""
+and the waypoints, and warns of steps that may cross a NO set thinner than
+the map's resolution (where the reach margin r_T at both ends is within one
+step's change of 0); --maximin maximises the smallest margin along the path
+instead of taking the shortest, avoiding such steps where it can. --plot
+draws the map with the path, --view plays the path in the 3-D viewer,
+--steer steers the simulated nonlinear robot from waypoint to waypoint and
+prints the miss at each."""
 EPILOG = """\
 examples:
   cdpm path map.zarr --from nominal --to 2.5 -1.5
   cdpm path map.zarr --from pi/6 pi/3 --to 3 -2 --maximin --plot path.png
-  cdpm path vertical.zarr --from 0.2 0.8 --to 1.2 2.2 --steer --legs 2
+  cdpm path vertical.zarr --from 0.2 0.8 --to 0.2 1.25 --steer --legs 2
 
 V values are the map's axis values in the order of its axes (printed with
 every path), arithmetic such as pi/6 accepted; or the robot's natural
 coordinates (one per coordinate; those off the map's axes must be at the
 map's base pose); or one pose name of the map's spec.
 
-exit codes: 0 a path was found; 3 the start and goal are not joined by POC
-poses (different regions, or one of them in none; the message names both);
-1 other errors (unknown store, a pose off the map or of the wrong length)."""
+exit codes: 0 a path was found (and, with --steer, every leg reached its
+waypoint's output); 3 the start and goal are not joined by POC poses
+(different regions, or one of them in none; the message names both); 4 with
+--steer, a leg missed its waypoint's output (the table says which); 1 other
+errors (unknown store, a pose off the map or of the wrong length); 2 usage
+errors (unknown or missing options)."""
 
 #: exit code when no path of POC poses joins start and goal
 NOT_CONNECTED_EXIT = 3
+#: exit code when --steer steered a leg that missed its waypoint's output
+LEG_MISSED_EXIT = 4
 #: --steer without --legs: one leg per this many steps (short legs are
 #: steered well from a linear plan) ...
 STEPS_PER_LEG = 5
@@ -89,8 +97,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--steer",
         action="store_true",
-        help="steer the simulated nonlinear robot from waypoint to waypoint (cdpm.steer) "
-        "and print the miss at each",
+        help="steer the simulated nonlinear robot from waypoint to waypoint (cdpm.steer), "
+        f"print the miss at each and how many legs reached; exit code {LEG_MISSED_EXIT} when "
+        "a leg missed",
     )
     parser.add_argument(
         "--legs",
@@ -133,6 +142,9 @@ def run(args: argparse.Namespace) -> int:
     if not args.json:
         print(f"map {args.map}: axes {', '.join(path.axes)}")
         print(path)
+    else:
+        for line in path.warnings():
+            print(f"cdpm path: {line}", file=sys.stderr)
     legs = None
     if args.steer:
         legs = _steer_legs(robot.get("--steer"), ds, path, args.legs or _default_legs(path), out)
@@ -145,10 +157,11 @@ def run(args: argparse.Namespace) -> int:
         result = {"connected": True, **path.as_dict()}
         if legs is not None:
             result["steering"] = legs
+            result["legs_reached"] = sum(leg["reached"] for leg in legs)
         print(json.dumps(result, indent=2))
     if args.view:
         _view(robot.get("--view"), ds, path, args, out)
-    return 0
+    return LEG_MISSED_EXIT if legs and not all(leg["reached"] for leg in legs) else 0
 
 
 class _RobotOfMap:
@@ -159,29 +172,11 @@ class _RobotOfMap:
         self.ds, self.robot = ds, None
 
     def get(self, why: str) -> CableRobot:
-        if self.robot is not None:
-            return self.robot
-        from pathlib import Path
+        from cdpm.maps.regions import map_robot
 
-        from cdpm.errors import InputError
-        from cdpm.robot import load_robot
-
-        spec = self.ds.attrs.get("spec")
-        if not spec or not Path(spec).is_file():
-            raise InputError(
-                f"{why} needs the map's robot, but its spec {spec or '(not recorded)'} is not "
-                "found; run where the spec is, or give axis values instead of pose names"
-            )
-        robot = load_robot(spec)
-        stored = self.ds.attrs.get("spec_sha256")
-        if stored and stored != robot.spec.sha256:
-            raise InputError(
-                f"{why}: the map was made from an earlier version of {spec} or its URDF "
-                f"(sha256 {stored[:12]}, now {robot.spec.sha256[:12]}); make the map again "
-                f"(`cdpm map {spec} ... --out STORE --overwrite`)"
-            )
-        self.robot = robot
-        return robot
+        if self.robot is None:
+            self.robot = map_robot(self.ds, why)
+        return self.robot
 
 
 def _pose_argument(ds, robot: _RobotOfMap, tokens: list[str], option: str) -> Any:
@@ -191,7 +186,7 @@ def _pose_argument(ds, robot: _RobotOfMap, tokens: list[str], option: str) -> An
     the option)."""
     from cdpm.errors import InputError
     from cdpm.expressions import parse_number
-    from cdpm.maps.regions import map_layout, nearest_index, region_labels
+    from cdpm.maps.regions import map_layout, named_pose, nearest_index, region_labels
 
     tokens = [t.strip() for t in tokens]
     numbers = []
@@ -204,10 +199,9 @@ def _pose_argument(ds, robot: _RobotOfMap, tokens: list[str], option: str) -> An
     if numbers is None and len(tokens) == 1:
         r = robot.get(f"{option} {tokens[0]} (a pose name)")
         try:
-            natural = r.to_natural(r.configuration(tokens[0]))
+            pose: Any = named_pose(ds, tokens[0], r)
         except InputError as exc:
             raise InputError(f"{option} {tokens[0]}: {exc}") from exc
-        pose: Any = dict(zip(r.coordinate_names, (float(x) for x in natural), strict=True))
     elif numbers is None:
         raise InputError(
             f"{option} {' '.join(tokens)}: give numbers (the map's axis values, e.g. pi/6) or "
@@ -311,6 +305,9 @@ def _steer_legs(robot: CableRobot, ds, path, legs: int, out) -> list[dict]:
             file=out,
         )
         out.flush()
+    reached = sum(row["reached"] for row in rows)
+    legs_text = f"{len(rows)} legs reached their" if len(rows) != 1 else "1 leg reached its"
+    print(f"{reached} of {legs_text} waypoint's output", file=out)
     return rows
 
 

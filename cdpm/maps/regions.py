@@ -3,17 +3,11 @@
 Seed paper Lemma 1 / Remark 10: a connected set of equilibria whose
 linearisations are all positive output controllable (POC) is a POC set.
 :func:`label_regions` numbers the connected components of a map's YES
-poses (MARGINAL, NO and not analysed poses are in none): face-adjacent grid
-poses, wrapping around axes of angles (unit ``rad``) whose evenly spaced
-values span a full turn (labels merged across the seam as connected
-components of the graph of label pairs that meet there); on sampled maps,
-samples within a radius (angles compared modulo 2 pi). Every angle wraps,
-free-flyer and spherical roll, pitch and yaw included: each enters the
-rotation Rz(yaw) Ry(pitch) Rx(roll) alone through one elementary rotation,
-so its seam joins the same pose (the angles' other identities, pitch beyond
-+-pi/2 and gimbal lock, are not used: regions may be split there, never
-wrongly joined). Translations never wrap. docs/maps.md, "Regions and paths",
-states the rules in full.
+poses: face-adjacent grid poses, wrapping around axes of angles whose
+evenly spaced values span a full turn; on sampled maps, samples within a
+radius (angles compared modulo 2 pi). docs/maps.md, "Regions and paths",
+states the rules in full (which angles wrap, and why that never joins
+regions wrongly).
 """
 
 from __future__ import annotations
@@ -33,12 +27,7 @@ from cdpm.errors import InputError
 from cdpm.numerics import REGION_BASE_ATOL, REGION_RADIUS_FACTOR, REGION_WRAP_RTOL
 from cdpm.verdicts import YES
 
-__all__ = [
-    "label_regions",
-    "attach_regions",
-    "region_of",
-    "REGION_VARIABLE",
-]
+__all__ = ["label_regions", "attach_regions", "region_of", "REGION_VARIABLE"]
 
 #: name of the region variable in a map
 REGION_VARIABLE = "poc_region"
@@ -125,23 +114,15 @@ def map_layout(ds) -> MapLayout:
             f"map axes {', '.join(axes) or '(none)'} do not match its dimensions "
             f"{', '.join(dims)}; give a map from cdpm.workspace_map"
         )
-    if not sampled:
-        axes = tuple(d for d in dims)  # array order
+    axes = axes if sampled else dims  # grid: array order
     values = tuple(np.asarray(ds[a].values, dtype=float).reshape(-1) for a in axes)
     units = tuple(str(ds[a].attrs.get("units", "")) for a in axes)
     if sampled:
         wrap = tuple("modulo" if u == "rad" else None for u in units)
     else:
         wrap = tuple(_grid_wrap(v, u) for v, u in zip(values, units, strict=True))
-    return MapLayout(
-        mode="sample" if sampled else "grid",
-        axes=axes,
-        dims=dims,
-        values=values,
-        units=units,
-        wrap=wrap,
-        shape=tuple(int(s) for s in ds["poc"].shape),
-    )
+    mode, shape = "sample" if sampled else "grid", tuple(int(s) for s in ds["poc"].shape)
+    return MapLayout(mode, axes, dims, values, units, wrap, shape)
 
 
 def as_dataset(map_or_path):
@@ -246,11 +227,8 @@ def _grid_components(yes: np.ndarray, rings: tuple[bool, ...]) -> np.ndarray:
 
 
 def _rank_by_size(component: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Relabel component ids 1..K by decreasing size (ties: first in C order).
-
-    Returns:
-        (labels like ``component``, sizes (K,)).
-    """
+    """(labels like ``component`` numbered 1..K by decreasing size, ties
+    first in C order; sizes (K,))."""
     flat = component.reshape(-1)
     ids, first, counts = np.unique(flat, return_index=True, return_counts=True)
     keep = ids > 0
@@ -365,8 +343,8 @@ def check_radius(radius: Any) -> float:
 
 
 def sample_edges(layout: MapLayout, yes: np.ndarray, radius: float) -> tuple:
-    """Edges (i, j) (sample indices, i < j) between YES samples at most
-    ``radius`` apart, and their lengths."""
+    """Edges (i, j) (sample indices, i < j) between the samples where
+    ``yes`` holds (e.g. the YES ones) at most ``radius`` apart, and their lengths."""
     from scipy.spatial import cKDTree
 
     points, box = sample_points(layout)
@@ -428,14 +406,13 @@ def label_regions(ds, *, radius: float | None = None):
         ``xarray.DataArray`` ``poc_region`` (int32) over the map's pose
         dimensions: 0 for a pose in no region, 1..K by decreasing size.
         Attributes: ``long_name``, ``description`` (the adjacency rule, the
-        axes that wrap, the radius), ``adjacency`` (``"face"`` or
-        ``"radius"``), ``wrapped_axes`` (comma separated), ``radius``
-        (sampled maps), ``n_regions`` (K) and ``regions``: a JSON list (of
-        the REGIONS_LISTED largest regions at most) of ``{"label", "size",
-        "bbox": {axis: [lo, hi]}, "wraps": [axes]}`` with the bounding box
-        in axis values; along an axis listed in ``wraps`` the region crosses
-        the seam and lo > hi (it runs from lo up to the end of the turn and
-        on from its start to hi).
+        axes that wrap, the radius, how sizes count), ``adjacency`` (``"face"``
+        or ``"radius"``), ``wrapped_axes`` (comma separated), ``radius``
+        (sampled maps), ``n_regions`` (K) and ``regions``: JSON of a list (the
+        REGIONS_LISTED largest) of ``{"label", "size", "bbox": {axis: [lo,
+        hi]}, "wraps": [axes]}``; ``size`` counts distinct poses (a pose on a
+        full-turn seam once); along an axis in ``wraps`` lo > hi: the region
+        runs from lo to the end of the turn and on from its start to hi.
 
     Raises:
         InputError: not a map, a radius on a grid map, or a bad radius.
@@ -472,7 +449,9 @@ def label_regions(ds, *, radius: float | None = None):
         attrs["radius"] = r
     attrs["description"] = (
         "connected components of the POC poses (poc = yes; marginal, no and not analysed "
-        f"poses are in no region, label 0), numbered 1..K by decreasing size; {rule}"
+        f"poses are in no region, label 0), numbered 1..K by decreasing size; {rule}; sizes "
+        "count distinct poses: a pose on a full-turn seam (the first and last value of an "
+        "axis from -pi to pi) is counted once, so they can sum to fewer than the YES poses"
     )
     n = int(labels.max(initial=0))
     if n > REGIONS_LISTED:
@@ -503,8 +482,7 @@ def attach_regions(ds, store: str | os.PathLike | None = None):
         store: the map's zarr store, or None (in memory only).
 
     Returns:
-        ``ds`` with the variable ``poc_region`` (a new Dataset; ``ds`` is
-        not changed).
+        ``ds`` with the variable ``poc_region`` (a new Dataset; ``ds`` unchanged).
     """
     labels = label_regions(ds)
     out = ds.drop_vars(REGION_VARIABLE, errors="ignore").assign({REGION_VARIABLE: labels})
@@ -547,16 +525,50 @@ def _write_labels(path: Path, labels) -> None:
 # -------------------------------------------------------------- locating
 
 
+def map_robot(ds, why: str):
+    """The map's robot, loaded from the spec the map records (``spec``) and
+    checked against its hash (``spec_sha256``); InputError when the spec is
+    not found or changed since the map was made."""
+    from cdpm.robot import load_robot
+
+    spec = ds.attrs.get("spec")
+    if not spec or not Path(spec).is_file():
+        raise InputError(
+            f"{why} needs the map's robot, but its spec {spec or '(not recorded)'} is not "
+            "found; run where the spec is, or give axis values instead of pose names"
+        )
+    robot = load_robot(spec)
+    stored = ds.attrs.get("spec_sha256")
+    if stored and stored != robot.spec.sha256:
+        raise InputError(
+            f"{why}: the map was made from an earlier version of {spec} or its URDF "
+            f"(sha256 {stored[:12]}, now {robot.spec.sha256[:12]}); make the map again "
+            f"(`cdpm map {spec} ... --out STORE --overwrite`)"
+        )
+    return robot
+
+
+def named_pose(ds, name: str, robot=None) -> dict[str, float]:
+    """Natural coordinates {coordinate: value} [rad or m] of a pose name of
+    the map's spec; ``robot``: the map's robot if loaded already."""
+    robot = map_robot(ds, f"pose name {name!r}") if robot is None else robot
+    natural = robot.to_natural(robot.configuration(name))
+    return dict(zip(robot.coordinate_names, map(float, natural), strict=True))
+
+
 def natural_pose(ds, layout: MapLayout, pose: Any) -> dict[str, float]:
     """The axis values {axis: value} of a pose given as {coordinate: value},
-    a sequence in the map's axis order, or the robot's natural coordinates
-    (one per ``robot_coordinates``); coordinates off the axes must equal the
-    map's base pose.
+    a sequence in the map's axis order, the robot's natural coordinates
+    (one per ``robot_coordinates``) or a pose name of the map's spec;
+    coordinates off the axes must equal the map's base pose.
 
     Raises:
         InputError: unknown or missing coordinates, wrong length, values
-            that are not finite numbers, or a pose off the map's base.
+            that are not finite numbers, a pose off the map's base, or an
+            unknown pose name.
     """
+    if isinstance(pose, str):
+        pose = named_pose(ds, pose)
     coords = list(ds.attrs.get("robot_coordinates", []) or [])
     base = list(ds.attrs.get("base", []) or [])
     axes = list(layout.axes)
@@ -619,10 +631,8 @@ def nearest_index(ds, layout: MapLayout, pose: Any, radius: float | None = None)
 
     Grid: the nearest value per axis (modulo 2 pi on an axis that wraps;
     off the map beyond half a step outside the range of any other axis).
-    Sampled: the nearest sample (off the map beyond ``radius``).
-
-    Raises:
-        InputError: see :func:`natural_pose`, or the pose is off the map.
+    Sampled: the nearest sample (off the map beyond ``radius``). Raises
+    InputError (:func:`natural_pose`) or for a pose off the map.
     """
     values = natural_pose(ds, layout, pose)
     if layout.mode == "sample":
@@ -665,8 +675,9 @@ def region_of(map: Any, pose: Any) -> int:
     Args:
         map: a map (``xarray.Dataset``) or the path of its store.
         pose: ``{coordinate: value}`` (every map axis), a sequence of values
-            in the map's axis order (``ds.attrs["axes"]``), or the robot's
-            natural coordinates (nv values); angles [rad], translations [m].
+            in the map's axis order (``ds.attrs["axes"]``), the robot's
+            natural coordinates (nv values), angles [rad], translations [m];
+            or a pose name of the map's spec (e.g. ``"nominal"``).
 
     Returns:
         The label of ``poc_region`` there (stored, else computed): 0 when the
@@ -676,7 +687,8 @@ def region_of(map: Any, pose: Any) -> int:
         InputError: a pose off the map (beyond half a step outside a grid
             axis that does not wrap; beyond the neighbourhood radius of
             every sample; coordinates off the axes not at the map's base
-            pose), of the wrong length, or with unknown coordinates.
+            pose), of the wrong length, with unknown coordinates, or an
+            unknown pose name (or a spec not found).
     """
     ds = as_dataset(map)
     layout = map_layout(ds)
