@@ -28,8 +28,8 @@ from cdpm.viewer.state import (
     cable_colors,
     centres_of_mass,
     default_pose,
+    link_segments,
     pose_state,
-    skeleton_segments,
     tension_scale,
 )
 
@@ -114,13 +114,12 @@ def render_pose(
     geometry.update(state.q)
     placements = geometry.joint_placements()
     cable_points = state.cable_points
-    out, out_joints, out_labels = _output_points(robot, geometry)
-    bones = _bones(
-        robot.model,
-        placements,
-        np.concatenate([*cable_points, out]),
-        np.concatenate([geometry.point_joint, out_joints]),
-    )
+    out, out_labels = geometry.output_positions(), geometry.output_labels
+    # links from each joint to its child joints and to the points it carries
+    bones = [
+        tuple(placements[j][:3, :3] @ end + placements[j][:3, 3] for end in (a, b))
+        for j, a, b in link_segments(robot)
+    ]
     joints = np.array([T[:3, 3] for T in placements[1:]]).reshape(-1, 3)
     coms = np.array(
         [placements[j][:3, :3] @ c + placements[j][:3, 3] for j, c in centres_of_mass(robot.model)]
@@ -248,70 +247,6 @@ def render_pose(
     if target is not None:
         fig.savefig(target, dpi=dpi)
     return fig
-
-
-def _output_points(robot, geometry: PoseGeometry) -> tuple[np.ndarray, np.ndarray, list[str]]:
-    """The distinct points the outputs measure, at the pose of ``geometry``.
-
-    Returns:
-        (positions, joints, labels): world positions [m], shape (k, 3); the
-        joint carrying each point, shape (k,) (0: fixed to the world); and
-        per point the names of the outputs measured there (``"tip_y, tip_z"``).
-    """
-    from cdpm.spec import WORLD_FRAME_NAMES
-
-    model, data = geometry.model, geometry.data
-    keys: list[tuple[str, tuple[float, ...]]] = []
-    positions: list[np.ndarray] = []
-    joints: list[int] = []
-    labels: list[str] = []
-    for output in robot.spec.outputs:
-        local = np.array(output.point_in_frame, dtype=float)
-        key = (output.frame, tuple(local))
-        if key in keys:
-            labels[keys.index(key)] += f", {output.name}"
-            continue
-        keys.append(key)
-        labels.append(output.name)
-        if output.frame in WORLD_FRAME_NAMES:
-            positions.append(local)
-            joints.append(0)
-            continue
-        frame = int(model.getFrameId(output.frame))
-        placement = data.oMf[frame]
-        positions.append(placement.rotation @ local + placement.translation)
-        joints.append(int(model.frames[frame].parentJoint))
-    return np.array(positions, dtype=float).reshape(-1, 3), np.array(joints, dtype=int), labels
-
-
-def _bones(
-    model, placements: list[np.ndarray], points: np.ndarray, point_joints: np.ndarray
-) -> list[tuple[np.ndarray, np.ndarray]]:
-    """Segments (start, end) [m, world] that draw the links.
-
-    Each link is drawn from its joint to its child joints (or, without any,
-    to its farthest frame: :func:`cdpm.viewer.state.skeleton_segments`) and
-    to every point it carries (cable attachments, output points), so a link
-    with no child joint, e.g. the last link of a chain, still shows.
-
-    Args:
-        model: the robot's Pinocchio model.
-        placements: world placement (4, 4) of every joint (index 0: universe).
-        points: world positions of the carried points [m], shape (k, 3).
-        point_joints: the joint carrying each point (0: the world), shape (k,).
-    """
-    bones, drawn = [], set()
-    for j, a, b in skeleton_segments(model):
-        rotation, origin = placements[j][:3, :3], placements[j][:3, 3]
-        bones.append((rotation @ a + origin, rotation @ b + origin))
-        drawn.add((j, *np.round(bones[-1][1], 9)))
-    for j, point in zip(point_joints.tolist(), points, strict=True):
-        origin = placements[j][:3, 3]
-        key = (j, *np.round(point, 9))
-        if j > 0 and key not in drawn and np.linalg.norm(point - origin) > 1e-9:
-            drawn.add(key)
-            bones.append((origin, point))
-    return bones
 
 
 def check_picture_path(path: str | os.PathLike) -> Path:

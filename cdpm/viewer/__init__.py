@@ -2,10 +2,10 @@
 
 :class:`Viewer` draws a cable robot in meshcat (a WebGL viewer served on
 127.0.0.1 and opened in a browser): the URDF's visual geometry (or generated
-links when the URDF has none), the base anchors and attachment points, the
-cables coloured by state, and the output frame with a marker whose colour
-gives the positive output controllability (POC) verdict at the displayed
-pose. :meth:`Viewer.display` moves everything to a new pose;
+links when the URDF has none or its meshes cannot be loaded), the base
+anchors and attachment points, the cables coloured by state, and each output
+point with a marker whose colour gives the positive output controllability
+(POC) verdict at the displayed pose. :meth:`Viewer.display` moves everything to a new pose;
 :meth:`Viewer.show_map` overlays a workspace map as a point cloud.
 
 :func:`pose_state` computes what is drawn (positions, tensions, cable

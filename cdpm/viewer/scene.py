@@ -5,8 +5,10 @@ frames); :meth:`Viewer.display` then moves it to a pose and recolours the
 cables by state and the output marker by the POC verdict,
 :meth:`Viewer.play` moves it through a simulated motion in real time (cables
 coloured by their tension at each instant), and :meth:`Viewer.show_map`
-overlays a workspace map. meshcat and pinocchio are imported when a viewer
-is made.
+overlays a workspace map. The URDF's ``package://`` meshes are found in
+the installed packages
+(:func:`cdpm.viewer.state.mesh_package_dirs`). meshcat and pinocchio
+are imported when a viewer is made.
 """
 
 from __future__ import annotations
@@ -32,8 +34,9 @@ from cdpm.viewer.state import (
     cable_colors,
     centres_of_mass,
     default_pose,
+    link_segments,
+    mesh_package_dirs,
     pose_state,
-    skeleton_segments,
     tension_colors,
     tension_scale,
 )
@@ -58,6 +61,12 @@ def _import_meshcat():
             f'the 3-D viewer needs meshcat ({exc}); install it with: pip install "cdpm[viz]"'
         ) from exc
     return meshcat
+
+
+def _one_line(message: Any) -> str:
+    """A Pinocchio or coal error message on one line, without the C++
+    source location coal puts before its ``message:``."""
+    return " ".join(str(message).split("message:", 1)[-1].split())
 
 
 def _rgb_int(rgb: tuple[float, float, float]) -> int:
@@ -138,11 +147,13 @@ class Viewer:
     cables whose colour changed.
 
     Scene (meshcat paths under ``/meshcat/cdpm``): ``robot`` (URDF visuals or
-    generated links), ``anchors`` (route points fixed to the world, dark
+    generated links: from each joint to its child joints and to the points
+    it carries), ``anchors`` (route points fixed to the world, dark
     spheres), ``attachments`` (route points on links, grey spheres),
     ``cables/<name>/<k>`` (segment k of a cable: taut blue by tension, slack
-    pink, unavailable grey), ``output/<frame>`` (output frame marker: green
-    YES, red NO, amber MARGINAL, grey unavailable), ``map`` (workspace map).
+    pink, unavailable grey), ``output/<frame>`` (the axes of the output's
+    frame and a marker on the output point: green YES, red NO, amber
+    MARGINAL, grey unavailable), ``map`` (workspace map).
 
     Args:
         robot: a :class:`~cdpm.robot.CableRobot`.
@@ -151,8 +162,9 @@ class Viewer:
         port: web port of the started server, 1-65535 (default: first free
             from 7000).
         zmq_url: connect to this running meshcat server instead of starting one.
-        geometry: ``"auto"`` (URDF visuals when the URDF has some, else
-            generated), ``"urdf"`` or ``"generated"``.
+        geometry: ``"auto"`` (URDF visuals when the URDF has some and they
+            load, else generated; one warning names a mesh that cannot be
+            loaded), ``"urdf"`` or ``"generated"``.
         tension_scale: tension [N] drawn in the darkest taut colour (default
             :func:`tension_scale`).
 
@@ -207,16 +219,20 @@ class Viewer:
         self.state: PoseState | None = None
         #: seconds spent in the last :meth:`display`: ``analysis`` and ``draw``
         self.last_display_seconds: dict[str, float] = {}
-        q0 = robot.as_q(default_pose(robot) if q is None else q)
-        self._geometry.update(q0)
-        self._size = self._scene_size()
-        self._pin_viz = None
-        self.geometry = self._build_robot(geometry)
-        self._build_points()
-        self._build_cables()
-        self._build_outputs()
-        self._set_camera()
-        self.display(q0)
+        try:  # the server stops at once when the scene cannot be built
+            q0 = robot.as_q(default_pose(robot) if q is None else q)
+            self._geometry.update(q0)
+            self._size = self._scene_size()
+            self._pin_viz = None
+            self.geometry = self._build_robot(geometry)
+            self._build_points()
+            self._build_cables()
+            self._build_outputs()
+            self._set_camera()
+            self.display(q0)
+        except BaseException:
+            self.close()
+            raise
 
     # ------------------------------------------------------------ lifecycle
 
@@ -285,7 +301,12 @@ class Viewer:
         return float(max(np.ptp(allp, axis=0).max(), 0.1))
 
     def _build_robot(self, mode: str) -> str:
-        """Draw the links; returns ``"urdf"`` or ``"generated"``."""
+        """Draw the links; returns ``"urdf"`` or ``"generated"``.
+
+        With ``"auto"``, a URDF visual that cannot be shown (a mesh not
+        found or not readable) gives one warning naming it, and the
+        generated links are drawn instead.
+        """
         if mode in ("auto", "urdf"):
             visual = self._visual_model(required=mode == "urdf")
             if visual is not None and visual.ngeoms > 0:
@@ -302,24 +323,29 @@ class Viewer:
                 with warnings.catch_warnings(record=True) as caught:
                     warnings.simplefilter("always")
                     viz.loadViewerModel(rootNodeName="cdpm/robot", visual_color=color)
-                if caught and mode == "urdf":
+                if not caught:
+                    self._pin_viz = viz
+                    return "urdf"
+                problem = _one_line(caught[0].message)
+                more = f" (and {len(caught) - 1} more)" if len(caught) > 1 else ""
+                if mode == "urdf":
                     raise ModelError(
-                        "some URDF visual geometry could not be shown: "
-                        + "; ".join(str(w.message) for w in caught)
-                        + "; use geometry='generated'"
+                        f"some URDF visual geometry could not be shown: {problem}{more}; "
+                        "use geometry='generated'"
                     )
-                for w in caught:
-                    warnings.warn(str(w.message), stacklevel=3)
-                self._pin_viz = viz
-                return "urdf"
-            if mode == "urdf":
+                self._send("cdpm/robot", "delete")
+                warnings.warn(
+                    f"URDF visual geometry not shown: {problem}{more}; drawing generated links",
+                    stacklevel=3,
+                )
+            elif mode == "urdf":
                 raise ModelError(
                     f"{self.robot.spec.urdf_path.name} has no <visual> geometry; "
                     "use geometry='generated' (or 'auto')"
                 )
         g, s = self._g, self._size
         link = g.MeshPhongMaterial(color=_rgb_int(COLORS["link"]))
-        for k, (j, a, b) in enumerate(skeleton_segments(self.robot.model)):
+        for k, (j, a, b) in enumerate(link_segments(self.robot)):
             path = f"cdpm/robot/joint{j}/link{k}"
             self._send(path, "set_object", g.Cylinder(1.0, 0.012 * s), link)
             self._send(path, "set_transform", _segment_transform(a, b))
@@ -334,24 +360,32 @@ class Viewer:
         return "generated"
 
     def _visual_model(self, required: bool):
+        """The URDF's visual geometry, its meshes found in
+        :func:`~cdpm.viewer.state.mesh_package_dirs`; None (after one
+        warning naming the missing file) when it cannot be loaded and not
+        ``required``."""
         import pinocchio as pin
 
         urdf = self.robot.spec.urdf_path
+        dirs = mesh_package_dirs(urdf)
         try:
             return pin.buildGeomFromUrdf(
                 self.robot.model,
                 str(urdf),
                 pin.GeometryType.VISUAL,
-                package_dirs=[str(urdf.parent)],
+                package_dirs=[str(d) for d in dirs],
             )
         except (ValueError, RuntimeError, OSError) as exc:
+            where = ", ".join(str(d) for d in dirs)
+            problem = f"{_one_line(exc)} (looked in: {where})"
             if required:
                 raise ModelError(
-                    f"cannot load the visual geometry of {urdf}: {exc}; "
+                    f"cannot load the visual geometry of {urdf}: {problem}; "
                     "check the mesh paths or use geometry='generated'"
                 ) from exc
             warnings.warn(
-                f"URDF visual geometry not loaded ({exc}); drawing generated links", stacklevel=3
+                f"URDF visual geometry not loaded: {problem}; drawing generated links",
+                stacklevel=4,
             )
             return None
 
@@ -384,8 +418,10 @@ class Viewer:
         self._cable_colors[i] = rgb
 
     def _build_outputs(self) -> None:
+        """Axes and marker at each output point, under ``output/<frame>``
+        (``output/<frame>.<k>`` for the k-th further point of a frame)."""
         g, s = self._g, self._size
-        for name in self._geometry.output_frames:
+        for name in self._geometry.output_point_names:
             self._send(f"cdpm/output/{name}/axes", "set_object", g.triad(0.12 * s))
         self._marker_color = None
 
@@ -394,7 +430,7 @@ class Viewer:
             return
         g = self._g
         material = g.MeshPhongMaterial(color=_rgb_int(rgb))
-        for name in self._geometry.output_frames:
+        for name in self._geometry.output_point_names:
             self._send(
                 f"cdpm/output/{name}/marker", "set_object", g.Sphere(0.035 * self._size), material
             )
@@ -483,7 +519,7 @@ class Viewer:
                     _segment_transform(route[k], route[k + 1]),
                 )
         self._set_marker_color(marker_rgb)
-        for name, T in zip(geo.output_frames, geo.output_placements(), strict=True):
+        for name, T in zip(geo.output_point_names, geo.output_placements(), strict=True):
             self._send(f"cdpm/output/{name}", "set_transform", T)
 
     # ------------------------------------------------------------ playback

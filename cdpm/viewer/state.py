@@ -4,9 +4,12 @@
 verdict at a pose as a :class:`PoseState`; the 3-D view
 (:class:`cdpm.viewer.Viewer`), the headless picture (:mod:`cdpm.picture`)
 and the text panel of :class:`cdpm.viewer.PoseInspector` all draw it.
-:class:`PoseGeometry`, :func:`skeleton_segments` and :func:`centres_of_mass`
-give the world positions and generated link geometry they draw, and
-:data:`COLORS` the colours (verdict colours from :mod:`cdpm.verdicts`).
+:class:`PoseGeometry` gives the world positions they draw;
+:func:`link_segments` the generated links (from each joint to its child
+joints, :func:`skeleton_segments`, and to the points its link carries) and
+:func:`centres_of_mass` their centres of mass; :func:`mesh_package_dirs`
+the folders holding the URDF's meshes; :data:`COLORS` the colours (verdict
+colours from :mod:`cdpm.verdicts`).
 
 Pinocchio is imported when a :class:`PoseGeometry` is made, not here.
 """
@@ -15,7 +18,9 @@ from __future__ import annotations
 
 import enum
 import html
+import re
 from dataclasses import dataclass
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -33,7 +38,9 @@ __all__ = [
     "PoseGeometry",
     "pose_state",
     "skeleton_segments",
+    "link_segments",
     "centres_of_mass",
+    "mesh_package_dirs",
     "default_pose",
     "tension_scale",
     "cable_colors",
@@ -80,9 +87,14 @@ class PoseState:
         cable_states: :class:`CableState` of each cable, shape (m,).
         tension: equilibrium tensions f* [N], shape (m,), or None when unavailable.
         output_names: names of the p outputs.
-        output: outputs y [m], shape (p,).
-        output_frames: names of the frames the outputs measure (each once).
-        output_frame_positions: their world positions [m], shape (n_frames, 3).
+        output: outputs y [m], shape (p,): the robot's own
+            (:meth:`~cdpm.robot.CableRobot.output`).
+        output_frames: frame of each point the outputs measure (each
+            distinct point once, in the order of the outputs; a frame
+            carrying two points appears twice).
+        output_frame_positions: world positions [m] of those output points
+            (an output's ``point`` in its frame, not the frame's origin),
+            shape (n_output_points, 3).
         verdict: POC verdict (:class:`cdpm.analysis.Verdict`) or None when unavailable.
         margin: reach margin r_T [m] (:mod:`cdpm.reach`; positive when POC
             within the model's horizon) or None.
@@ -183,11 +195,14 @@ class PoseState:
 
 
 class PoseGeometry:
-    """World positions the drawings need, from one forward-kinematics pass.
+    """World positions the drawings need at one pose.
 
     Route points are read from the spec (frame + point in frame), so this
-    never fails, not even at poses where a cable has zero length. Call
-    :meth:`update` with a configuration, then read the positions.
+    never fails, not even at poses where a cable has zero length. The output
+    points and outputs are the robot's own
+    (:meth:`~cdpm.robot.CableRobot.kinematics_batch`, the points
+    :meth:`~cdpm.robot.CableRobot.output` measures). Call :meth:`update`
+    with a configuration, then read the positions.
 
     Args:
         robot: a :class:`~cdpm.robot.CableRobot`.
@@ -199,14 +214,21 @@ class PoseGeometry:
         point_local: each route point in its frame [m], shape (n_points, 3).
         point_joint: parent joint of each route point's frame (0: fixed to
             the world, an anchor), shape (n_points,).
-        output_frames: names of the frames the outputs measure (each once).
-        output_frame_ids: their frame ids (-1: the world).
+        output_frames: frame of each distinct point the outputs measure
+            (outputs of the same frame and point share one).
+        output_labels: per output point, the names of the outputs measured
+            there (``"tip_y, tip_z"``).
+        output_point_names: a distinct name per output point: its frame's
+            name, ``"<frame>.<k>"`` for the k-th point of a frame (k >= 2).
+        output_frame_ids: frame id of each output point's frame (-1: the world).
+        output: outputs y [m] at the last update, shape (p,).
     """
 
     def __init__(self, robot: CableRobot) -> None:
         import pinocchio as pin
 
         self._pin = pin
+        self._robot = robot
         self.model = robot.model
         self.data = self.model.createData()
         frames: list[int] = []  # -1: world
@@ -220,12 +242,30 @@ class PoseGeometry:
             self.route_slices.append(slice(start, len(frames)))
         self.point_frames = np.array(frames, dtype=int)
         self.point_local = np.array(local, dtype=float).reshape(-1, 3)
-        names: list[str] = []
-        for out in robot.spec.outputs:
-            if out.frame not in names:
-                names.append(out.frame)
-        self.output_frames = tuple(names)
-        self.output_frame_ids = [self._frame_id(n) for n in names]
+        keys: list[tuple] = []
+        labels: list[str] = []
+        first: list[int] = []  # index of the first output measured at each point
+        for k, out in enumerate(robot.spec.outputs):
+            key = (out.frame, tuple(float(c) for c in out.point_in_frame))
+            if key in keys:
+                labels[keys.index(key)] += f", {out.name}"
+            else:
+                keys.append(key)
+                labels.append(out.name)
+                first.append(k)
+        self.output_frames = tuple(frame for frame, _ in keys)
+        per_frame: dict[str, int] = {}
+        names = []
+        for frame in self.output_frames:
+            per_frame[frame] = per_frame.get(frame, 0) + 1
+            k = per_frame[frame]
+            names.append(frame if k == 1 else f"{frame}.{k}")
+        self.output_point_names = tuple(names)
+        self.output_labels = tuple(labels)
+        self.output_frame_ids = [self._frame_id(n) for n in self.output_frames]
+        self._output_first = np.array(first, dtype=int)
+        self._output_world = np.zeros((len(robot.spec.outputs), 3))
+        self.output = np.zeros(len(robot.spec.outputs))
         # a route point is fixed to the world when its frame's parent joint is the universe
         self.point_joint = np.array(
             [0 if f < 0 else int(self.model.frames[f].parentJoint) for f in frames], dtype=int
@@ -237,8 +277,13 @@ class PoseGeometry:
         return -1 if name in WORLD_FRAME_NAMES else int(self.model.getFrameId(name))
 
     def update(self, q: np.ndarray) -> None:
-        """Forward kinematics and frame placements at q (nq,)."""
+        """Forward kinematics, frame placements and output points at q (nq,)."""
         self._pin.framesForwardKinematics(self.model, self.data, q)
+        # the robot's tracked points: route points, then one per output
+        kin = self._robot.kinematics_batch(np.asarray(q, dtype=float)[None, :])
+        p = self.output.size
+        self._output_world = np.array(kin.point_positions[0, kin.point_positions.shape[1] - p :])
+        self.output = np.array(kin.output[0], dtype=float)
 
     def _place(self, frame: int, local: np.ndarray) -> np.ndarray:
         if frame < 0:
@@ -254,17 +299,19 @@ class PoseGeometry:
         return out
 
     def output_positions(self) -> np.ndarray:
-        """World positions of the output frames [m], shape (n_frames, 3)."""
-        return np.array(
-            [self._place(f, np.zeros(3)) for f in self.output_frame_ids], dtype=float
-        ).reshape(-1, 3)
+        """World positions of the output points [m], shape (n_output_points, 3):
+        the points :meth:`~cdpm.robot.CableRobot.output` measures."""
+        return self._output_world[self._output_first].reshape(-1, 3)
 
     def output_placements(self) -> list[np.ndarray]:
-        """Homogeneous world placements (4, 4) of the output frames."""
-        return [
-            np.eye(4) if f < 0 else np.asarray(self.data.oMf[f].homogeneous)
-            for f in self.output_frame_ids
-        ]
+        """Homogeneous world placements (4, 4) of the output points: the
+        orientation of the output's frame, the origin on the output point."""
+        placements = []
+        for f, position in zip(self.output_frame_ids, self.output_positions(), strict=True):
+            T = np.eye(4) if f < 0 else np.array(self.data.oMf[f].homogeneous)
+            T[:3, 3] = position
+            placements.append(T)
+        return placements
 
     def joint_placements(self) -> list[np.ndarray]:
         """Homogeneous world placement (4, 4) of every joint (index 0: universe)."""
@@ -302,6 +349,51 @@ def skeleton_segments(model) -> list[tuple[int, np.ndarray, np.ndarray]]:
     return bones
 
 
+def _carried_points(robot: CableRobot) -> list[tuple[int, np.ndarray]]:
+    """(joint, point in the joint's frame [m]) of every cable route point
+    and output point, in spec order (joint 0: fixed to the world)."""
+    from cdpm.spec import WORLD_FRAME_NAMES
+
+    model = robot.model
+    named = [(p.frame, p.point_in_frame) for c in robot.spec.cables for p in c.route]
+    named += [(o.frame, o.point_in_frame) for o in robot.spec.outputs]
+    carried = []
+    for frame_name, point in named:
+        local = np.array(point, dtype=float)
+        if frame_name in WORLD_FRAME_NAMES:
+            carried.append((0, local))
+            continue
+        frame = model.frames[model.getFrameId(frame_name)]
+        carried.append((int(frame.parentJoint), np.asarray(frame.placement.act(local))))
+    return carried
+
+
+def link_segments(robot: CableRobot) -> list[tuple[int, np.ndarray, np.ndarray]]:
+    """Generated link geometry: the segments that draw each link.
+
+    Each link is drawn from its joint to its child joints (or, with none,
+    to its farthest frame: :func:`skeleton_segments`) and to every point it
+    carries (cable attachments, output points), so a link with no child
+    joint, e.g. the last link of a chain, still shows. The 3-D view and the
+    picture both draw these.
+
+    Args:
+        robot: a :class:`~cdpm.robot.CableRobot`.
+
+    Returns:
+        ``(joint index, start (3,), end (3,))`` per segment; start and end
+        [m] in the frame of that joint (world = its placement at the pose).
+    """
+    segments = skeleton_segments(robot.model)
+    drawn = {(j, *np.round(end, 9)) for j, _, end in segments}
+    for j, point in _carried_points(robot):
+        key = (j, *np.round(point, 9))
+        if j > 0 and key not in drawn and np.linalg.norm(point) > 1e-9:
+            drawn.add(key)
+            segments.append((j, np.zeros(3), point))
+    return segments
+
+
 def centres_of_mass(model) -> list[tuple[int, np.ndarray]]:
     """(joint, centre of mass in the joint's frame) of every joint carrying mass.
 
@@ -317,6 +409,35 @@ def centres_of_mass(model) -> list[tuple[int, np.ndarray]]:
         for j in range(1, model.njoints)
         if model.inertias[j].mass > 0
     ]
+
+
+def mesh_package_dirs(urdf_path: str | Path) -> list[Path]:
+    """Folders in which Pinocchio looks for the URDF's meshes.
+
+    A mesh ``package://NAME/REL`` is found at ``DIR/NAME/REL`` for one of
+    these folders: the URDF's own folder, and for each package the URDF
+    names, the folder holding that package (its installed share directory,
+    :func:`cdpm.spec.package_share_directory`, e.g. example-robot-data's
+    ``cmeel.prefix/share``, or $ROS_PACKAGE_PATH / $AMENT_PREFIX_PATH; or an
+    enclosing folder of the URDF named after the package).
+
+    Args:
+        urdf_path: the URDF file.
+
+    Returns:
+        The folders, each once, the URDF's own first.
+    """
+    from cdpm.spec import package_share_directory
+
+    urdf = Path(urdf_path).resolve()
+    dirs = [urdf.parent]
+    text = urdf.read_text(errors="replace")
+    for name in dict.fromkeys(re.findall(r"package://([^/\"'\s]+)/", text)):
+        share = package_share_directory(name)
+        if share is not None:
+            dirs.append(share.parent)
+        dirs += [folder.parent for folder in urdf.parents if folder.name == name]
+    return list(dict.fromkeys(dirs))
 
 
 def _analyse(robot: CableRobot, q: np.ndarray):
@@ -409,7 +530,6 @@ def pose_state(
         states = (CableState.UNAVAILABLE,) * robot.n_cables
     else:
         states = tuple(CableState.SLACK if s else CableState.TAUT for s in slack)
-    outputs = geometry.output_positions()
     return PoseState(
         q=q.copy(),
         natural=robot.to_natural(q),
@@ -419,26 +539,12 @@ def pose_state(
         cable_states=states,
         tension=None if tension is None else np.array(tension, dtype=float),
         output_names=tuple(robot.output_names),
-        output=_outputs_from_frames(robot, geometry, outputs),
+        output=geometry.output.copy(),
         output_frames=geometry.output_frames,
-        output_frame_positions=outputs,
+        output_frame_positions=geometry.output_positions(),
         verdict=verdict,
         margin=margin,
         reason=reason,
-    )
-
-
-def _outputs_from_frames(
-    robot: CableRobot, geometry: PoseGeometry, positions: np.ndarray
-) -> np.ndarray:
-    from cdpm.spec import OUTPUT_COMPONENTS
-
-    return np.array(
-        [
-            positions[geometry.output_frames.index(o.frame), OUTPUT_COMPONENTS[o.component]]
-            for o in robot.spec.outputs
-        ],
-        dtype=float,
     )
 
 
