@@ -4,9 +4,11 @@ until interrupted."""
 from __future__ import annotations
 
 import argparse
+import contextlib
 import signal
 import sys
 import time
+import warnings
 
 from cdpm.commands._play import _port, _seconds
 from cdpm.commands._pose import Q_HELP, add_pose_arguments, pose_from_args
@@ -106,15 +108,23 @@ def run(args: argparse.Namespace) -> int:
         dataset = open_map(args.map)
         if not args.allow_other_spec:
             check_map_spec(dataset, robot, override="--allow-other-spec")
-    with InspectionPage(
-        robot,
-        q,
-        port=args.port,
-        dataset=dataset,
-        map_name=args.map,
-        color_by=args.color_by,
-        geometry=args.geometry,
-    ) as page:
+    with contextlib.ExitStack() as stack:
+        # the scene's warnings (e.g. a mesh not found) as one line each
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            page = stack.enter_context(
+                InspectionPage(
+                    robot,
+                    q,
+                    port=args.port,
+                    dataset=dataset,
+                    map_name=args.map,
+                    color_by=args.color_by,
+                    geometry=args.geometry,
+                )
+            )
+        for warning in caught:
+            print(f"cdpm view: warning: {warning.message}", file=sys.stderr)
         if dataset is not None:
             print(f"map: {page.map_points} poses from {args.map}, coloured by {args.color_by}")
         print(page.panel)
