@@ -98,7 +98,13 @@ _EXPORTS: dict[str, str] = {
 __all__ = ["__version__", *_EXPORTS]
 
 
+#: submodules reachable as attributes after a plain ``import cdpm``
+_SUBMODULES = ("analysis", "maps", "viewer", "equilibrium", "caspr", "reach", "numerics")
+
+
 def __getattr__(name: str):
+    if name in _SUBMODULES:
+        return importlib.import_module(f"cdpm.{name}")
     module = _EXPORTS.get(name)
     if module is None:
         raise AttributeError(f"module 'cdpm' has no attribute {name!r}")

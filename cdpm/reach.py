@@ -46,21 +46,26 @@ class ReachSettings:
             f >= f_min) of a cable without an upper bound.
         horizon_default: T is the model's default (not set by the user).
         budget_default: the budget is the model's default.
+        budget_used: some cable has no upper bound (else the budget plays
+            no part).
     """
 
     horizon: float
     tension_budget: float
     horizon_default: bool = True
     budget_default: bool = True
+    budget_used: bool = True
 
     def describe(self) -> str:
-        """One line: ``T = 0.775 s (model default); tension changes ...``."""
+        """One line: ``T = 0.775 s (model default); tension changes ...``;
+        the budget is left out when every cable has an upper bound (it then
+        plays no part)."""
         T = "model default" if self.horizon_default else "set"
         F = "model default" if self.budget_default else "set"
-        return (
-            f"T = {self.horizon:.3g} s ({T}); tension changes within the cables' bounds, "
-            f"+-{self.tension_budget:.3g} N for cables without an upper bound ({F})"
-        )
+        text = f"T = {self.horizon:.3g} s ({T}); tension changes within the cables' bounds"
+        if not self.budget_used:
+            return text
+        return text + (f", +-{self.tension_budget:.3g} N for cables without an upper bound ({F})")
 
     def as_dict(self) -> dict:
         return {
@@ -110,7 +115,8 @@ def reach_settings(
         T0, F0 = _model_scales(robot)[:2]
         T = T0 if T is None else T
         F = F0 if F is None else F
-    return ReachSettings(float(T), float(F), horizon is None, tension_budget is None)
+    unbounded = bool(np.any(~np.isfinite(robot.tension_max)))
+    return ReachSettings(float(T), float(F), horizon is None, tension_budget is None, unbounded)
 
 
 def _model_scales(robot: CableRobot) -> tuple[float, float, float, float]:

@@ -271,3 +271,20 @@ def test_cli_equilibrium_respells_warnings_for_every_command(vertical, capsys):
     assert err.startswith("cdpm: warning: the 'pretension' method with a pretension of 0 N")
     assert "(--pretension N or the spec's equilibrium.pretension)" in err
     assert err.count("warning") == 1
+
+
+def test_json_output_is_strict_json_at_an_infeasible_pose(capsys):
+    """NaN is not JSON: non-finite numbers are written as null."""
+    vertical = str(MODELS / "two_link_vertical" / "two_link_vertical.yaml")
+    code = main(["analyze", vertical, "--q", "0", "0", "--tension", "zero", "--format", "json"])
+    assert code == 3
+    text = capsys.readouterr().out
+    assert "NaN" not in text and "Infinity" not in text
+    data = json.loads(text, parse_constant=lambda c: pytest.fail(f"non-JSON constant {c}"))
+    assert data["criteria"]["reach_margin"] is None
+
+
+def test_submodules_are_attributes_after_a_plain_import():
+    import cdpm
+
+    assert callable(cdpm.maps.open_map) and callable(cdpm.reach.reach_settings)

@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from cdpm.commands._json import dumps as json_text
 from cdpm.commands._pose import Q_HELP, add_pose_arguments, pose_from_args
 from cdpm.commands._reach import add_reach_arguments
 from cdpm.commands._tension import (
@@ -160,7 +160,7 @@ def run(args: argparse.Namespace) -> int:
         shapes = ", ".join(f"{k} {'x'.join(map(str, lin.to_arrays()[k].shape))}" for k in "ABC")
         print(f"wrote {output}: the linearisation of {_where(report)} ({shapes}; {fmt})")
         return 0
-    text = json.dumps(report.as_dict(), indent=2) if fmt == "json" else str(report)
+    text = json_text(report.as_dict()) if fmt == "json" else str(report)
     if output is None:
         print(text)
     else:

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 from dataclasses import dataclass
@@ -11,6 +10,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from cdpm.commands._json import dumps as json_text
 from cdpm.commands._reach import add_reach_arguments, reach_from_args
 from cdpm.commands._tension import add_tension_arguments
 from cdpm.commands.map import add_robot_arguments, describe_robot, parse_axis, robot_from_args
@@ -438,7 +438,7 @@ def run(args: argparse.Namespace) -> int:
     rows, counts, tries = result["rows"], result["counts"], args.tries
     what = "positive output controllable (YES)" if args.where == "poc" else "statically feasible"
     if args.json:
-        print(json.dumps(_as_json(robot, spec_robot, box, args, reach, result), indent=2))
+        print(json_text(_as_json(robot, spec_robot, box, args, reach, result)))
     else:
         overrides = describe_robot(robot, spec_robot)
         if overrides:

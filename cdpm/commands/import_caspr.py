@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 import sys
 
+from cdpm.commands._json import dumps as json_text
+
 NAME = "import-caspr"
 HELP = "convert a CASPR model (bodies + cables XML) into a URDF and a cable spec"
 DESCRIPTION = """\
@@ -51,7 +53,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    import json
     import warnings
 
     from cdpm.caspr import CasprWarning, import_caspr
@@ -69,7 +70,7 @@ def run(args: argparse.Namespace) -> int:
             name=args.name,
         )
     if args.json:
-        print(json.dumps(result.as_dict(), indent=2))
+        print(json_text(result.as_dict()))
     else:
         print(result)
         if result.warnings:

@@ -7,6 +7,7 @@ import json
 import sys
 from typing import TYPE_CHECKING, Any
 
+from cdpm.commands._json import dumps as json_text
 from cdpm.commands._play import add_play_arguments, check_play_arguments
 from cdpm.commands.plot import argument_type
 from cdpm.commands.verify import _image
@@ -135,7 +136,7 @@ def run(args: argparse.Namespace) -> int:
         path = poc_path(ds, start, goal, maximise_margin=args.maximin)
     except NotConnectedError as exc:
         if args.json:
-            print(json.dumps(_not_connected_dict(exc), indent=2))
+            print(json_text(_not_connected_dict(exc)))
         print(f"cdpm path: not connected: {exc}", file=sys.stderr)
         return NOT_CONNECTED_EXIT
     out = sys.stderr if args.json else sys.stdout  # keep --json output parseable
@@ -158,7 +159,7 @@ def run(args: argparse.Namespace) -> int:
         if legs is not None:
             result["steering"] = legs
             result["legs_reached"] = sum(leg["reached"] for leg in legs)
-        print(json.dumps(result, indent=2))
+        print(json_text(result))
     if args.view:
         _view(robot.get("--view"), ds, path, args, out)
     return LEG_MISSED_EXIT if legs and not all(leg["reached"] for leg in legs) else 0

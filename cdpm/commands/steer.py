@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 import argparse
-import json
 
+from cdpm.commands._json import dumps as json_text
 from cdpm.commands._play import add_play_arguments, check_play_arguments
 from cdpm.commands._pose import Q_HELP, add_pose_arguments, pose_from_args
 from cdpm.commands._tension import add_tension_arguments, cli_equilibrium, tension_from_args
@@ -120,7 +120,7 @@ def run(args: argparse.Namespace) -> int:
             target=result.target,
         )
     if args.json:
-        print(json.dumps(result.as_dict(), indent=2))
+        print(json_text(result.as_dict()))
     else:
         print(result)
         _print_profile(result)

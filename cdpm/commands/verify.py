@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 import argparse
-import json
 
+from cdpm.commands._json import dumps as json_text
 from cdpm.commands._pose import Q_HELP, add_pose_arguments, pose_from_args
 from cdpm.commands._tension import add_tension_arguments, cli_equilibrium, tension_from_args
 from cdpm.commands.plot import argument_type
@@ -118,7 +118,7 @@ def run(args: argparse.Namespace) -> int:
     if args.plot:
         report.plot(args.plot)
     if args.json:
-        print(json.dumps(report.as_dict(), indent=2))
+        print(json_text(report.as_dict()))
     else:
         print(report)
         if args.plot:

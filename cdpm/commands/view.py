@@ -111,7 +111,7 @@ def run(args: argparse.Namespace) -> int:
     with contextlib.ExitStack() as stack:
         # the scene's warnings (e.g. a mesh not found) as one line each
         with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always")
+            warnings.simplefilter("always", UserWarning)
             page = stack.enter_context(
                 InspectionPage(
                     robot,
@@ -124,7 +124,12 @@ def run(args: argparse.Namespace) -> int:
                 )
             )
         for warning in caught:
-            print(f"cdpm view: warning: {warning.message}", file=sys.stderr)
+            if issubclass(warning.category, UserWarning):
+                print(f"cdpm view: warning: {warning.message}", file=sys.stderr)
+            else:  # not ours to reword (e.g. ResourceWarning under -W)
+                warnings.warn_explicit(
+                    warning.message, warning.category, warning.filename, warning.lineno
+                )
         if dataset is not None:
             print(f"map: {page.map_points} poses from {args.map}, coloured by {args.color_by}")
         print(page.panel)
