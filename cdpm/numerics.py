@@ -133,6 +133,9 @@ REACH_SIZE_FRACTION = 0.1
 # --------------------------------------------------------------------------
 # regions of maps
 
+#: seconds between progress lines of a map when stderr is not a terminal
+PROGRESS_LOG_INTERVAL = 10.0
+
 #: default neighbourhood radius of a sampled map, in mean nearest-neighbour
 #: distances: in 2-D about 7 neighbours per sample, so that a uniform region
 #: stays connected, while NO bands a few samples wide still separate regions

@@ -353,3 +353,19 @@ def test_workspace_map_announces_and_progress_true_prints_it(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "already holds the whole map (2 chunks, 8 poses); nothing to compute" in err
     assert "0/0 poses" not in err
+
+
+def test_progress_is_plain_lines_when_stderr_is_not_a_terminal():
+    import io
+
+    from cdpm.maps._runner import ProgressPrinter
+
+    log = io.StringIO()  # not a terminal
+    bar = ProgressPrinter(100, stream=log)
+    for done in (10, 50, 100):
+        bar(done, 100)
+    text = log.getvalue()
+    assert "\r" not in text
+    assert text.endswith("\n") and "100/100 poses" in text and "done in" in text
+    # the first update and the last one: the interval keeps logs short
+    assert text.count("\n") == 2

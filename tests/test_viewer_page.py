@@ -533,6 +533,20 @@ def test_browser_sliders_picker_and_scene(browser, paper_robot, tmp_path):
         assert shown["natural"] == [pytest.approx(math.pi / 6, abs=1e-15), 1.0]
         assert shown["verdicts"]["poc"] == _expected(paper_robot, shown["natural"])["poc"]
 
+        # an emptied number field keeps the pose (no request; the field shows it again)
+        before = driver.execute_script("return window.cdpm.timings.length")
+        field_value = driver.execute_script(
+            """
+            const field = document.getElementById("value-1");
+            field.value = "";
+            field.dispatchEvent(new Event("change", { bubbles: true }));
+            return field.value;
+            """
+        )
+        assert driver.execute_script("return window.cdpm.timings.length") == before
+        assert float(field_value) == pytest.approx(1.0)
+        assert _panel(driver)["natural"][1] == 1.0
+
         # copy as --q: the clipboard gets the text the page shows
         driver.execute_cdp_cmd(
             "Browser.grantPermissions",

@@ -31,6 +31,7 @@ from typing import TYPE_CHECKING
 
 from cdpm.errors import CdpmError, InputError, MissingExtraError
 from cdpm.maps._evaluate import MapJob
+from cdpm.numerics import PROGRESS_LOG_INTERVAL
 
 if TYPE_CHECKING:  # pragma: no cover
     from cdpm.robot import CableRobot
@@ -179,17 +180,23 @@ def _process_chunk(index: int) -> tuple[int, dict | None]:
 class ProgressPrinter:
     """A one-line progress bar on stderr: poses done, poses/s and ETA.
 
+    On a terminal the bar is redrawn in place (``\r``); elsewhere (a log
+    file, a pipe) it prints one plain line at most every
+    PROGRESS_LOG_INTERVAL seconds, and the last one.
+
     Args:
         total: number of poses to compute in this run.
         label: text before the bar.
         stream: where to print (stderr by default).
-        interval: seconds between redraws.
+        interval: seconds between redraws on a terminal.
     """
 
     def __init__(self, total: int, label: str = "map", stream=None, interval: float = 0.2):
         self.total, self.label = total, label
         self.stream = stream or sys.stderr
-        self.interval = interval
+        isatty = getattr(self.stream, "isatty", None)
+        self.tty = bool(isatty()) if callable(isatty) else False
+        self.interval = interval if self.tty else max(interval, PROGRESS_LOG_INTERVAL)
         self.start = time.perf_counter()
         self.last = 0.0
         self.done = 0
@@ -209,12 +216,14 @@ class ProgressPrinter:
         bar = "#" * int(round(frac * width))
         eta = (self.total - self.done) / rate if rate > 0 else float("nan")
         text = (
-            f"\r{self.label} [{bar:<{width}}] {self.done}/{self.total} poses "
+            f"{self.label} [{bar:<{width}}] {self.done}/{self.total} poses "
             f"{100 * frac:5.1f}%  {rate:,.0f} poses/s  ETA {_clock(eta)}"
         )
-        self.stream.write(text)
+        self.stream.write(("\r" if self.tty else "") + text)
         if self.done >= self.total:
-            self.stream.write(f"  done in {_clock(elapsed)}\n")
+            self.stream.write(f"  done in {_clock(elapsed)}")
+        if self.done >= self.total or not self.tty:
+            self.stream.write("\n")
         self.stream.flush()
 
 

@@ -126,7 +126,10 @@ function buildSliders(coordinates) {
     number.addEventListener("change", () => {
       const t0 = performance.now();
       const value = Number(number.value);
-      if (!Number.isFinite(value)) return;
+      if (number.value.trim() === "" || !Number.isFinite(value)) {
+        number.value = fmt(cdpm.natural[i]); // an empty or bad entry keeps the pose
+        return;
+      }
       cdpm.natural[i] = value;
       range.value = value;
       setActivePose(null);
