@@ -369,3 +369,16 @@ def test_progress_is_plain_lines_when_stderr_is_not_a_terminal():
     assert text.endswith("\n") and "100/100 poses" in text and "done in" in text
     # the first update and the last one: the interval keeps logs short
     assert text.count("\n") == 2
+
+
+def test_view_notes_a_map_made_with_other_equilibrium_settings(tmp_path):
+    from cdpm.commands.view import map_settings_note
+
+    vertical = cdpm.load_robot(MODELS / "two_link_vertical" / "two_link_vertical.yaml")
+    axes = {"q1": [0.2, 0.5], "q2": [1.0]}
+    same = cdpm.workspace_map(vertical, axes, workers=1)
+    assert map_settings_note(same, vertical) is None
+    other = cdpm.workspace_map(vertical, axes, tension="pretension", pretension=5, workers=1)
+    note = map_settings_note(other, vertical)
+    assert "tension 'pretension'" in note and "pretension 5" in note
+    assert "map colours and panel verdicts can differ" in note

@@ -263,13 +263,16 @@ def test_map_points_by_margin():
     xr = pytest.importorskip("xarray")
     ds, _ = _synthetic_map(xr)
     _, colors = map_points(ds, color_by="margin")
-    # margins after dropping the NaN position: 0.2, 0.0, nan, 1.0, 0.25
-    np.testing.assert_allclose(colors[1], COLORS["taut_low"])  # least margin: light blue
+    # margins after dropping the NaN position: 0.2, 0.0, nan, 1.0, 0.25, on a
+    # log scale between the 1st and 99th percentile of the positive ones
+    np.testing.assert_allclose(colors[1], COLORS["no"])  # zero margin: red, as a NO
     np.testing.assert_allclose(colors[2], COLORS["not_analysed"])  # NaN margin: grey
-    np.testing.assert_allclose(colors[3], COLORS["taut_high"])  # largest margin: navy
-    np.testing.assert_allclose(
-        colors[0], 0.8 * np.array(COLORS["taut_low"]) + 0.2 * np.array(COLORS["taut_high"])
-    )
+    logs = np.log10([0.2, 0.5, 1.0, 0.25])
+    lo, hi = np.percentile(logs, [1, 99])
+    light, dark = np.array(COLORS["taut_low"]), np.array(COLORS["taut_high"])
+    for i, m in ((0, 0.2), (3, 1.0), (4, 0.25)):
+        t = np.clip((np.log10(m) - lo) / (hi - lo), 0, 1)
+        np.testing.assert_allclose(colors[i], light + t * (dark - light))
 
 
 def test_map_points_errors():

@@ -89,6 +89,30 @@ def _exit_on_sigterm(signum, frame) -> None:
     sys.exit(128 + signum)
 
 
+def map_settings_note(dataset, robot) -> str | None:
+    """A sentence when the map was computed with other equilibrium settings
+    (tension method, given tensions, pretension, gravity or tension-bound
+    overrides) than the ones the page analyses with (the spec's), else None."""
+    import json
+
+    from cdpm.maps._evaluate import resolve_tension
+
+    made = []
+    stored = json.loads(dataset.attrs.get("tension", "null"))
+    own = resolve_tension(robot, None)
+    if stored is not None and stored != own:
+        made.append(f"tension {stored!r} (the spec's method is {own!r})")
+    overrides = json.loads(dataset.attrs.get("overrides", "{}") or "{}")
+    if overrides:
+        made.append("overrides " + ", ".join(f"{k} {v}" for k, v in overrides.items()))
+    if not made:
+        return None
+    return (
+        f"the map was made with {'; '.join(made)}; the panel analyses each pose with the "
+        "spec's own settings, so map colours and panel verdicts can differ"
+    )
+
+
 def run(args: argparse.Namespace) -> int:
     from cdpm.robot import load_robot
     from cdpm.viewer import check_map_spec
@@ -108,6 +132,9 @@ def run(args: argparse.Namespace) -> int:
         dataset = open_map(args.map)
         if not args.allow_other_spec:
             check_map_spec(dataset, robot, override="--allow-other-spec")
+        made_with = map_settings_note(dataset, robot)
+        if made_with:
+            print(f"cdpm view: note: {made_with}", file=sys.stderr)
     with contextlib.ExitStack() as stack:
         # the scene's warnings (e.g. a mesh not found) as one line each
         with warnings.catch_warnings(record=True) as caught:

@@ -124,10 +124,31 @@ def map_points(dataset, *, color_by: str = "verdict", position: str = "output_fr
         )
     elif hint == "diverging":
         colors = _margin_colors(values.astype(float))
+    elif needed == "reach_margin":
+        colors = _log_margin_colors(values.astype(float))
     else:
         colors = _sequential_colors(values.astype(float), fill=CRITERIA[needed].fill)
     keep = np.all(np.isfinite(positions), axis=1)
     return positions[keep], colors[keep]
+
+
+def _log_margin_colors(margin: np.ndarray) -> np.ndarray:
+    """Reach margins: light (small) to dark (large) blue on a log scale from
+    the 1st to the 99th percentile of the positive margins (clipped beyond,
+    so a few stragglers do not flatten it), zero margins red as a NO,
+    non-finite grey."""
+    positive = np.isfinite(margin) & (margin > 0)
+    logs = np.log10(np.where(positive, margin, 1.0))
+    if positive.any():
+        lo, hi = np.percentile(logs[positive], [1.0, 99.0])
+    else:
+        lo, hi = 0.0, 1.0
+    t = np.clip((logs - lo) / ((hi - lo) or 1.0), 0.0, 1.0)[:, None]
+    light, dark = np.array(COLORS["taut_low"]), np.array(COLORS["taut_high"])  # cables' ramp
+    out = light + t * (dark - light)
+    out[np.isfinite(margin) & (margin == 0)] = VERDICT_RGB[NO]
+    out[~np.isfinite(margin)] = VERDICT_RGB[NOT_ANALYSED]
+    return out
 
 
 def _sequential_colors(values: np.ndarray, fill) -> np.ndarray:
