@@ -46,7 +46,7 @@ from cdpm.equilibrium import (
 )
 from cdpm.equilibrium.statics import input_signs
 from cdpm.errors import InputError, MissingExtraError, ModelError
-from cdpm.numerics import BOUND_TOLERANCE, MASS_COND_MAX
+from cdpm.numerics import BOUND_TOLERANCE, MASS_COND_MAX, OUTPUT_JACOBIAN_ZERO_RTOL
 
 if TYPE_CHECKING:  # pragma: no cover
     from cdpm.kinematics import BatchKinematics
@@ -306,6 +306,19 @@ class LinearisationBatch:
         return self.input_sign != 0
 
 
+def output_jacobian_rounded(robot: CableRobot, jacobian: np.ndarray) -> np.ndarray:
+    """dh/dq (..., p, nv) with entries below OUTPUT_JACOBIAN_ZERO_RTOL times
+    the robot's size [m] set to exactly 0: round-off of forward kinematics
+    (e.g. the tip of a folded arm on its shoulder, where dh/dq is 1e-16
+    while the arm is metres long) is not an output direction. The analysis
+    only judges rows against each other, so a single round-off row would
+    otherwise count as full output rank."""
+    from cdpm.reach import robot_size
+
+    floor = OUTPUT_JACOBIAN_ZERO_RTOL * robot_size(robot)
+    return np.where(np.abs(jacobian) <= floor, 0.0, jacobian)
+
+
 def input_cone_scale(input_sign: np.ndarray, pinned: np.ndarray) -> np.ndarray:
     """Column scales turning B into B_cone: -1 for cables at their upper
     bound (so their input u <= 0 becomes u >= 0), 0 for pinned cables
@@ -400,7 +413,7 @@ def linearise_batch(
     scale = input_cone_scale(input_sign, pinned)
     B_cone = B if np.all(scale == 1.0) else B * scale[:, None, :]
     C = np.zeros((k, p, 2 * nv))
-    C[:, :, :nv] = kin.output_jacobian
+    C[:, :, :nv] = output_jacobian_rounded(robot, kin.output_jacobian)
     return LinearisationBatch(
         A=A,
         B=B,

@@ -116,6 +116,10 @@ REACH_BLOCK_ELEMENTS = 4_000_000
 #: a facet candidate whose normal is shorter than this times the product of
 #: its generators' lengths comes from dependent generators and is skipped
 ZONOTOPE_NORMAL_RTOL = 1e-12
+#: output Jacobian entries below this times the robot's size [m] are the
+#: round-off of forward kinematics and set to 0 (a folded arm's tip on its
+#: shoulder: 1e-16 for an arm metres long)
+OUTPUT_JACOBIAN_ZERO_RTOL = 1e-12
 #: reach margin: a zonotope inradius below this times the sum of its
 #: generators' lengths, or times the reach scale (F / m) T^2 / 2, is
 #: round-off, reported as 0

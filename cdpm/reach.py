@@ -168,6 +168,12 @@ def reach_bounds(
     return np.minimum(lower, 0.0), np.maximum(upper, 0.0)
 
 
+def robot_size(robot: CableRobot) -> float:
+    """The robot's size l [m]: the largest distance between two cable route
+    points at the spec's first named pose (1 m when they coincide)."""
+    return _model_scales(robot)[2]
+
+
 def reach_scale(robot: CableRobot, settings: ReachSettings) -> float:
     """``(F / m) T^2 / 2`` [m]: how far the budget's force moves the robot's
     mass from rest in T (the defaults make it a tenth of the robot's size);

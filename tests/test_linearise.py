@@ -66,3 +66,26 @@ def test_given_tension_within_round_off_of_a_bound_is_accepted():
     np.testing.assert_allclose(lin.tension[[1, 3]], 0.0, atol=0)
     assert lin.sign_constrained.tolist() == [False, True, False, True]
     assert lin.tension[2] == pytest.approx(5.0)
+
+
+@pytest.mark.parametrize("q", [(0.0, np.pi), (np.pi, 0.0), (0.0, -np.pi), (np.pi, np.pi)])
+def test_round_off_output_jacobian_is_no_output_direction(q):
+    """At a folded or stretched pose of the paper arm, d(tip x)/dq = 0 and
+    forward kinematics leaves ~1e-16: that is no output direction, so the
+    output rank is 0 and POC is NO (not a YES judged on round-off)."""
+    from tests.conftest import MODELS
+
+    robot = cdpm.load_robot(MODELS / "two_link_planar" / "two_link_planar.yaml")
+    lin = cdpm.linearise(robot, np.array(q))
+    assert np.abs(robot.output_jacobian(np.array(q))).max() < 1e-15  # round-off
+    assert not np.any(lin.C)
+    poc = cdpm.positive_output_controllability(
+        lin.A, lin.B_cone, lin.C, sign_constrained=lin.sign_constrained
+    )
+    assert poc.verdict is cdpm.Verdict.NO
+    natural = np.array([q])
+    out = cdpm.evaluate_poses(robot, natural)
+    assert out["poc"][0] == cdpm.VERDICT_CODES["no"] and out["output_controllable"][0] == 0
+    # a genuine direction nearby is kept
+    near = cdpm.linearise(robot, np.array(q) + 1e-6)
+    assert np.any(near.C)
