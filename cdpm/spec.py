@@ -464,6 +464,24 @@ def _link_coms(urdf_path: Path) -> dict[str, np.ndarray]:
     return coms
 
 
+def tension_bound_problems(fmin: float, fmax: float, number=str) -> list[str]:
+    """What is wrong with a cable's tension bounds [N] (none: an empty list):
+    the minimum must be finite and >= 0, the maximum >= the minimum and > 0.
+
+    Args:
+        fmin, fmax: the bounds [N].
+        number: how a value is written in the messages (e.g. ``"{:g} N".format``).
+    """
+    problems = []
+    if not (math.isfinite(fmin) and fmin >= 0):
+        problems.append(f"minimum {number(fmin)} must be finite and >= 0 (cables only pull)")
+    if not fmax >= fmin:
+        problems.append(f"maximum {number(fmax)} must be >= minimum {number(fmin)}")
+    if fmax == 0:
+        problems.append(f"maximum {number(0)} leaves the cable no tension")
+    return problems
+
+
 def _parse_cables(problems: _Problems, raw: Any, frames: _FrameTable | None) -> list[CableDef]:
     if raw is None:
         problems.add("cables", "missing; a cable robot needs at least one cable")
@@ -492,15 +510,8 @@ def _parse_cables(problems: _Problems, raw: Any, frames: _FrameTable | None) -> 
             bounds = _vector(problems, f"{where}.tension", item["tension"], 2)
             if bounds is not None:
                 fmin, fmax = bounds
-                if not math.isfinite(fmin) or fmin < 0:
-                    problems.add(
-                        f"{where}.tension",
-                        f"minimum {fmin} must be finite and >= 0 (cables only pull)",
-                    )
-                if not fmax >= fmin:
-                    problems.add(f"{where}.tension", f"maximum {fmax} must be >= minimum {fmin}")
-                if fmax == 0:
-                    problems.add(f"{where}.tension", "maximum 0 leaves the cable no tension")
+                for problem in tension_bound_problems(fmin, fmax):
+                    problems.add(f"{where}.tension", problem)
         route = _parse_route(problems, where, item.get("route"), frames)
         cables.append(CableDef(name=name, tension_min=fmin, tension_max=fmax, route=route))
     return cables

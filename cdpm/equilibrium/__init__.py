@@ -102,13 +102,22 @@ def resolve_method(robot: CableRobot, method: str | None, pretension: float | No
         )
     if pretension is None:
         pretension = float(getattr(spec, "pretension", 0.0) or 0.0)
+    return method, checked_pretension(pretension)
+
+
+def checked_pretension(pretension: Any) -> float:
+    """A pretension [N] as a float, finite and >= 0.
+
+    Raises:
+        InputError: not a number, negative or not finite.
+    """
     try:
-        pretension = float(pretension)
+        value = float(pretension)
     except (TypeError, ValueError) as exc:
         raise InputError(f"pretension must be a number of newtons, got {pretension!r}") from exc
-    if not (math.isfinite(pretension) and pretension >= 0):
+    if not (math.isfinite(value) and value >= 0):
         raise InputError(f"pretension must be finite and >= 0 N, got {pretension}")
-    return method, pretension
+    return value
 
 
 def statics(robot: CableRobot, kin: BatchKinematics) -> tuple[np.ndarray, np.ndarray]:

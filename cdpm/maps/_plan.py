@@ -391,19 +391,11 @@ def _bound_pair(cable: str, value: Any) -> tuple[float, float]:
         raise InputError(
             f"tension bounds of cable {cable!r} must be (min, max) in N, got {value!r}"
         ) from exc
-    if not (math.isfinite(low) and low >= 0):
-        raise InputError(
-            f"tension bounds of cable {cable!r}: minimum {low:g} N must be finite and >= 0 "
-            "(cables only pull)"
-        )
-    if not high >= low:
-        raise InputError(
-            f"tension bounds of cable {cable!r}: maximum {high:g} N must be >= minimum {low:g} N"
-        )
-    if high == 0:
-        raise InputError(
-            f"tension bounds of cable {cable!r}: maximum 0 N leaves the cable no tension"
-        )
+    from cdpm.spec import tension_bound_problems
+
+    problems = tension_bound_problems(low, high, "{:g} N".format)
+    if problems:
+        raise InputError(f"tension bounds of cable {cable!r}: {problems[0]}")
     return low, high
 
 
@@ -476,13 +468,9 @@ def override_robot(
             for c in spec.cables
         )
     if pretension is not None:
-        try:
-            value = float(pretension)
-        except (TypeError, ValueError) as exc:
-            raise InputError(f"pretension must be a number of newtons, got {pretension!r}") from exc
-        if not (math.isfinite(value) and value >= 0):
-            raise InputError(f"pretension must be finite and >= 0 N, got {pretension!r}")
-        changes["pretension"] = value
+        from cdpm.equilibrium import checked_pretension
+
+        changes["pretension"] = checked_pretension(pretension)
     if external_wrench is not None:
         changes["external_wrench"] = _finite_vector(
             f"external wrench (nv={robot.nv} values)", external_wrench, robot.nv
