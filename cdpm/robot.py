@@ -32,7 +32,6 @@ from cdpm.errors import ModelError
 from cdpm.kinematics import BatchKinematics, CableKinematics
 from cdpm.numerics import MIN_SEGMENT_LENGTH
 from cdpm.spec import (
-    OUTPUT_COMPONENTS,
     WORLD_FRAME_NAMES,
     CableSpec,
     find_specs,
@@ -56,6 +55,11 @@ class CableRobot:
         nq, nv: sizes of the configuration vector and of the tangent space.
         cable_names: names of the m cables, in spec order.
         output_names: names of the p outputs.
+        output_units: unit of each output: ``"m"``, ``"rad"`` or the
+            spec's ``unit:`` (``"mixed"`` for sums of both).
+        output_points: index of each output's tracked point (route points
+            first, then one per output drawn at a frame) in
+            ``point_positions``, or -1 for joint and cable outputs, (p,).
         coordinate_names: names of the nv natural coordinates.
         poses: named configuration vectors from the spec, each (nq,).
         tension_min, tension_max: tension bounds [N], each shape (m,).
@@ -72,6 +76,7 @@ class CableRobot:
         self.nv = int(self.model.nv)
         self.cable_names = tuple(c.name for c in spec.cables)
         self.output_names = tuple(o.name for o in spec.outputs)
+        self.output_units = tuple(o.unit for o in spec.outputs)
         self.coordinate_names = tuple(coordinate_names(self.model))
         self.poses = {k: v.copy() for k, v in spec.poses.items()}
         self.tension_min = np.array([c.tension_min for c in spec.cables])
@@ -99,17 +104,22 @@ class CableRobot:
                 seg_cable.append(ci)
             self.route_point_slices.append(slice(start, len(joints)))
         self._n_route_points = len(joints)
-        self._output_rows: list[int] = []
+        output_points = []
         for out in spec.outputs:
-            joint, p_joint = self._anchor(out.frame, np.array(out.point_in_frame))
-            self._output_rows.append(len(joints) * 3 + OUTPUT_COMPONENTS[out.component])
+            marker = out.marker_term
+            if marker is None:
+                output_points.append(-1)
+                continue
+            output_points.append(len(joints))
+            joint, p_joint = self._anchor(marker.frame, np.array(marker.point_in_frame))
             joints.append(joint)
             local.append(p_joint)
+        self.output_points = np.array(output_points, dtype=int)
+        self._output_basis = _OutputBasis(self, joints, local)
         self._point_joint = np.array(joints, dtype=int)
         self._point_local = np.array(local, dtype=float).reshape(-1, 3)
         self._segment_points = np.array([[a, a + 1] for a in seg_a], dtype=int).reshape(-1, 2)
         self._segment_cable = np.array(seg_cable, dtype=int)
-        self._output_rows_arr = np.array(self._output_rows, dtype=int)
         self._segment_to_cable = np.zeros((len(spec.cables), len(seg_cable)))
         self._segment_to_cable[seg_cable, np.arange(len(seg_cable))] = 1.0
         # dof mask of each joint: which tangent directions move it
@@ -121,6 +131,7 @@ class CableRobot:
                 jm = self.model.joints[anc]
                 support[j, jm.idx_v : jm.idx_v + jm.nv] = True
         self._point_mask = support[self._point_joint]  # (n_points, nv)
+        self._joint_support = support  # (njoints, nv)
         self._used_joints = np.unique(self._point_joint)
         self._pin = pin
         self._last_q: np.ndarray | None = None
@@ -385,8 +396,7 @@ class CableRobot:
         else:
             lengths = np.einsum("cs,sn->cn", to_cable, seg_len)
             rows_l = np.einsum("cs,svn->cvn", to_cable, seg_rows)
-        out_pts = self._output_rows_arr // 3
-        out_comp = self._output_rows_arr % 3
+        output, output_jac = self._output_basis.evaluate(qs, pos, pjac, pl, jac, lengths, rows_l)
         if dynamics and nv > 1:  # crba fills the upper triangle
             iu, ju = np.triu_indices(nv, 1)
             mass[:, ju, iu] = mass[:, iu, ju]
@@ -398,8 +408,8 @@ class CableRobot:
             segment_units=units.transpose(2, 1, 0),
             point_positions=pos.transpose(2, 1, 0),
             point_jacobians=pjac.transpose(3, 1, 0, 2),
-            output=pos[out_comp, out_pts].T,
-            output_jacobian=pjac[out_comp, out_pts].transpose(2, 0, 1),
+            output=output,
+            output_jacobian=output_jac,
             spatial_jacobian=jac,
             mass_matrix=mass,
             gravity=gravity,
@@ -433,11 +443,18 @@ class CableRobot:
         return self.kinematics(q).jacobian.copy()
 
     def output(self, q: Any) -> np.ndarray:
-        """Outputs y = h(q), shape (p,) [m] (world frame)."""
+        """Outputs y = h(q), shape (p,), each in its unit (``output_units``):
+        world coordinates [m], rotation vector components [rad], joint
+        coordinates [rad or m], cable lengths [m], or their weighted sums."""
         return self.kinematics(q).output.copy()
 
     def output_jacobian(self, q: Any) -> np.ndarray:
-        """Output Jacobian dh/dq in the tangent space, shape (p, nv)."""
+        """Output Jacobian in the tangent space, shape (p, nv): ``y' = J v``.
+
+        Rows of orientation components are the frame's angular velocity
+        about the world axes (so they are the derivative of
+        ``log3(R(q + dq) R(q)^T)``, not of the stored rotation vector
+        ``log3(R(q))`` away from the identity); see docs/outputs.md."""
         return self.kinematics(q).output_jacobian.copy()
 
     def attachment_points(self, q: Any) -> list[np.ndarray]:
@@ -593,3 +610,105 @@ def spec_in_folder(folder: str | os.PathLike) -> Path:
     if len(specs) == 1:
         return specs[0]
     raise folder_error(folder, specs)
+
+
+class _OutputBasis:
+    """The outputs as weighted sums of basis components, evaluated in batch.
+
+    Components: a world coordinate of a tracked point, a world component of
+    a frame's rotation vector, a one-DOF joint's coordinate, a cable's
+    length. When every output is one point coordinate of weight 1 (most
+    specs) :meth:`evaluate` indexes the point arrays directly.
+    """
+
+    def __init__(self, robot: CableRobot, joints: list[int], local: list[np.ndarray]) -> None:
+        model = robot.model
+        spec = robot.spec
+        cable_index = {name: k for k, name in enumerate(robot.cable_names)}
+        self.plain_rows: np.ndarray | None = None
+        plain = []
+        self.terms: list[list[tuple[float, str, Any]]] = []
+        frames: list[tuple[int, np.ndarray]] = []  # rotation frames: (joint, R joint->frame)
+        frame_keys: list[str] = []
+        for k, out in enumerate(spec.outputs):
+            terms = []
+            for term in out.terms:
+                if term.kind == "position":
+                    if term is out.marker_term:
+                        point = int(robot.output_points[k])
+                    else:
+                        point = len(joints)
+                        joint, p_joint = robot._anchor(term.frame, np.array(term.point_in_frame))
+                        joints.append(joint)
+                        local.append(p_joint)
+                    terms.append((term.weight, "position", (term.axis, point)))
+                elif term.kind == "rotation":
+                    if term.frame not in frame_keys:
+                        frame_keys.append(term.frame)
+                        frames.append(_frame_rotation(model, term.frame))
+                    terms.append(
+                        (term.weight, "rotation", (term.axis, frame_keys.index(term.frame)))
+                    )
+                elif term.kind == "joint":
+                    jm = model.joints[model.getJointId(term.joint)]
+                    terms.append((term.weight, "joint", (jm.idx_q, jm.idx_v, jm.nq)))
+                else:
+                    terms.append((term.weight, "cable", cable_index[term.cable]))
+            self.terms.append(terms)
+            single = len(terms) == 1 and terms[0][0] == 1.0 and terms[0][1] == "position"
+            plain.append(3 * terms[0][2][1] + terms[0][2][0] if single else -1)
+        if all(r >= 0 for r in plain):
+            self.plain_rows = np.array(plain, dtype=int)
+        self.frames = frames
+        self._robot = robot
+
+    def evaluate(self, qs, pos, pjac, pl, jac, lengths, rows_l) -> tuple[np.ndarray, np.ndarray]:
+        """Outputs (N, p) and their Jacobians (N, p, nv) from the batch
+        arrays of :meth:`CableRobot._kinematics_batch` (batch axis last:
+        ``pos`` (3, P, N), ``pjac`` (3, P, nv, N), ``lengths`` (m, N),
+        ``rows_l`` (m, nv, N); ``pl`` (N, njoints, 12), ``jac`` (N, 6, nv))."""
+        if self.plain_rows is not None:
+            comp, pts = self.plain_rows % 3, self.plain_rows // 3
+            return pos[comp, pts].T, pjac[comp, pts].transpose(2, 0, 1)
+        n, nv = qs.shape[0], jac.shape[2]
+        rotations = [self._rotation(pl, jac, joint, r_local) for joint, r_local in self.frames]
+        out = np.zeros((len(self.terms), n))
+        out_jac = np.zeros((len(self.terms), nv, n))
+        for k, terms in enumerate(self.terms):
+            for weight, kind, where in terms:
+                if kind == "position":
+                    axis, point = where
+                    value, rate = pos[axis, point], pjac[axis, point]
+                elif kind == "rotation":
+                    axis, frame = where
+                    value, rate = rotations[frame][0][:, axis], rotations[frame][1][axis]
+                elif kind == "joint":
+                    iq, iv, nq = where
+                    value = qs[:, iq] if nq == 1 else np.arctan2(qs[:, iq + 1], qs[:, iq])
+                    rate = np.zeros((nv, n))
+                    rate[iv] = 1.0
+                else:
+                    value, rate = lengths[where], rows_l[where]
+                out[k] += weight * value
+                out_jac[k] += weight * rate
+        return out.T, out_jac.transpose(2, 0, 1)
+
+    def _rotation(self, pl, jac, joint: int, r_local: np.ndarray):
+        """Rotation vectors (N, 3) [rad] of a frame fixed to ``joint`` and its
+        world angular Jacobian (3, nv, N)."""
+        from scipy.spatial.transform import Rotation
+
+        # pl rows hold the joint rotation column-major: reshape gives R^T
+        r_joint = pl[:, joint, :9].reshape(-1, 3, 3).transpose(0, 2, 1)
+        rotvec = Rotation.from_matrix(r_joint @ r_local).as_rotvec()
+        mask = self._robot._joint_support[joint]
+        angular = jac[:, 3:, :].transpose(1, 2, 0) * mask[None, :, None]
+        return rotvec, angular
+
+
+def _frame_rotation(model, frame: str) -> tuple[int, np.ndarray]:
+    """(parent joint, rotation from the joint frame to ``frame``, (3, 3))."""
+    if frame in WORLD_FRAME_NAMES:
+        return 0, np.eye(3)
+    f = model.frames[model.getFrameId(frame)]
+    return int(f.parentJoint), np.array(f.placement.rotation)

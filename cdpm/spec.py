@@ -18,9 +18,16 @@ Format (all lengths in metres, forces in newtons, angles in radians)::
         route:                        # ordered attachment points, >= 2
           - {frame: base, point: [0, 0.5, 0]}
           - {frame: link1, point: [0.3, 0.1, 0], relative_to: com}
-    outputs:                          # components of point positions (world)
-      - {name: tip_x, frame: tip, component: x}
+    outputs:                          # what the task controls (docs/outputs.md)
+      - {name: tip_x, frame: tip, component: x}       # world position [m]
       - {name: end_z, frame: link2, component: z, point: [0, 0, 0.2]}
+      - {name: tip_rz, frame: tip, component: rz}     # rotation about world z [rad]
+      - {name: elbow, joint: joint2}                  # a joint coordinate [rad or m]
+      - {name: c1_length, cable: c1}                  # a cable's length [m]
+      - name: mid_x                                   # a weighted sum of components
+        sum:
+          - {weight: 0.5, frame: link1, component: x}
+          - {weight: 0.5, frame: tip, component: x}
     poses:
       nominal: [pi/6, pi/3]           # configuration vector (nq values) or
       other: {joint2: 0.5}            # joint name -> value(s), others neutral
@@ -56,18 +63,32 @@ __all__ = [
     "AttachmentPoint",
     "CableDef",
     "OutputDef",
+    "OutputTerm",
     "CableSpec",
     "load_spec",
     "find_specs",
     "folder_error",
     "parse_number",
     "OUTPUT_COMPONENTS",
+    "POSITION_COMPONENTS",
+    "ROTATION_COMPONENTS",
     "WORLD_FRAME_NAMES",
 ]
 
-#: Output components a spec may ask for: position coordinates of a frame
-#: origin in the world frame. Orientation components will extend this table.
-OUTPUT_COMPONENTS = {"x": 0, "y": 1, "z": 2}
+#: Position components of a point: its world coordinates [m].
+POSITION_COMPONENTS = {"x": 0, "y": 1, "z": 2}
+
+#: Orientation components of a frame: the world components of its rotation
+#: vector, log3 of its world rotation [rad]; their rates are the frame's
+#: angular velocity about the world axes (docs/outputs.md).
+ROTATION_COMPONENTS = {"rx": 0, "ry": 1, "rz": 2}
+
+#: Every ``component`` a frame output may ask for, -> its axis (0, 1, 2).
+OUTPUT_COMPONENTS = {**POSITION_COMPONENTS, **ROTATION_COMPONENTS}
+
+#: Kinds of output term: ``position`` and ``rotation`` of a frame, a
+#: ``joint`` coordinate, a ``cable`` length.
+OUTPUT_TERM_KINDS = ("position", "rotation", "joint", "cable")
 
 #: Names that refer to the fixed world frame in a route.
 WORLD_FRAME_NAMES = ("world", "universe")
@@ -85,7 +106,13 @@ _TOP_KEYS = (
 )
 _CABLE_KEYS = ("name", "tension", "route", "description")
 _POINT_KEYS = ("frame", "point", "relative_to")
-_OUTPUT_KEYS = ("name", "frame", "component", "point")
+_TERM_KEYS = ("frame", "component", "point", "joint", "cable", "weight")
+_OUTPUT_KEYS = ("name", "unit", "sum", *_TERM_KEYS)
+_OUTPUT_EXAMPLE = (
+    "{name: tip_x, frame: tip, component: x}, {name: elbow, joint: joint2}, "
+    "{name: c1_length, cable: c1} or {name: s, sum: [{weight: 0.5, frame: tip, "
+    "component: x}, ...]}"
+)
 _EQUILIBRIUM_KEYS = ("method", "pretension")
 _DEFAULT_GRAVITY = (0.0, 0.0, -9.81)
 
@@ -116,14 +143,99 @@ class CableDef:
 
 
 @dataclass(frozen=True)
+class OutputTerm:
+    """One weighted component of an output.
+
+    Attributes:
+        kind: ``"position"`` (a world coordinate of a point fixed in
+            ``frame`` [m]), ``"rotation"`` (a world component of ``frame``'s
+            rotation vector [rad]), ``"joint"`` (the coordinate of a
+            one-degree-of-freedom joint [rad or m]) or ``"cable"`` (a
+            cable's length [m]).
+        weight: the term's factor in its output's sum (1 for a plain output).
+        frame: the frame (position, rotation), else "".
+        component: ``x``, ``y``, ``z`` (position) or ``rx``, ``ry``, ``rz``
+            (rotation), else "".
+        point_in_frame: the point of a position term in ``frame`` [m],
+            shape (3,) (the frame origin by default).
+        joint: the joint name of a joint term, else "".
+        cable: the cable name of a cable term, else "".
+        unit: the component's unit: ``"m"`` or ``"rad"``.
+    """
+
+    kind: str
+    weight: float = 1.0
+    frame: str = ""
+    component: str = ""
+    point_in_frame: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    joint: str = ""
+    cable: str = ""
+    unit: str = "m"
+
+    @property
+    def axis(self) -> int:
+        """World axis (0, 1, 2) of a position or rotation term."""
+        return OUTPUT_COMPONENTS[self.component]
+
+    def describe(self) -> str:
+        """``tip.x``, ``tip.rz``, ``joint joint2``, ``cable c1``."""
+        if self.kind in ("position", "rotation"):
+            at = "" if not any(self.point_in_frame) else f"@{list(self.point_in_frame)}"
+            return f"{self.frame}{at}.{self.component}"
+        return f"{self.kind} {self.joint or self.cable}"
+
+
+@dataclass(frozen=True)
 class OutputDef:
-    """One scalar output: a component of the world position of a point fixed
-    in a frame (the frame origin unless ``point_in_frame`` is given) [m]."""
+    """One scalar output: a weighted sum of terms (:class:`OutputTerm`), most
+    often a single term of weight 1.
+
+    Attributes:
+        name: the output's name.
+        terms: its terms, at least one.
+        unit: its unit: the terms' common unit (``"m"`` or ``"rad"``), the
+            spec's ``unit:`` when given, else ``"mixed"``.
+    """
 
     name: str
-    frame: str
-    component: str
-    point_in_frame: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    terms: tuple[OutputTerm, ...]
+    unit: str = "m"
+
+    @property
+    def frame(self) -> str:
+        """The frame of the first position or rotation term ("" if none)."""
+        term = self.marker_term
+        return term.frame if term is not None else ""
+
+    @property
+    def component(self) -> str:
+        """The component of a single frame term ("" otherwise)."""
+        if len(self.terms) == 1 and self.terms[0].kind in ("position", "rotation"):
+            return self.terms[0].component
+        return ""
+
+    @property
+    def point_in_frame(self) -> tuple[float, float, float]:
+        """The point of the first position or rotation term in its frame [m]."""
+        term = self.marker_term
+        return term.point_in_frame if term is not None else (0.0, 0.0, 0.0)
+
+    @property
+    def marker_term(self) -> OutputTerm | None:
+        """The first position or rotation term: where the output is drawn."""
+        return next((t for t in self.terms if t.kind in ("position", "rotation")), None)
+
+    @property
+    def has_rotation(self) -> bool:
+        """Some term is an orientation component."""
+        return any(t.kind == "rotation" for t in self.terms)
+
+    def describe(self) -> str:
+        """The output as a formula, e.g. ``0.5 link1.x + 0.5 tip.x``."""
+        if len(self.terms) == 1 and self.terms[0].weight == 1.0:
+            return self.terms[0].describe()
+        parts = [f"{t.weight:g} {t.describe()}" for t in self.terms]
+        return " + ".join(parts).replace("+ -", "- ")
 
 
 @dataclass(frozen=True)
@@ -291,7 +403,7 @@ def load_spec(path: str | os.PathLike) -> CableSpec:
 
     frames = _FrameTable(model, _link_coms(urdf_path)) if model is not None else None
     cables = _parse_cables(problems, data.get("cables"), frames)
-    outputs = _parse_outputs(problems, data.get("outputs"), frames)
+    outputs = _parse_outputs(problems, data.get("outputs"), frames, model, cables)
     poses = _parse_poses(problems, data.get("poses"), model)
     method, pretension = _parse_equilibrium(problems, data.get("equilibrium"))
 
@@ -582,55 +694,219 @@ def _parse_route(
     return tuple(points)
 
 
-def _parse_outputs(problems: _Problems, raw: Any, frames: _FrameTable | None) -> list[OutputDef]:
+def _parse_outputs(
+    problems: _Problems,
+    raw: Any,
+    frames: _FrameTable | None,
+    model: Any,
+    cables: list[CableDef],
+) -> list[OutputDef]:
     if raw is None or raw == []:
-        problems.add(
-            "outputs",
-            "missing; give at least one output, e.g. - {name: tip_x, frame: tip, component: x}",
-        )
+        problems.add("outputs", f"missing; give at least one output, e.g. - {_OUTPUT_EXAMPLE}")
         return []
     if not isinstance(raw, list):
-        problems.add("outputs", "expected a list of {name, frame, component}")
+        problems.add("outputs", f"expected a list of outputs, e.g. {_OUTPUT_EXAMPLE}")
         return []
     outputs: list[OutputDef] = []
     seen: set[str] = set()
     for i, item in enumerate(raw):
         where = f"outputs[{i}]"
         if not isinstance(item, dict):
-            problems.add(where, f"expected {{name, frame, component}}, got {item!r}")
+            problems.add(where, f"expected a mapping such as {_OUTPUT_EXAMPLE}; got {item!r}")
             continue
         _unknown_keys(problems, where, item, _OUTPUT_KEYS)
-        frame = item.get("frame")
-        component = item.get("component")
-        if not isinstance(frame, str):
-            problems.add(f"{where}.frame", f"expected a frame name, got {frame!r}")
-            continue
-        if frames is not None and not frames.exists(frame):
-            problems.add(
-                f"{where}.frame", f"frame {frame!r} not in URDF; frames: {frames.listing()}"
-            )
-            continue
-        if component not in OUTPUT_COMPONENTS:
-            problems.add(
-                f"{where}.component",
-                f"{component!r} is not valid; use one of {', '.join(OUTPUT_COMPONENTS)}",
-            )
-            continue
-        point = (0.0, 0.0, 0.0)
-        if item.get("point") is not None:
-            xyz = _vector(problems, f"{where}.point", item["point"], 3)
-            if xyz is None or not all(math.isfinite(x) for x in xyz):
+        if "sum" in item:
+            extra = [k for k in _TERM_KEYS if k in item]
+            if extra:
+                problems.add(
+                    where,
+                    f"give either sum or {', '.join(extra)}, not both; put each component "
+                    "of the sum in its list",
+                )
                 continue
-            point = tuple(xyz)
-        name = item.get("name", f"{frame}_{component}")
+            terms = _parse_sum(problems, f"{where}.sum", item["sum"], frames, model, cables)
+        else:
+            term = _parse_term(problems, where, item, frames, model, cables)
+            terms = None if term is None else [term]
+        if not terms:
+            continue
+        unit = _output_unit(problems, where, item.get("unit"), terms)
+        if unit is None:
+            continue
+        name = item.get("name", _default_output_name(terms) if "sum" not in item else None)
         if not isinstance(name, str) or not name:
             problems.add(f"{where}.name", f"expected a non-empty string, got {name!r}")
             continue
         if name in seen:
             problems.add(f"{where}.name", f"duplicate output name {name!r}")
         seen.add(name)
-        outputs.append(OutputDef(name=name, frame=frame, component=component, point_in_frame=point))
+        outputs.append(OutputDef(name=name, terms=tuple(terms), unit=unit))
     return outputs
+
+
+def _default_output_name(terms: list[OutputTerm]) -> str:
+    term = terms[0]
+    if term.kind in ("position", "rotation"):
+        return f"{term.frame}_{term.component}"
+    return f"{term.joint or term.cable}_{'length' if term.kind == 'cable' else 'q'}"
+
+
+def _output_unit(problems: _Problems, where: str, raw: Any, terms: list[OutputTerm]) -> str | None:
+    units = {t.unit for t in terms}
+    derived = units.pop() if len(units) == 1 else "mixed"
+    if raw is None:
+        return derived
+    if not isinstance(raw, str) or not raw.strip():
+        problems.add(f"{where}.unit", f"expected a unit such as m or rad, got {raw!r}")
+        return None
+    return raw.strip()
+
+
+def _parse_sum(
+    problems: _Problems,
+    where: str,
+    raw: Any,
+    frames: _FrameTable | None,
+    model: Any,
+    cables: list[CableDef],
+) -> list[OutputTerm] | None:
+    if not isinstance(raw, list) or not raw:
+        problems.add(
+            where,
+            "expected a non-empty list of weighted components, e.g. "
+            "[{weight: 0.5, frame: tip, component: x}, {weight: 2, joint: joint2}]",
+        )
+        return None
+    terms = []
+    for k, item in enumerate(raw):
+        at = f"{where}[{k}]"
+        if not isinstance(item, dict):
+            problems.add(
+                at,
+                f"expected {{weight, frame, component}}, {{weight, joint}} or "
+                f"{{weight, cable}}; got {item!r}",
+            )
+            return None
+        _unknown_keys(problems, at, item, _TERM_KEYS)
+        term = _parse_term(problems, at, item, frames, model, cables)
+        if term is None:
+            return None
+        terms.append(term)
+    return terms
+
+
+def _parse_term(
+    problems: _Problems,
+    where: str,
+    item: dict,
+    frames: _FrameTable | None,
+    model: Any,
+    cables: list[CableDef],
+) -> OutputTerm | None:
+    """One output term from its mapping, or None after recording a problem."""
+    weight = 1.0
+    if "weight" in item:
+        try:
+            weight = parse_number(item["weight"])
+        except ValueError as exc:
+            problems.add(f"{where}.weight", f"{exc}; expected a number")
+            return None
+        if not math.isfinite(weight) or weight == 0:
+            problems.add(f"{where}.weight", f"must be finite and nonzero, got {weight!r}")
+            return None
+    kinds = [k for k in ("frame", "joint", "cable") if k in item]
+    if len(kinds) != 1:
+        said = f"got {' and '.join(kinds)}" if kinds else "got none"
+        problems.add(
+            where,
+            f"name exactly one of frame (with component), joint or cable; {said}",
+        )
+        return None
+    kind = kinds[0]
+    if kind != "frame":
+        extra = [k for k in ("component", "point") if k in item]
+        if extra:
+            problems.add(
+                where,
+                f"{' and '.join(extra)} apply to frame outputs only; leave "
+                f"{'them' if len(extra) > 1 else 'it'} out of a {kind} output",
+            )
+            return None
+    if kind == "joint":
+        return _joint_term(problems, f"{where}.joint", item["joint"], model, weight)
+    if kind == "cable":
+        name = item["cable"]
+        names = [c.name for c in cables]
+        if not isinstance(name, str) or name not in names:
+            problems.add(
+                f"{where}.cable",
+                f"{name!r} is not a cable of this spec; cables: {', '.join(names) or '(none)'}",
+            )
+            return None
+        return OutputTerm(kind="cable", weight=weight, cable=name, unit="m")
+    frame = item["frame"]
+    component = item.get("component")
+    if not isinstance(frame, str):
+        problems.add(f"{where}.frame", f"expected a frame name, got {frame!r}")
+        return None
+    if frames is not None and not frames.exists(frame):
+        problems.add(f"{where}.frame", f"frame {frame!r} not in URDF; frames: {frames.listing()}")
+        return None
+    if component not in OUTPUT_COMPONENTS:
+        problems.add(
+            f"{where}.component",
+            f"{component!r} is not valid; use one of {', '.join(OUTPUT_COMPONENTS)} "
+            "(x, y, z: world position [m]; rx, ry, rz: rotation about the world axes [rad])",
+        )
+        return None
+    rotation = component in ROTATION_COMPONENTS
+    point = (0.0, 0.0, 0.0)
+    if item.get("point") is not None:
+        if rotation:
+            problems.add(
+                f"{where}.point",
+                f"a frame's orientation ({component}) is the same at every point of it; "
+                "leave point out",
+            )
+            return None
+        xyz = _vector(problems, f"{where}.point", item["point"], 3)
+        if xyz is None:
+            return None
+        if not all(math.isfinite(x) for x in xyz):
+            problems.add(f"{where}.point", f"values must be finite, got {xyz}")
+            return None
+        point = tuple(xyz)
+    return OutputTerm(
+        kind="rotation" if rotation else "position",
+        weight=weight,
+        frame=frame,
+        component=component,
+        point_in_frame=point,
+        unit="rad" if rotation else "m",
+    )
+
+
+def _joint_term(problems: _Problems, where: str, name: Any, model: Any, weight: float):
+    """A joint term: one-degree-of-freedom joints only (their coordinate
+    is the natural one, and its rate is the tangent direction)."""
+    if model is None:
+        return None
+    joints = [model.names[j] for j in range(1, model.njoints)]
+    if not isinstance(name, str) or name not in joints:
+        problems.add(where, f"{name!r} is not a joint of the URDF; joints: {', '.join(joints)}")
+        return None
+    joint = model.joints[model.getJointId(name)]
+    short = joint.shortname()
+    if joint.nv != 1 or not short.startswith(("JointModelR", "JointModelP")):
+        problems.add(
+            where,
+            f"joint {name!r} ({short.removeprefix('JointModel')}, {joint.nv} degrees of "
+            "freedom) is not revolute or prismatic; use frame outputs (x, y, z, rx, ry, rz) "
+            "of the link it moves",
+        )
+        return None
+    unit = "rad" if short.startswith("JointModelR") else "m"
+    return OutputTerm(kind="joint", weight=weight, joint=name, unit=unit)
 
 
 def _parse_poses(problems: _Problems, raw: Any, model) -> dict[str, np.ndarray]:
