@@ -15,7 +15,42 @@ __all__ = [
     "ModelError",
     "UnsupportedError",
     "MissingExtraError",
+    "short_repr",
+    "capped_lines",
+    "MAX_LISTED_PROBLEMS",
+    "MAX_PROBLEM_CHARS",
 ]
+
+#: problems a message lists before "and N more"
+MAX_LISTED_PROBLEMS = 8
+
+#: characters of one problem line before it is cut with "..."
+MAX_PROBLEM_CHARS = 400
+
+
+def short_repr(value, limit: int = 80) -> str:
+    """``repr(value)`` cut to about ``limit`` characters (containers
+    abbreviated), for messages that quote what a user gave."""
+    import reprlib
+
+    r = reprlib.Repr()
+    r.maxstring = r.maxother = limit
+    r.maxlist = r.maxtuple = r.maxdict = r.maxset = 6
+    r.maxlevel = 3
+    text = r.repr(value)
+    return text if len(text) <= limit + 20 else text[: limit + 17] + "..."
+
+
+def capped_lines(lines: list[str]) -> list[str]:
+    """The first MAX_LISTED_PROBLEMS lines, each cut to MAX_PROBLEM_CHARS,
+    then ``and N more`` when there were more."""
+    out = [
+        line if len(line) <= MAX_PROBLEM_CHARS else line[: MAX_PROBLEM_CHARS - 3] + "..."
+        for line in lines[:MAX_LISTED_PROBLEMS]
+    ]
+    if len(lines) > MAX_LISTED_PROBLEMS:
+        out.append(f"and {len(lines) - MAX_LISTED_PROBLEMS} more")
+    return out
 
 
 class CdpmError(Exception):
@@ -27,7 +62,9 @@ class SpecError(CdpmError, ValueError):
 
     Args:
         problems: one human-readable line per problem found; the message
-            lists them all so a user can fix a spec in one pass.
+            lists them so a user can fix a spec in one pass (the first
+            MAX_LISTED_PROBLEMS, each cut to MAX_PROBLEM_CHARS; ``problems``
+            keeps them all).
         path: the spec file the problems were found in, if any.
     """
 
@@ -37,10 +74,11 @@ class SpecError(CdpmError, ValueError):
         self.problems = list(problems)
         self.path = path
         where = f"{path}: " if path else ""
+        listed = capped_lines(self.problems)
         if len(self.problems) == 1:
-            message = f"{where}{self.problems[0]}"
+            message = f"{where}{listed[0]}"
         else:
-            lines = "\n".join(f"  - {p}" for p in self.problems)
+            lines = "\n".join(f"  - {p}" for p in listed)
             message = f"{where}{len(self.problems)} problems in cable spec:\n{lines}"
         super().__init__(message)
 

@@ -26,6 +26,12 @@ _BINARY_OPS = {
 _UNARY_OPS = {ast.UAdd: operator.pos, ast.USub: operator.neg}
 _CONSTANTS = {"pi": math.pi, "inf": math.inf, "e": math.e}
 
+#: longest expression text [characters]
+MAX_EXPRESSION_CHARS = 200
+
+#: deepest nesting of operations in an expression
+MAX_EXPRESSION_DEPTH = 50
+
 
 def parse_number(value: Any) -> float:
     """Turn a YAML scalar into a float.
@@ -41,39 +47,62 @@ def parse_number(value: Any) -> float:
     if isinstance(value, bool):
         raise ValueError(f"{value!r} is a boolean, expected a number")
     if isinstance(value, (int, float)):
-        return float(value)
+        try:
+            return float(value)
+        except OverflowError:
+            raise ValueError(f"{str(value)[:20]}... is too large for a float") from None
     if not isinstance(value, str):
-        raise ValueError(f"{value!r} is not a number")
+        kind = type(value).__name__
+        raise ValueError(
+            f"a {kind} is not a number"
+            if kind in ("dict", "list")
+            else f"{str(value)[:40]!r} is not a number"
+        )
     text = value.strip()
+    if len(text) > MAX_EXPRESSION_CHARS:
+        raise ValueError(
+            f"{text[:30]!r}... has {len(text)} characters; an arithmetic expression may "
+            f"have at most {MAX_EXPRESSION_CHARS}"
+        )
     if text.lower() in (".inf", "+.inf"):
         return math.inf
     if text.lower() == "-.inf":
         return -math.inf
     try:
         tree = ast.parse(text, mode="eval")
-    except SyntaxError as exc:
+    except (SyntaxError, RecursionError, MemoryError) as exc:
         raise ValueError(f"{value!r} is not a number or arithmetic expression") from exc
     try:
-        return float(_eval_node(tree.body))
+        result = _eval_node(tree.body, 0)
     except ZeroDivisionError as exc:
         raise ValueError(f"{value!r} divides by zero") from exc
     except (ValueError, OverflowError) as exc:
         raise ValueError(f"{value!r} is not a number ({exc})") from exc
+    if isinstance(result, complex):
+        raise ValueError(f"{value!r} is not a real number (its value is complex)")
+    result = float(result)
+    if math.isnan(result):
+        raise ValueError(f"{value!r} is not a number (its value is undefined, NaN)")
+    return result
 
 
-def _eval_node(node: ast.AST) -> float:
+def _eval_node(node: ast.AST, depth: int) -> float:
+    if depth > MAX_EXPRESSION_DEPTH:
+        raise ValueError(f"the expression nests more than {MAX_EXPRESSION_DEPTH} operations deep")
     if isinstance(node, ast.Constant) and isinstance(node.value, (int, float)):
         if isinstance(node.value, bool):
             raise ValueError("booleans are not numbers")
-        return node.value
+        return float(node.value)
     if isinstance(node, ast.Name) and node.id in _CONSTANTS:
         return _CONSTANTS[node.id]
     if isinstance(node, ast.BinOp) and type(node.op) in _BINARY_OPS:
         # floats throughout: 9**9**9 overflows at once instead of growing an integer
-        left, right = float(_eval_node(node.left)), float(_eval_node(node.right))
+        left, right = _eval_node(node.left, depth + 1), _eval_node(node.right, depth + 1)
+        if isinstance(left, complex) or isinstance(right, complex):
+            raise ValueError("the value is complex, not a real number")
         return _BINARY_OPS[type(node.op)](left, right)
     if isinstance(node, ast.UnaryOp) and type(node.op) in _UNARY_OPS:
-        return _UNARY_OPS[type(node.op)](_eval_node(node.operand))
+        return _UNARY_OPS[type(node.op)](_eval_node(node.operand, depth + 1))
     raise ValueError(
         f"only numbers, pi, e, inf and + - * / ** are allowed (found {ast.unparse(node)!r})"
     )

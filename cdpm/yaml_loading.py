@@ -3,6 +3,11 @@
 Cable specs are read with a :class:`yaml.SafeLoader` (nothing in the file is
 executed). PyYAML keeps the last of two equal keys in a mapping without a
 word; :func:`load_yaml` lists them so the spec loader can refuse the file.
+Before anything is built, the parser's event stream (read without
+recursion) is checked against size limits: the text's length, the nesting
+depth, and the number of values after aliases (``*anchor``) are expanded,
+so a small file that expands to millions of values (an "alias bomb") or
+nests thousands deep is refused at once with a clear message.
 PyYAML is imported on first use, so ``import cdpm`` stays fast.
 """
 
@@ -10,7 +15,70 @@ from __future__ import annotations
 
 from typing import Any
 
-__all__ = ["load_yaml"]
+__all__ = ["load_yaml", "YamlLimitError", "MAX_YAML_CHARS", "MAX_YAML_DEPTH", "MAX_YAML_VALUES"]
+
+#: longest YAML text read [characters]; shipped specs are a few kB
+MAX_YAML_CHARS = 10_000_000
+
+#: deepest nesting of mappings and sequences
+MAX_YAML_DEPTH = 64
+
+#: most values (scalars, mappings, sequences) a document may hold once its
+#: aliases are expanded
+MAX_YAML_VALUES = 100_000
+
+
+class YamlLimitError(ValueError):
+    """A YAML text exceeds one of the size limits (the message says which)."""
+
+
+def check_yaml_limits(text: str) -> None:
+    """Refuse YAML that is too long, too deep or expands too far.
+
+    Raises:
+        YamlLimitError: naming the limit and the fix.
+        yaml.YAMLError: the text is not valid YAML.
+    """
+    import yaml
+
+    if len(text) > MAX_YAML_CHARS:
+        raise YamlLimitError(
+            f"the file has {len(text):,} characters, more than the {MAX_YAML_CHARS:,} a "
+            "spec may have; a cable spec is a few kilobytes"
+        )
+    sizes: dict[str, int] = {}  # anchor -> values under it, aliases expanded
+    stack: list[list] = []  # open collections: [values so far, anchor]
+    total = 0
+    for event in yaml.parse(text, Loader=yaml.SafeLoader):
+        if isinstance(event, yaml.CollectionStartEvent):
+            if len(stack) >= MAX_YAML_DEPTH:
+                line = event.start_mark.line + 1
+                raise YamlLimitError(
+                    f"line {line}: mappings and lists nest more than {MAX_YAML_DEPTH} deep; "
+                    "a cable spec needs a handful of levels"
+                )
+            stack.append([1, event.anchor])
+            continue
+        if isinstance(event, yaml.CollectionEndEvent):
+            size, anchor = stack.pop()
+        elif isinstance(event, yaml.ScalarEvent):
+            size, anchor = 1, event.anchor
+        elif isinstance(event, yaml.AliasEvent):
+            size, anchor = sizes.get(event.anchor, 1), None
+        else:
+            continue
+        if anchor is not None:
+            sizes[anchor] = size
+        if stack:
+            stack[-1][0] += size
+        else:
+            total += size
+        if total + sum(s for s, _ in stack) > MAX_YAML_VALUES:
+            line = event.start_mark.line + 1
+            raise YamlLimitError(
+                f"line {line}: the document expands to more than {MAX_YAML_VALUES:,} values "
+                "through its aliases (*name); write the values out or use fewer aliases"
+            )
 
 
 def load_yaml(text: str) -> tuple[Any, list[str]]:
@@ -23,8 +91,14 @@ def load_yaml(text: str) -> tuple[Any, list[str]]:
     Returns:
         (data, problems): the loaded document and one line per repeated key
         with its line numbers (1-based).
+
+    Raises:
+        YamlLimitError: the text exceeds a size limit (:func:`check_yaml_limits`).
+        yaml.YAMLError: the text is not valid YAML.
     """
     import yaml
+
+    check_yaml_limits(text)
 
     problems: list[tuple[int, str]] = []
 

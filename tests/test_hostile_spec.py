@@ -1,0 +1,97 @@
+"""Hostile or broken spec text: refused at once with a short cdpm error."""
+
+from __future__ import annotations
+
+import shutil
+import time
+from pathlib import Path
+
+import pytest
+
+import cdpm
+from cdpm.errors import MAX_LISTED_PROBLEMS, MAX_PROBLEM_CHARS, SpecError
+from cdpm.expressions import MAX_EXPRESSION_CHARS, parse_number
+from cdpm.yaml_loading import MAX_YAML_DEPTH
+
+MODEL = Path(__file__).parent.parent / "models" / "two_link_planar"
+
+
+def _spec(tmp_path: Path, text: str) -> Path:
+    shutil.copy(MODEL / "two_link_planar.urdf", tmp_path)
+    path = tmp_path / "spec.yaml"
+    path.write_text(text)
+    return path
+
+
+def _base() -> str:
+    return (MODEL / "two_link_planar.yaml").read_text()
+
+
+def test_alias_bomb_is_refused_quickly(tmp_path):
+    anchors = "x0: &a0 [1, 1, 1, 1, 1, 1, 1, 1, 1]\n" + "".join(
+        f"x{i}: &a{i} [{', '.join([f'*a{i - 1}'] * 9)}]\n" for i in range(1, 9)
+    )
+    text = anchors + _base().replace("gravity: [", "description: *a8\ngravity: [", 1)
+    start = time.perf_counter()
+    with pytest.raises(SpecError, match="expands to more than .* values through its aliases"):
+        cdpm.load_robot(_spec(tmp_path, text))
+    assert time.perf_counter() - start < 5.0
+
+
+def test_deep_nesting_is_refused(tmp_path):
+    text = _base() + "description: " + "[" * 3000 + "]" * 3000 + "\n"
+    with pytest.raises(SpecError, match=f"nest more than {MAX_YAML_DEPTH} deep"):
+        cdpm.load_robot(_spec(tmp_path, text))
+
+
+def test_modest_anchors_still_load(tmp_path):
+    text = _base().replace("gravity: [0, 0, 0]", "gravity: &g [0, 0, 0]", 1)
+    text = text.replace(
+        "outputs:\n", "outputs:\n  - {name: extra, frame: tip, component: y, point: *g}\n"
+    )
+    robot = cdpm.load_robot(_spec(tmp_path, text))
+    assert robot.output_names[0] == "extra"
+
+
+@pytest.mark.parametrize("value", [".nan", ".inf", "inf-inf", "(-1)**0.5"])
+def test_non_finite_or_complex_points_are_refused(tmp_path, value):
+    text = _base().replace("point: [0, 0.5, 0]", f"point: [{value}, 0.5, 0]", 1)
+    assert text != _base()
+    with pytest.raises(SpecError, match=r"route\[0\]\.point"):
+        cdpm.load_robot(_spec(tmp_path, text))
+
+
+def test_many_problems_give_a_short_message(tmp_path):
+    bad = "".join(f"  - {{name: o{i}, frame: nope{i}, component: x}}\n" for i in range(500))
+    text = _base().replace("outputs:\n", "outputs:\n" + bad, 1)
+    with pytest.raises(SpecError) as info:
+        cdpm.load_robot(_spec(tmp_path, text))
+    message = str(info.value)
+    assert "500 problems" in message and "and 492 more" in message
+    assert len(message) < 4000
+    assert len(info.value.problems) == 500
+    assert message.count("\n  - ") == MAX_LISTED_PROBLEMS + 1
+    assert all(len(line) <= MAX_PROBLEM_CHARS + 4 for line in message.splitlines())
+
+
+@pytest.mark.parametrize(
+    ("text", "match"),
+    [
+        ("(-1)**0.5", "not a real number"),
+        ("+".join(["1"] * 3000), f"at most {MAX_EXPRESSION_CHARS}"),
+        ("inf - inf", "NaN"),
+        ("1/0", "divides by zero"),
+        ("__import__('os')", "only numbers"),
+    ],
+)
+def test_parser_refuses_with_value_error(text, match):
+    with pytest.raises(ValueError, match=match):
+        parse_number(text)
+
+
+def test_parser_keeps_plain_arithmetic():
+    assert parse_number("-2*pi/3") == pytest.approx(-2.0943951023931953, abs=0)
+    assert parse_number("+".join(["1"] * 40)) == 40.0
+    assert parse_number("-.inf") == float("-inf")
+    with pytest.raises(ValueError, match="too large"):
+        parse_number(10**400)
