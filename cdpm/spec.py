@@ -54,10 +54,10 @@ from typing import Any
 import numpy as np
 
 from cdpm.equilibrium import EQUILIBRIUM_METHODS
-from cdpm.errors import SpecError
+from cdpm.errors import SpecError, short_repr
 from cdpm.expressions import parse_number
 from cdpm.numerics import SPEC_COINCIDENT_POINT_ATOL
-from cdpm.yaml_loading import load_yaml
+from cdpm.yaml_loading import MAX_YAML_CHARS, YamlLimitError, load_yaml
 
 __all__ = [
     "AttachmentPoint",
@@ -283,12 +283,16 @@ class _Problems:
         self.items.append(f"{where}: {what}" if where else what)
 
 
-def _vector(problems: _Problems, where: str, value: Any, size: int | None) -> list[float] | None:
+def _vector(
+    problems: _Problems, where: str, value: Any, size: int | None, infinite: bool = False
+) -> list[float] | None:
+    """``value`` as a list of ``size`` floats, or None after recording a
+    problem. NaN is never a value; +-inf only with ``infinite``."""
     if not isinstance(value, (list, tuple)):
-        problems.add(where, f"expected a list of {size or 'some'} numbers, got {value!r}")
+        problems.add(where, f"expected a list of {size or 'some'} numbers, got {short_repr(value)}")
         return None
     if size is not None and len(value) != size:
-        problems.add(where, f"expected {size} numbers, got {len(value)}: {value!r}")
+        problems.add(where, f"expected {size} numbers, got {len(value)}: {short_repr(value)}")
         return None
     out = []
     for k, item in enumerate(value):
@@ -296,6 +300,9 @@ def _vector(problems: _Problems, where: str, value: Any, size: int | None) -> li
             number = parse_number(item)
         except ValueError as exc:
             problems.add(f"{where}[{k}]", f"{exc}; expected a number")
+            return None
+        if math.isnan(number) or (math.isinf(number) and not infinite):
+            problems.add(f"{where}[{k}]", f"{short_repr(item)} is not a finite number")
             return None
         out.append(number)
     return out
@@ -375,9 +382,18 @@ def load_spec(path: str | os.PathLike) -> CableSpec:
     if not spec_path.is_file():
         raise SpecError(f"cable spec file not found: {spec_path}")
     try:
+        size = spec_path.stat().st_size
+        if size > MAX_YAML_CHARS * 4:  # UTF-8 has at most 4 bytes per character
+            raise YamlLimitError(f"the file has {size:,} bytes; a cable spec is a few kilobytes")
         data, duplicates = load_yaml(spec_path.read_text(encoding="utf-8"))
+    except YamlLimitError as exc:
+        raise SpecError(f"refused: {exc}", path=str(spec_path)) from None
     except yaml.YAMLError as exc:
         raise SpecError(f"not valid YAML: {exc}", path=str(spec_path)) from exc
+    except OSError as exc:
+        raise SpecError(
+            f"cannot read the file: {exc.strerror or exc}", path=str(spec_path)
+        ) from None
     except UnicodeDecodeError as exc:
         raise SpecError(f"not a UTF-8 text file: {exc}", path=str(spec_path)) from exc
     if duplicates:
@@ -541,7 +557,9 @@ class _FrameTable:
         self.link_coms = link_coms
 
     def listing(self) -> str:
-        return ", ".join(["world", *sorted(self.names)])
+        names = ["world", *sorted(self.names)]
+        more = f", ... ({len(names) - 30} more)" if len(names) > 30 else ""
+        return ", ".join(names[:30]) + more
 
     def exists(self, name: str) -> bool:
         return name in WORLD_FRAME_NAMES or name in self.names
@@ -619,7 +637,7 @@ def _parse_cables(problems: _Problems, raw: Any, frames: _FrameTable | None) -> 
         where = f"cables[{i}] ({name})"
         fmin, fmax = 0.0, math.inf
         if "tension" in item:
-            bounds = _vector(problems, f"{where}.tension", item["tension"], 2)
+            bounds = _vector(problems, f"{where}.tension", item["tension"], 2, infinite=True)
             if bounds is not None:
                 fmin, fmax = bounds
                 for problem in tension_bound_problems(fmin, fmax):
