@@ -37,6 +37,7 @@ from cdpm.spec import (
     find_specs,
     folder_error,
     load_spec,
+    usable_path,
 )
 
 __all__ = ["CableRobot", "CableKinematics", "BatchKinematics", "load_robot", "spec_in_folder"]
@@ -587,7 +588,7 @@ def load_robot(path: str | os.PathLike) -> CableRobot:
             lists every problem found), or a folder holds no spec or several
             (the message lists them).
     """
-    p = Path(path).expanduser()
+    p = usable_path(path)
     if p.is_dir():
         p = spec_in_folder(path)
     return CableRobot(load_spec(p))

@@ -376,7 +376,7 @@ def load_spec(path: str | os.PathLike) -> CableSpec:
     """
     import yaml
 
-    spec_path = Path(path).expanduser().resolve()
+    spec_path = usable_path(path)
     if spec_path.is_dir():
         raise folder_error(path)
     if not spec_path.is_file():
@@ -451,6 +451,25 @@ def load_spec(path: str | os.PathLike) -> CableSpec:
 #: pip distribution that installs a ROS-style package's files, where the
 #: names differ (used in the install hint when a package is missing).
 _PACKAGE_PIP_NAMES = {"example-robot-data": "example-robot-data (or: pip install 'cdpm[robots]')"}
+
+
+def usable_path(path: str | os.PathLike) -> Path:
+    """``path`` expanded and resolved, checked to be one the system can
+    look up (no NUL character, not too long).
+
+    Raises:
+        SpecError: the path cannot name a file, with the reason.
+    """
+    text = os.fspath(path)
+    if "\0" in str(text):
+        raise SpecError(f"the path {short_repr(text)} contains a NUL character; no file has it")
+    try:
+        resolved = Path(text).expanduser().resolve()
+        resolved.is_dir()  # a name too long for the system fails here
+    except (OSError, ValueError, RuntimeError) as exc:
+        reason = getattr(exc, "strerror", None) or str(exc)
+        raise SpecError(f"cannot use the path {short_repr(text)}: {reason}") from None
+    return resolved
 
 
 def package_share_directory(package: str) -> Path | None:
@@ -534,9 +553,17 @@ def _load_urdf(problems: _Problems, spec_path: Path, urdf: Any):
 
 
 def build_model(problems: _Problems, urdf_path: Path):
-    """Build a Pinocchio model from a URDF, recording a problem on failure."""
+    """Build a Pinocchio model from a URDF, recording a problem on failure
+    (the file is checked by :func:`cdpm.urdf_check.read_urdf` first)."""
     import pinocchio as pin
 
+    from cdpm.urdf_check import read_urdf
+
+    _, urdf_problems = read_urdf(urdf_path)
+    if urdf_problems:
+        for problem in urdf_problems:
+            problems.add("urdf", problem)
+        return None
     try:
         return pin.buildModelFromUrdf(str(urdf_path))
     except (ValueError, RuntimeError) as exc:
@@ -574,13 +601,12 @@ def _link_coms(urdf_path: Path) -> dict[str, np.ndarray]:
     """Centre of mass of every URDF link with a positive mass, in its frame.
 
     Pinocchio merges link inertias into their joint's and keeps no per-link
-    record, so the ``<inertial>`` origins are read from the URDF here (with
-    the standard library's XML parser; only these two attributes are read).
+    record, so the ``<inertial>`` origins are read from the URDF here.
     """
-    import xml.etree.ElementTree as ET
+    from cdpm.urdf_check import read_urdf
 
     coms: dict[str, np.ndarray] = {}
-    root = ET.parse(urdf_path).getroot()
+    root, _ = read_urdf(urdf_path)  # checked before the model was built
     for link in root.iter("link"):
         inertial = link.find("inertial")
         if inertial is None:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 import shutil
 import time
 from pathlib import Path
@@ -95,3 +96,43 @@ def test_parser_keeps_plain_arithmetic():
     assert parse_number("-.inf") == float("-inf")
     with pytest.raises(ValueError, match="too large"):
         parse_number(10**400)
+
+
+def _urdf_variant(tmp_path: Path, text: str) -> Path:
+    shutil.copy(MODEL / "two_link_planar.yaml", tmp_path)
+    (tmp_path / "two_link_planar.urdf").write_text(text)
+    return tmp_path / "two_link_planar.yaml"
+
+
+_URDF = (MODEL / "two_link_planar.urdf").read_text()
+
+
+@pytest.mark.parametrize(
+    ("text", "match"),
+    [
+        (
+            '<?xml version="1.0"?>\n<!DOCTYPE robot [<!ENTITY a "aaaa">'
+            '<!ENTITY b "&a;&a;&a;&a;">]>' + _URDF.split("?>", 1)[1],
+            "declares a DTD or entities",
+        ),
+        (_URDF.replace('name="link1"', 'name="&undefined;"', 1), "undefined entity"),
+        (re.sub(r'<mass value="[^"]*"', '<mass value="heavy"', _URDF, count=1), "not a number"),
+        (re.sub(r'xyz="[^"]*"', 'xyz="0 0"', _URDF, count=1), "expected 3 numbers, got 2"),
+        (re.sub(r'xyz="[^"]*"', 'xyz="nan 0 0"', _URDF, count=1), "must be finite"),
+        (_URDF[:200], "not well-formed XML"),
+        ("<robt/>", "expected <robot>"),
+    ],
+)
+def test_broken_urdf_is_a_spec_error(tmp_path, text, match):
+    with pytest.raises(SpecError, match=match):
+        cdpm.load_robot(_urdf_variant(tmp_path, text))
+
+
+@pytest.mark.parametrize(
+    ("path", "match"),
+    [("a\0b.yaml", "NUL character"), ("x" * 5000, "cannot use the path")],
+)
+def test_unusable_paths_are_spec_errors(path, match):
+    with pytest.raises(SpecError, match=match) as info:
+        cdpm.load_robot(path)
+    assert len(str(info.value)) < 300
