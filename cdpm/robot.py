@@ -42,6 +42,15 @@ from cdpm.spec import (
 
 __all__ = ["CableRobot", "CableKinematics", "BatchKinematics", "load_robot", "spec_in_folder"]
 
+#: the magnitudes cdpm analyses: link masses [kg] and principal moments of
+#: inertia [kg m^2] within these bounds (zero allowed: a massless link), and
+#: lengths (attachment and output points, joint placements) up to
+#: MAX_MODEL_LENGTH [m]. Outside them the dynamics' matrices span so many
+#: orders of magnitude that the solvers' round-off decides the verdict.
+MODEL_MASS_RANGE = (1e-9, 1e9)
+MODEL_INERTIA_MAX = 1e12
+MAX_MODEL_LENGTH = 1e5
+
 
 class CableRobot:
     """A cable-driven manipulator: Pinocchio model, cables and outputs.
@@ -119,6 +128,7 @@ class CableRobot:
         self._output_basis = _OutputBasis(self, joints, local)
         self._point_joint = np.array(joints, dtype=int)
         self._point_local = np.array(local, dtype=float).reshape(-1, 3)
+        self._check_magnitudes()
         self._segment_points = np.array([[a, a + 1] for a in seg_a], dtype=int).reshape(-1, 2)
         self._segment_cable = np.array(seg_cable, dtype=int)
         self._segment_to_cable = np.zeros((len(spec.cables), len(seg_cable)))
@@ -140,6 +150,37 @@ class CableRobot:
         self._last_batch: BatchKinematics | None = None  # its batch-of-one arrays
 
     # ------------------------------------------------------------------ setup
+
+    def _check_magnitudes(self) -> None:
+        """Refuse models whose masses, inertias or lengths are outside the
+        range cdpm analyses (MODEL_MASS_RANGE, MODEL_INERTIA_MAX,
+        MAX_MODEL_LENGTH), before any solver sees them."""
+        model, problems = self.model, []
+        low, high = MODEL_MASS_RANGE
+        for j in range(1, model.njoints):
+            name = model.names[j]
+            mass = float(model.inertias[j].mass)
+            moments = np.linalg.eigvalsh(np.array(model.inertias[j].inertia))
+            if mass != 0 and not low <= mass <= high:
+                problems.append(f"the body moved by joint {name!r} has mass {mass:g} kg")
+            if not (np.all(np.isfinite(moments)) and np.abs(moments).max() <= MODEL_INERTIA_MAX):
+                problems.append(
+                    f"the body moved by joint {name!r} has moments of inertia "
+                    f"{np.array2string(moments, precision=3)} kg m^2"
+                )
+            offset = float(np.abs(model.jointPlacements[j].translation).max())
+            if not offset <= MAX_MODEL_LENGTH:
+                problems.append(f"joint {name!r} is placed {offset:g} m from its parent")
+        far = np.abs(self._point_local).max(axis=1, initial=0.0)
+        for k in np.flatnonzero(~(far <= MAX_MODEL_LENGTH))[:3]:
+            problems.append(f"an attachment or output point lies {far[k]:g} m from its frame")
+        if problems:
+            raise ModelError(
+                f"{self.spec.path.name}: {'; '.join(problems)}. cdpm analyses masses of "
+                f"{low:g} to {high:g} kg (or 0), moments of inertia up to "
+                f"{MODEL_INERTIA_MAX:g} kg m^2 and lengths up to {MAX_MODEL_LENGTH:g} m; "
+                "check the URDF's units (kg, m) and values"
+            )
 
     def _anchor(self, frame_name: str, point_in_frame: np.ndarray) -> tuple[int, np.ndarray]:
         """Parent joint of a frame and the point expressed in that joint's frame."""

@@ -136,3 +136,30 @@ def test_unusable_paths_are_spec_errors(path, match):
     with pytest.raises(SpecError, match=match) as info:
         cdpm.load_robot(path)
     assert len(str(info.value)) < 300
+
+
+SPATIAL = Path(__file__).parent.parent / "models" / "spatial_8cable"
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "match"),
+    [
+        ('<mass value="25.0"/>', '<mass value="1e-300"/>', "mass 1e-300 kg"),
+        ('ixx="14.0"', 'ixx="1e300"', "moments of inertia"),
+    ],
+)
+def test_extreme_magnitudes_are_model_errors(tmp_path, old, new, match):
+    urdf = (SPATIAL / "spatial_8cable.urdf").read_text()
+    assert old in urdf
+    (tmp_path / "spatial_8cable.urdf").write_text(urdf.replace(old, new))
+    shutil.copy(SPATIAL / "spatial_8cable.yaml", tmp_path)
+    with pytest.raises(cdpm.ModelError, match=match):
+        cdpm.load_robot(tmp_path / "spatial_8cable.yaml")
+
+
+def test_far_output_point_is_a_model_error(tmp_path):
+    text = _base().replace(
+        "outputs:\n", "outputs:\n  - {name: far, frame: tip, component: x, point: [1e300, 0, 0]}\n"
+    )
+    with pytest.raises(cdpm.ModelError, match="lies 1e\\+300 m from its frame"):
+        cdpm.load_robot(_spec(tmp_path, text))
