@@ -94,10 +94,31 @@ def main(argv: list[str] | None = None) -> int:
     if not getattr(args, "_run", None):
         parser.print_help()
         return 2
+    previous = _terminate_as_interrupt()
     try:
         return int(args._run(args) or 0)
     except CdpmError as exc:
         print(f"cdpm {args.command}: error: {exc}", file=sys.stderr)
+        return 1
+    except OSError as exc:
+        # a file or folder the system refused (unwritable, missing parent,
+        # name too long...): one line naming it, never a traceback
+        if isinstance(exc, BrokenPipeError):
+            raise
+        name = exc.filename if exc.filename is not None else ""
+        what = f" {name!r}" if name else ""
+        print(
+            f"cdpm {args.command}: error: cannot use{what}: {exc.strerror or exc}; "
+            "choose a path you can write to (its folder must exist)",
+            file=sys.stderr,
+        )
+        return 1
+    except MemoryError:
+        print(
+            f"cdpm {args.command}: error: not enough memory for this request; ask for "
+            "fewer poses, a smaller picture or smaller chunks",
+            file=sys.stderr,
+        )
         return 1
     except BrokenPipeError:
         # output piped into e.g. `head`, which closed early: not an error
@@ -108,6 +129,32 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"cdpm {args.command}: interrupted", file=sys.stderr)
         return 130
+    finally:
+        _restore_terminate(previous)
+
+
+def _terminate_as_interrupt():
+    """Handle SIGTERM like Ctrl-C (KeyboardInterrupt), so a terminated
+    command cleans up (stops its workers, keeps finished map chunks) as an
+    interrupted one does; returns the previous handler (None when signals
+    cannot be set here, e.g. outside the main thread)."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        return None
+
+    def interrupt(signum, frame):
+        raise KeyboardInterrupt
+
+    return signal.signal(signal.SIGTERM, interrupt)
+
+
+def _restore_terminate(previous) -> None:
+    import signal
+
+    if previous is not None:
+        signal.signal(signal.SIGTERM, previous)
 
 
 if __name__ == "__main__":  # pragma: no cover
