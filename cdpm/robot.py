@@ -31,6 +31,7 @@ from cdpm.configuration import (
 from cdpm.errors import ModelError
 from cdpm.kinematics import BatchKinematics, CableKinematics
 from cdpm.numerics import MIN_SEGMENT_LENGTH
+from cdpm.outputs import OutputBasis
 from cdpm.spec import (
     WORLD_FRAME_NAMES,
     CableSpec,
@@ -125,7 +126,7 @@ class CableRobot:
             joints.append(joint)
             local.append(p_joint)
         self.output_points = np.array(output_points, dtype=int)
-        self._output_basis = _OutputBasis(self, joints, local)
+        self._output_basis = OutputBasis(self, joints, local)
         self._point_joint = np.array(joints, dtype=int)
         self._point_local = np.array(local, dtype=float).reshape(-1, 3)
         self._check_magnitudes()
@@ -652,105 +653,3 @@ def spec_in_folder(folder: str | os.PathLike) -> Path:
     if len(specs) == 1:
         return specs[0]
     raise folder_error(folder, specs)
-
-
-class _OutputBasis:
-    """The outputs as weighted sums of basis components, evaluated in batch.
-
-    Components: a world coordinate of a tracked point, a world component of
-    a frame's rotation vector, a one-DOF joint's coordinate, a cable's
-    length. When every output is one point coordinate of weight 1 (most
-    specs) :meth:`evaluate` indexes the point arrays directly.
-    """
-
-    def __init__(self, robot: CableRobot, joints: list[int], local: list[np.ndarray]) -> None:
-        model = robot.model
-        spec = robot.spec
-        cable_index = {name: k for k, name in enumerate(robot.cable_names)}
-        self.plain_rows: np.ndarray | None = None
-        plain = []
-        self.terms: list[list[tuple[float, str, Any]]] = []
-        frames: list[tuple[int, np.ndarray]] = []  # rotation frames: (joint, R joint->frame)
-        frame_keys: list[str] = []
-        for k, out in enumerate(spec.outputs):
-            terms = []
-            for term in out.terms:
-                if term.kind == "position":
-                    if term is out.marker_term:
-                        point = int(robot.output_points[k])
-                    else:
-                        point = len(joints)
-                        joint, p_joint = robot._anchor(term.frame, np.array(term.point_in_frame))
-                        joints.append(joint)
-                        local.append(p_joint)
-                    terms.append((term.weight, "position", (term.axis, point)))
-                elif term.kind == "rotation":
-                    if term.frame not in frame_keys:
-                        frame_keys.append(term.frame)
-                        frames.append(_frame_rotation(model, term.frame))
-                    terms.append(
-                        (term.weight, "rotation", (term.axis, frame_keys.index(term.frame)))
-                    )
-                elif term.kind == "joint":
-                    jm = model.joints[model.getJointId(term.joint)]
-                    terms.append((term.weight, "joint", (jm.idx_q, jm.idx_v, jm.nq)))
-                else:
-                    terms.append((term.weight, "cable", cable_index[term.cable]))
-            self.terms.append(terms)
-            single = len(terms) == 1 and terms[0][0] == 1.0 and terms[0][1] == "position"
-            plain.append(3 * terms[0][2][1] + terms[0][2][0] if single else -1)
-        if all(r >= 0 for r in plain):
-            self.plain_rows = np.array(plain, dtype=int)
-        self.frames = frames
-        self._robot = robot
-
-    def evaluate(self, qs, pos, pjac, pl, jac, lengths, rows_l) -> tuple[np.ndarray, np.ndarray]:
-        """Outputs (N, p) and their Jacobians (N, p, nv) from the batch
-        arrays of :meth:`CableRobot._kinematics_batch` (batch axis last:
-        ``pos`` (3, P, N), ``pjac`` (3, P, nv, N), ``lengths`` (m, N),
-        ``rows_l`` (m, nv, N); ``pl`` (N, njoints, 12), ``jac`` (N, 6, nv))."""
-        if self.plain_rows is not None:
-            comp, pts = self.plain_rows % 3, self.plain_rows // 3
-            return pos[comp, pts].T, pjac[comp, pts].transpose(2, 0, 1)
-        n, nv = qs.shape[0], jac.shape[2]
-        rotations = [self._rotation(pl, jac, joint, r_local) for joint, r_local in self.frames]
-        out = np.zeros((len(self.terms), n))
-        out_jac = np.zeros((len(self.terms), nv, n))
-        for k, terms in enumerate(self.terms):
-            for weight, kind, where in terms:
-                if kind == "position":
-                    axis, point = where
-                    value, rate = pos[axis, point], pjac[axis, point]
-                elif kind == "rotation":
-                    axis, frame = where
-                    value, rate = rotations[frame][0][:, axis], rotations[frame][1][axis]
-                elif kind == "joint":
-                    iq, iv, nq = where
-                    value = qs[:, iq] if nq == 1 else np.arctan2(qs[:, iq + 1], qs[:, iq])
-                    rate = np.zeros((nv, n))
-                    rate[iv] = 1.0
-                else:
-                    value, rate = lengths[where], rows_l[where]
-                out[k] += weight * value
-                out_jac[k] += weight * rate
-        return out.T, out_jac.transpose(2, 0, 1)
-
-    def _rotation(self, pl, jac, joint: int, r_local: np.ndarray):
-        """Rotation vectors (N, 3) [rad] of a frame fixed to ``joint`` and its
-        world angular Jacobian (3, nv, N)."""
-        from scipy.spatial.transform import Rotation
-
-        # pl rows hold the joint rotation column-major: reshape gives R^T
-        r_joint = pl[:, joint, :9].reshape(-1, 3, 3).transpose(0, 2, 1)
-        rotvec = Rotation.from_matrix(r_joint @ r_local).as_rotvec()
-        mask = self._robot._joint_support[joint]
-        angular = jac[:, 3:, :].transpose(1, 2, 0) * mask[None, :, None]
-        return rotvec, angular
-
-
-def _frame_rotation(model, frame: str) -> tuple[int, np.ndarray]:
-    """(parent joint, rotation from the joint frame to ``frame``, (3, 3))."""
-    if frame in WORLD_FRAME_NAMES:
-        return 0, np.eye(3)
-    f = model.frames[model.getFrameId(frame)]
-    return int(f.parentJoint), np.array(f.placement.rotation)
