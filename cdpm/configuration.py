@@ -44,6 +44,22 @@ class ConfigurationError(InputError):
     """A configuration given by the user does not fit the model."""
 
 
+#: largest magnitude of a coordinate [rad or m] (the lengths cdpm analyses
+#: are bounded alike: :data:`cdpm.robot.MAX_MODEL_LENGTH`)
+MAX_COORDINATE = 1e5
+
+
+def _check_magnitudes(values: np.ndarray, name: str) -> None:
+    """Refuse non-finite coordinates and magnitudes above MAX_COORDINATE."""
+    bad = ~(np.abs(values) <= MAX_COORDINATE)
+    if bad.any():
+        k = int(np.flatnonzero(bad)[0])
+        raise ConfigurationError(
+            f"{name}[{k}] = {values[k]:g}: coordinates must be finite numbers of at most "
+            f"{MAX_COORDINATE:g} (rad or m)"
+        )
+
+
 def _joints(model):
     """(name, joint model) of every joint but the universe."""
     return [(model.names[j], model.joints[j]) for j in range(1, model.njoints)]
@@ -104,6 +120,7 @@ def _quaternion_to_rpy(quat: np.ndarray) -> np.ndarray:
 def configuration_from_natural(model, natural: Any) -> np.ndarray:
     """Configuration vector q (nq,) from natural coordinates (nv,)."""
     values = np.asarray(natural, dtype=float).reshape(-1)
+    _check_magnitudes(values, "natural coordinates")
     if values.shape[0] != model.nv:
         raise ConfigurationError(
             f"got {values.shape[0]} natural coordinates, expected nv={model.nv} "
@@ -167,8 +184,7 @@ def as_configuration(model, q: Any, name: str = "q") -> np.ndarray:
         arr = np.array(q, dtype=float).reshape(-1)
     except (TypeError, ValueError) as exc:
         raise ConfigurationError(f"{name} must be a vector of numbers: {exc}") from exc
-    if not np.all(np.isfinite(arr)):
-        raise ConfigurationError(f"{name} has non-finite entries: {arr}")
+    _check_magnitudes(arr, name)
     if arr.shape[0] != model.nq:
         if arr.shape[0] == model.nv:
             return configuration_from_natural(model, arr)

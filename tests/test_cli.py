@@ -203,7 +203,11 @@ def test_map_interrupted_ends_the_progress_line_and_resumes(tmp_path, capsys, mo
         (["abc"], r"--q value: 'abc' is not a number .*one number per coordinate \(q1, q2\)"),
         (["0.5", "x"], r"--q value 2 of 2: 'x' is not a number"),
         (["1", "2", "3"], r"--q 1 2 3: q has 3 entries, expected nq=2"),
-        (["1", "inf"], r"--q 1 inf: q has non-finite entries"),
+        (["1", "inf"], r"--q 1 inf: q\[1\] = inf: coordinates must be finite"),
+        (
+            ["1", "1e300"],
+            r"--q 1 1e300: q\[1\] = 1e\+300: coordinates must be finite numbers of at most 100000",
+        ),
     ],
 )
 def test_analyze_bad_q_names_the_option(q, message, capsys):
