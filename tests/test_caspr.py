@@ -115,14 +115,19 @@ class _CasprReference:
                 points.append((link, loc))
             self.cables.append(points)
 
-    def lengths(self, q_per_link: list[np.ndarray]) -> np.ndarray:
-        rot, r_op = [], []  # R_0k and r_OP (in frame k) per link
+    def frames(self, q_per_link: list[np.ndarray]) -> tuple[list, list]:
+        """R_0k (world <- link k) and r_OP (joint point, in frame k) per link."""
+        rot, r_op = [], []
         for link, q in zip(self.links, q_per_link, strict=True):
             r_pe, r_rel = _caspr_joint(link["type"], q, link["axis"])
             p = link["parent"]
             base = np.zeros(3) if p == 0 else r_op[p - 1]
             rot.append(r_pe if p == 0 else rot[p - 1] @ r_pe)
             r_op.append(r_pe.T @ (base + link["r_parent"] + r_rel))
+        return rot, r_op
+
+    def lengths(self, q_per_link: list[np.ndarray]) -> np.ndarray:
+        rot, r_op = self.frames(q_per_link)
 
         def world(link, r_pa):
             if link == 0:
@@ -445,6 +450,8 @@ def test_cli_import_then_analyze(tmp_path, capsys):
     text = capsys.readouterr().out
     assert "CASPR model 'M': 2 link(s), 3 coordinate(s), 7 cable(s) (set 'main')" in text
     assert "joint1_rx <- link 1 'L1' (U_XY) q[0]" in text
+    # the outputs, with their units and where they come from
+    assert "    link2_end_x [m]: world x of frame link2_end (end point of link 2;" in text
     spec = yaml.safe_load((out / "M.yaml").read_text())
     assert spec["poses"] == {"initial": {"joint1_rx": 0.1, "joint1_ry": 0.1, "joint2": 0.1}}
     assert (
@@ -745,10 +752,312 @@ def test_cli_json_is_clean_for_piping(tmp_path, capsys):
     summary = json.loads(out)  # stdout is the JSON document and nothing else
     assert summary["outputs"] == ["link1_end_x", "link1_end_y", "link1_end_z"]
     # the warnings travel inside the JSON
-    assert any("no position operational space" in w for w in summary["warnings"])
+    assert any("no operational space outputs" in w for w in summary["warnings"])
+    assert summary["output_units"] == ["m", "m", "m"]
     assert any("span only 2 direction(s)" in w for w in summary["warnings"])
     # text mode lists them on stdout and counts them on stderr
     assert cdpm.cli.main(argv) == 0
     out, err = capsys.readouterr()
     assert "span only 2 direction(s)" in out
     assert err == f"{len(summary['warnings'])} warning(s), listed above\n"
+
+
+# ---------------------------------------------------------------------------
+# operational spaces: positions and orientations
+
+_OPS = """\
+<operational_spaces default_operational_set="mixed">
+  <operational_set id="mixed">
+    <position marker_id="1" name="tip"><link>2</link><offset>0.1 0.2 0.3</offset>
+      <axes active_axes="zxa"/></position>
+    <orientation_euler_xyz marker_id="2" name="hand"><link>2</link>
+      <axes active_axes="gab"/></orientation_euler_xyz>
+    <pose_euler_xyz marker_id="3" name="body"><link>1</link><offset>0 0.05 -0.05</offset>
+      <axes active_axes="xbzb"/></pose_euler_xyz>
+    <orientation_quaternion marker_id="4" name="quat"><link>1</link></orientation_quaternion>
+  </operational_set>
+  <operational_set id="selection">
+    <pose_euler_xyz marker_id="1" name="old style"><link>1</link><offset>0 0 0</offset>
+      <axes active_axes="xyzabg"/>
+      <selection_matrix><sx>1</sx><sy>0</sy><sz>1</sz><sa>0</sa><sb>0</sb><sg>1</sg>
+      </selection_matrix>
+    </pose_euler_xyz>
+  </operational_set>
+  <operational_set id="pose">
+    <pose_euler_xyz marker_id="1" name="platform"><link>1</link><offset>0 0 0</offset>
+      <axes active_axes="xyzabg"/></pose_euler_xyz>
+  </operational_set>
+</operational_spaces>
+"""
+
+
+def _op_model(tmp_path: Path) -> tuple[Path, Path]:
+    """A spatial body (link 1) carrying an arm (link 2, R_X), with the
+    operational spaces above beside the bodies file."""
+    bodies, cables = _write_model(tmp_path, ["SPATIAL_EULER_XYZ", "R_X"])
+    (tmp_path / "M_operational_spaces.xml").write_text(_OPS)
+    return bodies, cables
+
+
+def _vee(skew: np.ndarray) -> np.ndarray:
+    return np.array([skew[2, 1], skew[0, 2], skew[1, 0]])
+
+
+def _rotvec(rotation: np.ndarray) -> np.ndarray:
+    from scipy.spatial.transform import Rotation
+
+    return Rotation.from_matrix(rotation).as_rotvec()
+
+
+def test_operational_spaces_map_to_positions_and_rotations(tmp_path):
+    bodies, cables = _op_model(tmp_path)
+    with pytest.warns(CasprWarning) as record:
+        result = import_caspr(bodies, cables, tmp_path / "out")
+    spec = yaml.safe_load(result.spec_path.read_text())
+    # CASPR's axis order is kept; x y z of the operational point's frame,
+    # a b g -> rx ry rz of the link frame
+    assert spec["outputs"] == [
+        {"name": "tip_z", "frame": "op_tip", "component": "z"},
+        {"name": "tip_x", "frame": "op_tip", "component": "x"},
+        {"name": "hand_rz", "frame": "link2", "component": "rz"},
+        {"name": "hand_rx", "frame": "link2", "component": "rx"},
+        {"name": "hand_ry", "frame": "link2", "component": "ry"},
+        {"name": "body_x", "frame": "op_body", "component": "x"},
+        {"name": "body_ry", "frame": "link1", "component": "ry"},
+        {"name": "body_z", "frame": "op_body", "component": "z"},
+    ]
+    assert result.output_units == ("m", "m", "rad", "rad", "rad", "m", "rad", "m")
+    assert result.output_sources[2] == (
+        "world z component of the rotation vector of frame link2 "
+        "(CASPR <orientation_euler_xyz> 'hand' axis 'g')"
+    )
+    assert "    hand_rz [rad]: world z component of the rotation vector" in str(result)
+    # nothing is dropped silently: each loss is a warning naming the element
+    messages = [str(w.message) for w in record]
+    ops = tmp_path / "M_operational_spaces.xml"
+    expected = [
+        f"{ops}: <position marker_id=\"1\" name=\"tip\"> in operational set 'mixed': axis 'a' "
+        "is not one of <position>'s axes (x, y, z); left out",
+        f'{ops}: <pose_euler_xyz marker_id="3" name="body"> in operational set \'mixed\': '
+        "axis 'b' repeated; kept once",
+    ]
+    for message in expected:
+        assert message in messages, messages
+    quaternion = [m for m in messages if "<orientation_quaternion" in m]
+    assert len(quaternion) == 1
+    assert 'name="quat"' in quaternion[0] and "gives no outputs" in quaternion[0]
+    assert "known: position, orientation_euler_xyz, pose_euler_xyz" in quaternion[0]
+    # 8 outputs of 7 coordinates can never be independent: explained
+    deficit = [m for m in messages if "span only" in m]
+    assert len(deficit) == 1 and "the model has only 7 coordinate(s)" in deficit[0]
+    assert "spherical" not in deficit[0]
+
+
+def test_operational_outputs_equal_caspr_kinematics(tmp_path):
+    bodies, cables = _op_model(tmp_path)
+    result = _import_quietly(bodies, cables, tmp_path / "out")
+    robot = cdpm.load_robot(result.spec_path)
+    reference = _CasprReference(bodies, cables)
+    offsets = {1: np.array([0, 0.05, -0.05]), 2: np.array([0.1, 0.2, 0.3])}
+    # output -> (CASPR link, position component or None, rotation component or None)
+    rows = [(2, 2, None), (2, 0, None), (2, None, 2), (2, None, 0), (2, None, 1)]
+    rows += [(1, 0, None), (1, None, 1), (1, 2, None)]
+
+    def caspr_outputs(natural):
+        rot, r_op = reference.frames(_caspr_q(result, natural))
+        values = []
+        for link, pos, ang in rows:
+            r = rot[link - 1]
+            if pos is not None:
+                values.append((r @ (r_op[link - 1] + offsets[link]))[pos])
+            else:
+                values.append(_rotvec(r)[ang])
+        return np.array(values), rot
+
+    rng = np.random.default_rng(15)
+    h = 1e-6
+    for _ in range(10):
+        natural = _random_natural(robot, rng)
+        expected, _ = caspr_outputs(natural)
+        np.testing.assert_allclose(robot.output(natural), expected, rtol=0, atol=1e-12)
+        # Jacobian: positions against central differences of CASPR's point;
+        # rotations against CASPR's world angular velocity vee(dR/dq R^T)
+        jac = robot.output_jacobian(natural)
+        fd = np.zeros_like(jac)
+        for k in range(robot.nv):
+            step = np.zeros(robot.nv)
+            step[k] = h
+            plus, rot_plus = caspr_outputs(natural + step)
+            minus, rot_minus = caspr_outputs(natural - step)
+            _, rot = caspr_outputs(natural)
+            for i, (link, pos, ang) in enumerate(rows):
+                if pos is not None:
+                    fd[i, k] = (plus[i] - minus[i]) / (2 * h)
+                else:
+                    d_rot = (rot_plus[link - 1] - rot_minus[link - 1]) / (2 * h)
+                    fd[i, k] = _vee(d_rot @ rot[link - 1].T)[ang]
+        np.testing.assert_allclose(jac, fd, rtol=0, atol=1e-6)
+
+
+def test_old_selection_matrix_selects_components(tmp_path):
+    bodies, cables = _op_model(tmp_path)
+    with pytest.warns(CasprWarning, match=r"active_axes 'xyzabg' and <selection_matrix> \('xzg'\)"):
+        result = import_caspr(bodies, cables, tmp_path / "out", operational_set="selection")
+    spec = yaml.safe_load(result.spec_path.read_text())
+    assert [(o["name"], o["frame"], o["component"]) for o in spec["outputs"]] == [
+        ("old_style_x", "op_old_style", "x"),
+        ("old_style_z", "op_old_style", "z"),
+        ("old_style_rz", "link1", "rz"),
+    ]
+
+
+def _caspr_pose_euler(rotation: np.ndarray) -> np.ndarray:
+    """CASPR's OperationalPoseEulerXYZ angles (a, b, g): R = Rz(g) Ry(b) Rx(a)."""
+    r = rotation
+    sy = math.hypot(r[0, 0], r[1, 0])
+    return np.array(
+        [math.atan2(r[2, 1], r[2, 2]), math.atan2(-r[2, 0], sy), math.atan2(r[1, 0], r[0, 0])]
+    )
+
+
+def test_rotation_rows_span_the_euler_angle_rows(tmp_path):
+    # docs/caspr.md: with all three angles selected, cdpm's rows (world angular
+    # velocity) and the derivatives of CASPR's Euler angles span the same
+    # directions (an invertible 3x3 map between them); with a subset
+    # selected they agree at the identity orientation only
+    bodies, cables = _op_model(tmp_path)
+    result = _import_quietly(bodies, cables, tmp_path / "out", operational_set="pose")
+    robot = cdpm.load_robot(result.spec_path)
+    reference = _CasprReference(bodies, cables)
+    assert robot.output_names[3:] == ("platform_rx", "platform_ry", "platform_rz")
+
+    def euler(natural):
+        rot, _ = reference.frames(_caspr_q(result, natural))
+        return _caspr_pose_euler(rot[0])
+
+    def euler_jacobian(natural, h=1e-6):
+        columns = []
+        for k in range(robot.nv):
+            step = np.zeros(robot.nv)
+            step[k] = h
+            columns.append((euler(natural + step) - euler(natural - step)) / (2 * h))
+        return np.array(columns).T
+
+    rng = np.random.default_rng(4)
+    for _ in range(5):
+        natural = _random_natural(robot, rng)
+        omega = robot.output_jacobian(natural)[3:]
+        angles = euler_jacobian(natural)
+        transform = angles @ np.linalg.pinv(omega)
+        np.testing.assert_allclose(transform @ omega, angles, atol=1e-6)
+        assert np.linalg.cond(transform) < 1e3
+        # a and g only: other directions than rows x and z of omega
+        assert np.linalg.matrix_rank(np.vstack([omega[[0, 2]], angles[[0, 2]]]), tol=1e-6) == 3
+    identity = np.zeros(robot.nv)
+    np.testing.assert_allclose(
+        robot.output_jacobian(identity)[3:], euler_jacobian(identity), atol=1e-6
+    )
+
+
+def _with_operational_spaces(
+    folder: str, tmp_path: Path, text: str | None, operational_set: str | None = None
+):
+    """Import a library model with its own operational spaces file (text
+    None) or with ``text`` written as one."""
+    name = Path(folder).name
+    ops = CASPR / folder / f"{name}_operational_spaces.xml"
+    if text is not None:
+        ops = tmp_path / f"{name}_operational_spaces.xml"
+        ops.write_text(text)
+    return _import_quietly(
+        CASPR / folder / f"{name}_bodies.xml",
+        CASPR / folder / f"{name}_cables.xml",
+        tmp_path / name,
+        operational_spaces_xml=ops,
+        operational_set=operational_set,
+    )
+
+
+# SJTUSnake is the library's one importable model whose operational spaces
+# file has orientations (the others are hybrid robots, refused for their
+# actuated joints or pulleys); set -> (output names, CASPR letters)
+SJTU_SETS = {
+    "tip_pose": ["x", "y", "z", "rx", "ry", "rz"],
+    "tip_pose_s": ["x", "y", "z", "rx", "rz"],
+    "tip_orientation": ["rx", "ry", "rz"],
+    "tip_orientation_s": ["rx", "rz"],
+}
+
+
+@needs_library
+@pytest.mark.parametrize("operational_set", list(SJTU_SETS))
+def test_library_orientation_operational_spaces_import_and_analyse(tmp_path, operational_set):
+    result = _with_operational_spaces("MCDM/SJTUSnake", tmp_path, None, operational_set)
+    spec = yaml.safe_load(result.spec_path.read_text())
+    components = SJTU_SETS[operational_set]
+    assert [o["component"] for o in spec["outputs"]] == components
+    assert [o["name"] for o in spec["outputs"]] == [f"{operational_set}_{c}" for c in components]
+    for output in spec["outputs"]:
+        rotation = output["component"].startswith("r")
+        assert output["frame"] == ("link12" if rotation else f"op_{operational_set}")
+    assert result.output_units == tuple("rad" if c.startswith("r") else "m" for c in components)
+    assert not any("operational" in w for w in result.warnings), result.warnings
+    robot = cdpm.load_robot(result.spec_path)
+    report = cdpm.analyze_pose(robot, result.pose_name)
+    assert report.output_controllability.rank == len(components)
+    assert report.poc.verdict == cdpm.Verdict.YES
+
+
+_FULL_POSE = """\
+<operational_spaces default_operational_set="pose"><operational_set id="pose">
+  <pose_euler_xyz marker_id="1" name="platform"><link>1</link><offset>0 0 0</offset>
+    <axes active_axes="xyzabg"/></pose_euler_xyz>
+</operational_set></operational_spaces>
+"""
+
+SPATIAL_MODELS = {
+    "IPAnema_1": "SCDM/spatial_manipulators/IPAnema_1",
+    "CoGiRo": "SCDM/spatial_manipulators/CoGiRo",
+    "Example_spatial": "examples/Example_spatial",
+}
+
+
+@needs_library
+@pytest.mark.parametrize("name", list(SPATIAL_MODELS))
+def test_spatial_manipulator_full_pose_output(tmp_path, name):
+    # the library's spatial manipulators ship empty operational spaces files;
+    # given CASPR's full pose of the platform, the import keeps all six
+    result = _with_operational_spaces(SPATIAL_MODELS[name], tmp_path, _FULL_POSE)
+    assert result.output_names == tuple(f"platform_{c}" for c in ("x", "y", "z", "rx", "ry", "rz"))
+    assert result.output_units == ("m", "m", "m", "rad", "rad", "rad")
+    robot = cdpm.load_robot(result.spec_path)
+    assert [o.frame for o in robot.spec.outputs] == ["op_platform"] * 3 + ["link1"] * 3
+    # a tilted platform, where Euler-angle rates and angular velocity differ
+    natural = result.pose + np.array([0.006, -0.009, 0.015, 0.06, -0.045, 0.075])
+    lin = cdpm.linearise(robot, robot.from_natural(natural))
+    poc = cdpm.positive_output_controllability(
+        lin.A, lin.B_cone, lin.C, sign_constrained=lin.sign_constrained
+    )
+    assert poc.verdict == cdpm.Verdict.YES
+    # CASPR's own coordinates (the Euler angles of pose_euler_xyz) in place of
+    # the rotation vector: the same verdict (docs/caspr.md)
+    reference = _CasprReference(
+        CASPR / SPATIAL_MODELS[name] / f"{name}_bodies.xml",
+        CASPR / SPATIAL_MODELS[name] / f"{name}_cables.xml",
+        result.cable_set,
+    )
+    h = 1e-6
+    euler_rows = np.zeros((3, robot.nv))
+    for k in range(robot.nv):
+        step = np.zeros(robot.nv)
+        step[k] = h
+        plus = _caspr_pose_euler(reference.frames(_caspr_q(result, natural + step))[0][0])
+        minus = _caspr_pose_euler(reference.frames(_caspr_q(result, natural - step))[0][0])
+        euler_rows[:, k] = (plus - minus) / (2 * h)
+    assert np.max(np.abs(euler_rows - lin.C[3:, : robot.nv])) > 0.02
+    c_euler = lin.C.copy()
+    c_euler[3:, : robot.nv] = euler_rows
+    poc_euler = cdpm.positive_output_controllability(
+        lin.A, lin.B_cone, c_euler, sign_constrained=lin.sign_constrained
+    )
+    assert poc_euler.verdict == poc.verdict

@@ -31,10 +31,16 @@ the cdpm coordinates are exactly CASPR's q (same values, same singularities;
 only ``S_FIXED_XYZ`` lists its three angles in reverse order). See
 ``docs/caspr.md`` for the full mapping and what is refused or ignored.
 
+Operational spaces become outputs: position axes the world coordinates of
+the operational point [m], orientation axes (CASPR's Euler angles a, b, g)
+the world components rx, ry, rz of the link frame's rotation vector [rad],
+whose C rows are CASPR's own Jacobian rows (the world angular velocity).
+
 Layout: ``_xml`` reads and validates the XML files into plain records,
-``_urdf`` turns bodies and joints into the URDF, ``_spec`` turns cables,
-outputs and the named pose into the cable spec; :func:`import_caspr` here
-runs them in that order. Thresholds live in :mod:`cdpm.numerics`.
+``_urdf`` turns bodies and joints into the URDF, ``_spec`` turns cables and
+the named pose into the cable spec and checks its outputs; :func:`import_caspr`
+here runs them in that order and writes the outputs. Thresholds live in
+:mod:`cdpm.numerics`.
 """
 
 from __future__ import annotations
@@ -56,9 +62,11 @@ from cdpm.caspr._spec import (
     _output_rank_deficit,
     _point_entry,
 )
-from cdpm.caspr._urdf import _build_urdf, _op_frames, _slug
+from cdpm.caspr._urdf import _build_urdf, _op_slugs
 from cdpm.caspr._xml import (
     JOINT_CHAINS,
+    OPERATIONAL_SPACE_TYPES,
+    _OpSpace,
     _read_bodies,
     _read_cables,
     _read_operational_spaces,
@@ -72,6 +80,7 @@ __all__ = [
     "import_caspr",
     "cable_sets",
     "JOINT_CHAINS",
+    "OPERATIONAL_SPACE_TYPES",
     "GRAVITY",
 ]
 
@@ -94,6 +103,12 @@ class CasprImport:
         n_links: number of CASPR links.
         cable_names: names of the cables, in spec order.
         output_names: names of the spec outputs.
+        output_units: unit of each output: ``"m"`` (world coordinate of a
+            point) or ``"rad"`` (world component of a link frame's rotation
+            vector).
+        output_sources: for each output, what it is and the CASPR element it
+            comes from: ``"world x of frame op_ee (CASPR <position> 'ee' axis
+            'x')"``.
         coordinates: for each cdpm coordinate (tangent-space order), the
             CASPR coordinate it is: ``"joint2_rx <- link 2 'Lower Arm' q[1]"``.
         caspr_coordinates: for each cdpm coordinate, (CASPR link number,
@@ -116,6 +131,8 @@ class CasprImport:
     pose_name: str
     pose: np.ndarray
     warnings: tuple[str, ...] = field(default=())
+    output_units: tuple[str, ...] = field(default=())
+    output_sources: tuple[str, ...] = field(default=())
 
     def as_dict(self) -> dict:
         """JSON-serialisable content."""
@@ -128,6 +145,8 @@ class CasprImport:
             "n_links": self.n_links,
             "cables": list(self.cable_names),
             "outputs": list(self.output_names),
+            "output_units": list(self.output_units),
+            "output_sources": list(self.output_sources),
             "coordinates": list(self.coordinates),
             "pose": {self.pose_name: self.pose.tolist()},
             "warnings": list(self.warnings),
@@ -144,6 +163,13 @@ class CasprImport:
             f"  pose {self.pose_name!r}: {np.round(self.pose, 6).tolist()}",
             "  coordinates:",
             *(f"    {c}" for c in self.coordinates),
+            "  outputs:",
+            *(
+                f"    {n} [{u}]: {s}"
+                for n, u, s in zip(
+                    self.output_names, self.output_units, self.output_sources, strict=True
+                )
+            ),
         ]
         if self.warnings:
             lines.append(f"  {len(self.warnings)} warning(s):")
@@ -176,10 +202,14 @@ def import_caspr(
             ``default_cable_set``.
         operational_spaces_xml: CASPR operational spaces file; default
             ``<name>_operational_spaces.xml`` beside the bodies file, if any.
-        operational_set: id of the operational set whose position components
-            become outputs; default the file's default set, else its first.
-            With no position outputs, the outputs are the world coordinates
-            of the last link's end point that the joints can move.
+        operational_set: id of the operational set whose components become
+            outputs; default the file's default set, else its first.
+            Position axes ``x y z`` become world coordinates of the
+            operational point [m], orientation axes ``a b g`` the world
+            components ``rx ry rz`` of the link frame's rotation vector [rad]
+            (``docs/caspr.md`` relates them to CASPR's Euler angles). With no
+            outputs from it, the outputs are the world coordinates of the
+            last link's end point that the joints can move.
         name: model name for the files; default the bodies file name without
             ``_bodies.xml``.
         seed: seed of the search for a pose when CASPR's ``q_initial`` has a
@@ -224,29 +254,31 @@ def import_caspr(
         ops_path = candidate if candidate.is_file() else None
     else:
         ops_path = Path(operational_spaces_xml).expanduser().resolve()
-    op_set, op_points = (None, [])
+    op_set, op_spaces = (None, [])
     if ops_path is not None:
-        op_set, op_points = _read_operational_spaces(ops_path, operational_set, len(links), warn)
+        op_set, op_spaces = _read_operational_spaces(ops_path, operational_set, len(links), warn)
     elif operational_set is not None:
         raise InputError(
             f"operational set {operational_set!r} asked for, but no operational spaces file "
             f"(looked for {bodies_path.with_name(f'{stem}_operational_spaces.xml')})"
         )
 
-    urdf, dofs = _build_urdf(model_name, links, op_points)
+    urdf, dofs = _build_urdf(model_name, links, op_spaces)
     out.mkdir(parents=True, exist_ok=True)
     urdf_path = out / f"{model_name}.urdf"
     spec_path = out / f"{model_name}.yaml"
     urdf.write_xml_file(str(urdf_path))
 
-    outputs = []
-    for op, frame in zip(op_points, _op_frames(op_points), strict=True):
-        for axis in op.axes:
-            outputs.append({"name": f"{_slug(op.name)}_{axis}", "frame": frame, "component": axis})
+    outputs, sources = _operational_outputs(op_spaces)
     default_outputs = not outputs
     if default_outputs:
         tip = f"link{links[-1].num}_end"
         outputs = [{"name": f"{tip}_{a}", "frame": tip, "component": a} for a in "xyz"]
+        sources = [
+            f"world {a} of frame {tip} (end point of link {links[-1].num}; no operational "
+            "space output)"
+            for a in "xyz"
+        ]
 
     description = (
         f"CASPR model {stem}: {len(links)} link(s) "
@@ -296,8 +328,9 @@ def import_caspr(
     if default_outputs:
         keep = _moving_components(robot, lower, upper, seed)
         spec["outputs"] = [o for o, k in zip(outputs, keep, strict=True) if k]
+        sources = [s for s, k in zip(sources, keep, strict=True) if k]
         warn(
-            f"{bodies_path}: no position operational space; outputs are the world "
+            f"{bodies_path}: no operational space outputs; outputs are the world "
             f"{''.join(o['component'] for o in spec['outputs']) or '(none)'} coordinates of "
             f"the end point of link {links[-1].num} ({links[-1].name!r})"
         )
@@ -328,4 +361,30 @@ def import_caspr(
         pose_name=pose_name,
         pose=natural,
         warnings=tuple(collected),
+        output_units=robot.output_units,
+        output_sources=tuple(sources),
     )
+
+
+def _operational_outputs(op_spaces: list[_OpSpace]) -> tuple[list[dict], list[str]]:
+    """Spec output entries of the operational spaces, and what each one is.
+
+    A position component ``c`` of operational space ``name`` is the world
+    coordinate ``c`` of frame ``op_<name>`` (the operational point), output
+    ``<name>_c`` [m]; an orientation component ``rc`` is the world component
+    of link k's rotation vector, output ``<name>_rc`` [rad].
+    """
+    outputs: list[dict] = []
+    sources: list[str] = []
+    for op, slug in zip(op_spaces, _op_slugs(op_spaces), strict=True):
+        for component, letter in zip(op.components, op.letters, strict=True):
+            origin = f"CASPR <{op.tag}> {op.name!r} axis {letter!r}"
+            if component.startswith("r"):
+                frame = f"link{op.link}"
+                what = f"world {component[1]} component of the rotation vector of frame {frame}"
+            else:
+                frame = f"op_{slug}"
+                what = f"world {component} of frame {frame}"
+            outputs.append({"name": f"{slug}_{component}", "frame": frame, "component": component})
+            sources.append(f"{what} ({origin})")
+    return outputs, sources

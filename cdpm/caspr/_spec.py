@@ -150,8 +150,10 @@ def _output_rank_deficit(robot: CableRobot, natural, lower, upper, seed, links) 
             keep.append(i)
     names = robot.output_names
     why = "the joints cannot move them independently"
+    if p > robot.nv:
+        why += f" (the model has only {robot.nv} coordinate(s))"
     spherical = [k.name for k in links if k.joint_type in _SPHERICAL_JOINTS]
-    if spherical:
+    if spherical and not all(o.has_rotation for o in robot.spec.outputs):
         why += (
             f" (link {spherical[0]!r} turns about a spherical joint: a point on it moves on a "
             "sphere and never along its radius)"
@@ -161,5 +163,5 @@ def _output_rank_deficit(robot: CableRobot, natural, lower, upper, seed, links) 
         f"pose: {why}. So output controllability fails and positive output controllability "
         f"is NO at every pose. Keep {rank} output(s) that move independently in the spec's "
         f"outputs (e.g. {', '.join(names[i] for i in keep)}), or give an operational space "
-        f"(<name>_operational_spaces.xml) with at most {rank} independent position components"
+        f"(<name>_operational_spaces.xml) with at most {rank} independent components"
     )

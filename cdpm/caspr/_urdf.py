@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cdpm.caspr._xml import JOINT_CHAINS, _Link, _OpPoint
+from cdpm.caspr._xml import JOINT_CHAINS, _Link, _OpSpace
 from cdpm.errors import MissingExtraError
 from cdpm.numerics import CASPR_UNBOUNDED_PRISMATIC
 
@@ -31,8 +31,13 @@ class _Dof:
     kind: str
 
 
-def _build_urdf(name: str, links: list[_Link], op_points: list[_OpPoint]):
-    """yourdfpy Robot and the 1-DOF joints in chain order."""
+def _build_urdf(name: str, links: list[_Link], op_spaces: list[_OpSpace]):
+    """yourdfpy Robot and the 1-DOF joints in chain order.
+
+    Each operational space with position components gets a fixed frame
+    ``op_<name>`` on its link at its offset; orientation components use the
+    link frame ``link<k>`` itself.
+    """
     try:
         import yourdfpy
     except ImportError as exc:  # pragma: no cover - depends on the environment
@@ -100,7 +105,10 @@ def _build_urdf(name: str, links: list[_Link], op_points: list[_OpPoint]):
                 origin=transform(link.end),
             )
         )
-    for op, frame in zip(op_points, _op_frames(op_points), strict=True):
+    for op, slug in zip(op_spaces, _op_slugs(op_spaces), strict=True):
+        if not op.has_position:
+            continue
+        frame = f"op_{slug}"
         urdf_links.append(yourdfpy.Link(name=frame))
         urdf_joints.append(
             yourdfpy.Joint(
@@ -115,12 +123,13 @@ def _build_urdf(name: str, links: list[_Link], op_points: list[_OpPoint]):
     return yourdfpy.URDF(robot=robot, build_scene_graph=False, load_meshes=False), dofs
 
 
-def _op_frames(op_points: list[_OpPoint]) -> list[str]:
-    frames, used = [], set()
-    for op in op_points:
-        frame = f"op_{_slug(op.name)}"
-        while frame in used:
-            frame += "_"
-        used.add(frame)
-        frames.append(frame)
-    return frames
+def _op_slugs(op_spaces: list[_OpSpace]) -> list[str]:
+    """A distinct name per operational space: the slug of its CASPR name
+    (``op_<slug>`` is its point's frame, ``<slug>_<component>`` its outputs)."""
+    slugs: list[str] = []
+    for op in op_spaces:
+        slug = _slug(op.name)
+        while slug in slugs:
+            slug += "_"
+        slugs.append(slug)
+    return slugs

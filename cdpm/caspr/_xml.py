@@ -2,7 +2,7 @@
 
 The files are read with the standard library's XML parser (nothing is
 executed and no external DTD or entity is fetched) into plain records
-(:class:`_Link`, :class:`_Cable`, :class:`_OpPoint`). Everything cdpm cannot
+(:class:`_Link`, :class:`_Cable`, :class:`_OpSpace`). Everything cdpm cannot
 represent is refused here with an error naming the element and the file;
 what is ignored is passed to ``warn``.
 """
@@ -108,11 +108,33 @@ class _Cable:
 
 
 @dataclass(frozen=True)
-class _OpPoint:
+class _OpSpace:
+    """One CASPR operational space, as the cdpm output components it becomes.
+
+    Attributes:
+        name: CASPR's ``name`` attribute (or ``op<k>``).
+        tag: the CASPR element (``position``, ``orientation_euler_xyz``,
+            ``pose_euler_xyz``).
+        link: CASPR link number (>= 1).
+        offset: the operational point from the link's joint point P, in link
+            axes [m], shape (3,) (zeros for an orientation).
+        components: cdpm components in CASPR's order (``x``, ``y``, ``z`` of
+            the point; ``rx``, ``ry``, ``rz`` of the link frame).
+        letters: CASPR's axis letter of each component (``x``, ``y``, ``z``,
+            ``a``, ``b``, ``g``).
+    """
+
     name: str
+    tag: str
     link: int
     offset: np.ndarray
-    axes: str
+    components: tuple[str, ...]
+    letters: tuple[str, ...]
+
+    @property
+    def has_position(self) -> bool:
+        """Some component is a coordinate of the operational point."""
+        return any(c in ("x", "y", "z") for c in self.components)
 
 
 def _parse_xml(path: Path, what: str) -> ET.Element:
@@ -435,9 +457,70 @@ def _read_cables(path: Path, cable_set: str | None, n_links: int, warn) -> tuple
     return chosen, cables
 
 
+#: CASPR's axis letters -> cdpm output components (``OperationalPosition``,
+#: ``OperationalOrientationEulerXYZ``, ``OperationalPoseEulerXYZ``): a, b, g
+#: select rows 4-6 of a link's world twist, the world angular velocity.
+_POSITION_LETTERS = {"x": "x", "y": "y", "z": "z"}
+_ORIENTATION_LETTERS = {"a": "rx", "b": "ry", "g": "rz"}
+#: CASPR operational space element -> the axis letters it accepts.
+OPERATIONAL_SPACE_TYPES: dict[str, dict[str, str]] = {
+    "position": _POSITION_LETTERS,
+    "orientation_euler_xyz": _ORIENTATION_LETTERS,
+    "pose_euler_xyz": {**_POSITION_LETTERS, **_ORIENTATION_LETTERS},
+}
+#: ``<selection_matrix>`` children (older CASPR files), in CASPR's row order.
+_SELECTION_TAGS = (("sx", "x"), ("sy", "y"), ("sz", "z"), ("sa", "a"), ("sb", "b"), ("sg", "g"))
+
+
+def _selected_letters(el: ET.Element, path: Path, where: str, warn) -> str | None:
+    """Axis letters of an operational space, in CASPR's order, or None when
+    it names none (then ``warn`` was told why)."""
+    axes_el = el.find("axes")
+    axes = axes_el.get("active_axes") if axes_el is not None else None
+    selection_el = el.find("selection_matrix")
+    if selection_el is None:
+        if axes is None:
+            warn(
+                f"{path}: {where}: no <axes active_axes=...> (CASPR requires it); "
+                "no outputs from it"
+            )
+            return None
+        return axes.strip().lower()
+    # Older CASPR files: a diagonal <selection_matrix> of 0/1 entries that
+    # selects rows of [x y z a b g] (CASPR kept the rows whose entry is nonzero).
+    letters = ""
+    for tag, letter in _SELECTION_TAGS:
+        child = selection_el.find(tag)
+        if child is None:
+            continue
+        value = _numbers(child.text or "", path, f"{where} <selection_matrix><{tag}>", 1)[0]
+        if value not in (0.0, 1.0):
+            warn(
+                f"{path}: {where}: <selection_matrix><{tag}> is {value:g}; CASPR only uses "
+                f"it to select the component, so {letter!r} is "
+                f"{'kept with weight 1' if value else 'left out'}"
+            )
+        if value != 0.0:
+            letters += letter
+    if axes is not None and sorted(axes.strip().lower()) != sorted(letters):
+        warn(
+            f"{path}: {where}: active_axes {axes!r} and <selection_matrix> ({letters!r}) "
+            "disagree; the selection matrix is used, as CASPR did when it read both"
+        )
+    return letters
+
+
 def _read_operational_spaces(
     path: Path, operational_set: str | None, n_links: int, warn
-) -> tuple[str | None, list[_OpPoint]]:
+) -> tuple[str | None, list[_OpSpace]]:
+    """The operational spaces of one set, each with the components it keeps.
+
+    Position letters ``x y z`` become world coordinates of the operational
+    point; orientation letters ``a b g`` become the world components ``rx ry
+    rz`` of the link frame's rotation vector (see docs/caspr.md for how they
+    relate to CASPR's Euler angles). What cannot be kept is passed to
+    ``warn`` with what was done.
+    """
     root = _parse_xml(path, "operational spaces")
     sets = {s.get("id", ""): s for s in root.findall("operational_set")}
     chosen = operational_set
@@ -449,26 +532,36 @@ def _read_operational_spaces(
         raise InputError(
             f"{path}: operational set {chosen!r} not found; sets: {', '.join(sets) or 'none'}"
         )
-    points: list[_OpPoint] = []
+    spaces: list[_OpSpace] = []
     for el in sets[chosen]:
+        if not isinstance(el.tag, str):  # comments, processing instructions
+            continue
         where = f"{_describe(el)} in operational set {chosen!r}"
-        axes = (
-            el.find("axes").get("active_axes", "") if el.find("axes") is not None else ""
-        ).lower()
-        if el.tag == "orientation_euler_xyz":
-            warn(f"{path}: {where}: orientation outputs are not supported by cdpm; ignored")
-            continue
-        if el.tag not in ("position", "pose_euler_xyz"):
-            warn(f"{path}: {where}: operational space <{el.tag}> not supported; ignored")
-            continue
-        position_axes = "".join(a for a in axes if a in "xyz")
-        if len(position_axes) != len(axes):
+        accepted = OPERATIONAL_SPACE_TYPES.get(el.tag)
+        if accepted is None:
             warn(
-                f"{path}: {where}: orientation components "
-                f"{''.join(a for a in axes if a not in 'xyz')!r} ignored; "
-                f"position components {position_axes!r} kept"
+                f"{path}: {where}: operational space <{el.tag}> is not a CASPR type cdpm "
+                f"can represent (known: {', '.join(OPERATIONAL_SPACE_TYPES)}); it gives no "
+                "outputs. Replace it with one of those, e.g. <pose_euler_xyz> with "
+                'active_axes="xyzabg" for the full pose'
             )
-        if not position_axes:
+            continue
+        letters = _selected_letters(el, path, where, warn)
+        if letters is None:
+            continue
+        kept: list[str] = []
+        for letter in letters:
+            if letter not in accepted:
+                warn(
+                    f"{path}: {where}: axis {letter!r} is not one of <{el.tag}>'s axes "
+                    f"({', '.join(accepted)}); left out"
+                )
+            elif letter in kept:
+                warn(f"{path}: {where}: axis {letter!r} repeated; kept once")
+            else:
+                kept.append(letter)
+        if not kept:
+            warn(f"{path}: {where}: no valid axis selected; it gives no outputs")
             continue
         try:
             link = int(_text(el, "link", path, where))
@@ -479,15 +572,17 @@ def _read_operational_spaces(
         offset_el = el.find("offset")
         offset = (
             np.array(_numbers(offset_el.text or "", path, where, 3))
-            if offset_el is not None
+            if offset_el is not None and el.tag != "orientation_euler_xyz"
             else np.zeros(3)
         )
-        points.append(
-            _OpPoint(
-                name=el.get("name") or f"op{len(points) + 1}",
+        spaces.append(
+            _OpSpace(
+                name=el.get("name") or f"op{len(spaces) + 1}",
+                tag=el.tag,
                 link=link,
                 offset=offset,
-                axes=position_axes,
+                components=tuple(accepted[a] for a in kept),
+                letters=tuple(kept),
             )
         )
-    return chosen, points
+    return chosen, spaces

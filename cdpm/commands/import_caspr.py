@@ -14,8 +14,12 @@ Read a CASPR model (<name>_bodies.xml and <name>_cables.xml, plus
 <name>_operational_spaces.xml beside them if present) and write <name>.urdf
 and <name>.yaml into --out. The spec loads with cdpm.load_robot and carries
 CASPR's gravity (-z), the cables of one cable set with their force bounds,
-outputs from the operational space, and CASPR's q_initial as pose 'initial'.
-Multi-DOF joints become chains of 1-DOF joints with CASPR's own coordinates.
+outputs from one operational set, and CASPR's q_initial as pose 'initial'.
+Position axes x, y, z become world coordinates of the operational point [m];
+orientation axes a, b, g become rx, ry, rz, the world components of the link
+frame's rotation vector [rad] (not CASPR's Euler angles; see docs/caspr.md).
+The summary lists every output with its unit. Multi-DOF joints become chains
+of 1-DOF joints with CASPR's own coordinates.
 Pulleys, passive springs, actuated (hybrid) joints and quaternion joints are
 refused with an error naming the element; ignored details are printed as
 warnings. The mapping is documented in docs/caspr.md."""
@@ -24,6 +28,8 @@ examples:
   cdpm import-caspr BMArm_bodies.xml BMArm_cables.xml --out models/BMArm
   cdpm import-caspr IPAnema_1_bodies.xml IPAnema_1_cables.xml --out ipanema \\
       --cable-set IROS_CASPR_2016
+  cdpm import-caspr SJTUSnake_bodies.xml SJTUSnake_cables.xml --out snake \\
+      --operational-set tip_pose        # tip position and orientation
   cdpm analyze models/BMArm/BMArm.yaml --pose initial"""
 
 
@@ -44,7 +50,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--operational-set",
         metavar="ID",
-        help="operational set whose position components become outputs (default: the file's)",
+        help="operational set whose components become outputs: x y z [m], a b g as rx ry rz "
+        "[rad] (default: the file's)",
     )
     parser.add_argument("--name", help="model name for the files (default: from BODIES)")
     parser.add_argument(
