@@ -1,7 +1,7 @@
 """URDF files read safely and checked before Pinocchio builds a model.
 
-The URDF is parsed with :mod:`defusedxml` (no DTDs, entities or external
-references: they can expand without bound or read other files), and every
+The URDF is parsed with :mod:`defusedxml` (no entity declarations or
+external references: they can expand without bound or read other files), and every
 number Pinocchio would read (origins, masses, inertias, axes, limits,
 dynamics) is checked to be finite and of the right length, so a broken file
 gives a :class:`~cdpm.errors.SpecError` that names the element instead of
@@ -54,12 +54,12 @@ def read_urdf(path: Path):
     except OSError as exc:
         return None, [f"cannot read {path}: {exc.strerror or exc}"]
     try:
-        root = fromstring(text, forbid_dtd=True)
+        root = fromstring(text)
     except DefusedXmlException:
         return None, [
-            f"{path.name} declares a DTD or entities (<!DOCTYPE ...>), which cdpm does not "
-            "read because they can expand without bound or read other files; remove the "
-            "DOCTYPE block and write the values out"
+            f"{path.name} declares entities or external references (in <!DOCTYPE ...>), "
+            "which cdpm does not read because they can expand without bound or read other "
+            "files; remove them and write the values out"
         ]
     except ParseError as exc:
         return None, [f"{path.name} is not well-formed XML: {exc}"]

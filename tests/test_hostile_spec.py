@@ -113,7 +113,7 @@ _URDF = (MODEL / "two_link_planar.urdf").read_text()
         (
             '<?xml version="1.0"?>\n<!DOCTYPE robot [<!ENTITY a "aaaa">'
             '<!ENTITY b "&a;&a;&a;&a;">]>' + _URDF.split("?>", 1)[1],
-            "declares a DTD or entities",
+            "declares entities or external references",
         ),
         (_URDF.replace('name="link1"', 'name="&undefined;"', 1), "undefined entity"),
         (re.sub(r'<mass value="[^"]*"', '<mass value="heavy"', _URDF, count=1), "not a number"),
@@ -163,3 +163,17 @@ def test_far_output_point_is_a_model_error(tmp_path):
     )
     with pytest.raises(cdpm.ModelError, match="lies 1e\\+300 m from its frame"):
         cdpm.load_robot(_spec(tmp_path, text))
+
+
+def test_caspr_xml_with_entities_is_refused(tmp_path):
+    from cdpm.caspr import import_caspr
+
+    bomb = (
+        '<?xml version="1.0"?>\n<!DOCTYPE bodies_system [<!ENTITY a "aaaaaaaa">'
+        '<!ENTITY b "&a;&a;&a;&a;&a;&a;&a;&a;">]>\n<bodies_system>&b;</bodies_system>\n'
+    )
+    bodies, cables = tmp_path / "x_bodies.xml", tmp_path / "x_cables.xml"
+    bodies.write_text(bomb)
+    cables.write_text(bomb.replace("bodies_system", "cables"))
+    with pytest.raises(cdpm.InputError, match="declares entities or external references"):
+        import_caspr(bodies, cables, tmp_path / "out")

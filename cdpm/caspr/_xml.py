@@ -137,15 +137,41 @@ class _OpSpace:
         return any(c in ("x", "y", "z") for c in self.components)
 
 
+#: largest CASPR XML file read [bytes]
+MAX_CASPR_XML_BYTES = 20_000_000
+
+
 def _parse_xml(path: Path, what: str) -> ET.Element:
-    if not path.is_file():
-        raise InputError(f"CASPR {what} file not found: {path}")
+    """Parse a CASPR file with defusedxml: entity declarations and external
+    references are refused (they can expand without bound or read files);
+    the ``<!DOCTYPE ... SYSTEM "...dtd">`` line CASPR's files carry is
+    allowed and not followed."""
+    from defusedxml import DefusedXmlException
+    from defusedxml.ElementTree import fromstring
+
     try:
-        return ET.parse(path).getroot()
+        if not path.is_file():
+            raise InputError(f"CASPR {what} file not found: {path}")
+        size = path.stat().st_size
+        if size > MAX_CASPR_XML_BYTES:
+            raise InputError(
+                f"{path}: {size:,} bytes, more than the {MAX_CASPR_XML_BYTES:,} read for a "
+                f"CASPR {what} file"
+            )
+        text = path.read_bytes()
+    except OSError as exc:
+        raise InputError(f"cannot read {path}: {exc.strerror or exc}") from None
+    try:
+        return fromstring(text)
+    except DefusedXmlException:
+        raise InputError(
+            f"{path}: declares entities or external references, which cdpm does not read "
+            "because they can expand without bound or read other files; write the values out"
+        ) from None
     except ET.ParseError as exc:
         raise InputError(
             f"{path}: not well-formed XML ({exc}); expected a CASPR {what} file"
-        ) from exc
+        ) from None
 
 
 def _describe(element: ET.Element) -> str:
