@@ -57,7 +57,7 @@ def main() -> None:
             err_b = max(err_b, relative_error(lin.B, fd_input_matrix(robot, q, lin.tension)))
             resid = max(resid, equilibrium_tension(robot, q).residual)
         print(
-            f"{spec.parent.name:<24} {min(loads):>9.3f} {err_a:>14.2e} {err_b:>14.2e} "
+            f"{spec.stem:<24} {min(loads):>9.3f} {err_a:>14.2e} {err_b:>14.2e} "
             f"{resid:>13.2e} {1e3 * np.median(times):>15.2f}"
         )
 

@@ -16,6 +16,7 @@ end and its label says what was clipped.
 
 from __future__ import annotations
 
+import json
 import math
 from dataclasses import dataclass
 
@@ -79,6 +80,16 @@ def _attr(ds, name: str, key: str):
     return value if math.isfinite(value) else None
 
 
+def _budget_used(ds) -> bool:
+    """Some cable of the map has no upper tension bound (so the tension
+    budget plays a part in r_T); True when the map does not say."""
+    try:
+        bounds = json.loads(ds.attrs["cable_tension_bounds"])
+        return any(not math.isfinite(float(high)) for _, high in bounds.values())
+    except (KeyError, TypeError, ValueError):
+        return True
+
+
 def margin_scale(ds) -> MarginScale | None:
     """The margin variable of ``ds`` and its labels (None without one)."""
     if "reach_margin" in ds:
@@ -87,7 +98,7 @@ def margin_scale(ds) -> MarginScale | None:
         budget = _attr(ds, "reach_margin", "tension_budget")
         within = f" within $T$ = {horizon:.3g} s" if horizon is not None else ""
         title = f"reach margin $r_T$ [{units}]{within} (log scale)"
-        if budget is not None:
+        if budget is not None and _budget_used(ds):
             # bounded cables use their own bounds (docs/analysis.md)
             title += f"\ntension changes up to ±{budget:.3g} N\nfor cables without an upper bound"
         return MarginScale(

@@ -7,6 +7,11 @@ What is plotted (:func:`choose_outputs`):
 - two outputs: the first against the second;
 - ``FRAME.x`` / ``FRAME.y`` / ``FRAME.z``: a world coordinate of the first
   output's frame (``output_frame_position``), labelled as a frame position.
+
+Each axis is labelled with the output's name and unit (``y``'s
+``output_units``: [m] for positions and lengths, [rad] for rotations and
+revolute joints) and, for an output that is not one component of a frame,
+its formula (``output_formulas``).
 """
 
 from __future__ import annotations
@@ -49,7 +54,37 @@ def _frame_names(ds) -> list[str]:
     if "output_frame_position" not in ds:
         return []
     frame = ds["output_frame_position"].attrs.get("frame", "frame")
+    if not frame:  # no output is drawn at a frame (joints and cables only)
+        return []
     return [f"{frame}.{c}" for c in "xyz"]
+
+
+def _output_unit(ds, name: str) -> str | None:
+    """The unit of output ``name``: its entry of ``y``'s ``output_units``,
+    else ``y``'s ``units`` (maps made before outputs had their own)."""
+    attrs = ds["y"].attrs
+    units = attrs.get("output_units")
+    outs = _output_names(ds)
+    if units is not None and len(units) == len(outs):
+        return str(units[outs.index(name)])
+    return attrs.get("units")
+
+
+def _output_formula(ds, name: str) -> str:
+    """The formula of output ``name`` (e.g. ``joint elbow``), or "" for one
+    component of a frame (its name says what it is)."""
+    formulas = ds["y"].attrs.get("output_formulas")
+    outs = _output_names(ds)
+    if formulas is None or len(formulas) != len(outs):
+        return ""
+    return str(formulas[outs.index(name)])
+
+
+def _unit(ds, name: str) -> str | None:
+    """The unit of an output or a frame coordinate (``FRAME.c``)."""
+    if name in _output_names(ds):
+        return _output_unit(ds, name)
+    return ds["output_frame_position"].attrs.get("units", "m")
 
 
 def choose_outputs(ds, outputs) -> OutputChoice | None:
@@ -101,8 +136,10 @@ def _values(ds, name: str, pose_dims: tuple) -> tuple[np.ndarray, str]:
     axis label of an output or a frame coordinate."""
     if name in _output_names(ds):
         values = ds["y"].sel(output=name).transpose(*pose_dims).values
-        units = ds["y"].attrs.get("units")
-        label = f"output {name}" + (f" [{units}]" if units else "")
+        units = _output_unit(ds, name)
+        formula = _output_formula(ds, name)
+        label = f"output {name}" + (f" = {formula}" if formula else "")
+        label += f" [{units}]" if units else ""
     else:
         frame, _, component = name.rpartition(".")
         values = ds["output_frame_position"].sel(xyz=component).transpose(*pose_dims).values
@@ -159,7 +196,7 @@ def output_panel(ax, ds, variable: str, choice: OutputChoice, first_axis: str) -
             )
     ax.set_xlabel(x_label)
     ax.set_ylabel(y_label)
-    if len(choice.names) == 2:
-        ax.set_aspect("equal", adjustable="datalim")
+    if len(choice.names) == 2 and _unit(ds, choice.names[0]) == _unit(ds, choice.names[1]):
+        ax.set_aspect("equal", adjustable="datalim")  # the same unit on both axes
     ax.set_title(f"{what},\ncoloured by {verdict_title(variable)}", fontsize=10)
     legend_below(ax, verdict_handles(codes), ncol=4)

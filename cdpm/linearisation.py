@@ -79,7 +79,12 @@ class Linearisation:
         A: state matrix, shape (2 nv, 2 nv); state ``(dq, dq')`` in the
             tangent space (``q = pin.integrate(q*, dq)``).
         B: input matrix, shape (2 nv, m); input = change of cable tension [N].
-        C: output matrix, shape (p, 2 nv).
+        C: output matrix, shape (p, 2 nv): ``[J, 0]`` with J the output
+            Jacobian (``output_jacobian`` with round-off entries zeroed).
+            Each output's rate is in its unit per second (``output_units``
+            of the robot); rows of rotation components are the frame's
+            angular velocity about the world axes, the derivative of
+            ``log3(R(q* + dq) R(q*)^T)`` (docs/outputs.md).
         tension: equilibrium cable tensions f* [N], shape (m,).
         sign_constrained: True for cables whose tension change has one sign:
             at their lower bound (slack; du >= 0) or, rarely, at their upper
@@ -88,9 +93,12 @@ class Linearisation:
         q: configuration vector of the equilibrium, shape (nq,).
         mass_matrix: M(q*), shape (nv, nv).
         cable_jacobian: L(q*), shape (m, nv).
-        output_jacobian: dh/dq at q*, shape (p, nv).
+        output_jacobian: dh/dq at q*, shape (p, nv) (rotation rows: world
+            angular velocity rows, as in C).
         stiffness: K = dq''/dq at the equilibrium, shape (nv, nv) [1/s^2].
-        output: y* = h(q*), shape (p,).
+        output: y* = h(q*), shape (p,), each in its output's unit (metres,
+            radians: a rotation component is one of the frame's world
+            rotation vector log3(R), docs/outputs.md).
         cable_names, output_names, state_names: labels of inputs, outputs, states.
         rate_stiffness: K_v = dq''/dq' = -M^-1 D, shape (nv, nv) [1/s];
             zero unless the URDF gives joint damping.
@@ -307,16 +315,25 @@ class LinearisationBatch:
 
 
 def output_jacobian_rounded(robot: CableRobot, jacobian: np.ndarray) -> np.ndarray:
-    """dh/dq (..., p, nv) with entries below OUTPUT_JACOBIAN_ZERO_RTOL times
-    the robot's size [m] set to exactly 0: round-off of forward kinematics
-    (e.g. the tip of a folded arm on its shoulder, where dh/dq is 1e-16
-    while the arm is metres long) is not an output direction. The analysis
-    only judges rows against each other, so a single round-off row would
-    otherwise count as full output rank."""
-    from cdpm.reach import robot_size
+    """dh/dq (..., p, nv) with round-off entries set to exactly 0.
 
-    floor = OUTPUT_JACOBIAN_ZERO_RTOL * robot_size(robot)
-    return np.where(np.abs(jacobian) <= floor, 0.0, jacobian)
+    Round-off of forward kinematics (e.g. the tip of a folded arm on its
+    shoulder, where dh/dq is 1e-16 while the arm is metres long) is not an
+    output direction. The analysis only judges rows against each other, so
+    a single round-off row would otherwise count as full output rank.
+
+    An entry of output row k is round-off when it is at most
+    OUTPUT_JACOBIAN_ZERO_RTOL times that row's scale
+    (:func:`cdpm.reach.output_scales`): the sum over the output's terms of
+    ``|weight|`` times the robot's size [m] for terms in metres (positions,
+    cable lengths, prismatic joints) or times 1 for terms in radians
+    (rotations, revolute joints), i.e. the row's size per radian of joint
+    motion. A rotation row, whose entries are of order 1, is so not judged
+    against a length."""
+    from cdpm.reach import output_scales
+
+    floor = OUTPUT_JACOBIAN_ZERO_RTOL * output_scales(robot)
+    return np.where(np.abs(jacobian) <= floor[:, None], 0.0, jacobian)
 
 
 def input_cone_scale(input_sign: np.ndarray, pinned: np.ndarray) -> np.ndarray:

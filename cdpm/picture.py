@@ -6,9 +6,13 @@ and without a browser (for papers, the README, CI artefacts): the links
 output points it carries; joints as rings, centres of mass as dots), base
 anchors (black squares), attachment points, the cables coloured by state
 (taut: solid, blue to navy with tension; slack: dashed pink; unavailable:
-dotted grey), the output points (a star coloured by the POC verdict, named
-by the outputs measured there) and the verdict in the title. matplotlib is
-imported only here (``pip install "cdpm[viz]"``); no GUI backend is used.
+dotted grey), the outputs (:mod:`cdpm.viewer.outputs`: a star coloured by
+the POC verdict on each output point, named by the outputs drawn there; the
+axes of the frame of an orientation output, x red, y green, z blue; a halo
+in the verdict colour along a cable whose length is an output; a joint
+output's name beside its joint; the values of joint and cable outputs in
+the legend) and the verdict in the title. matplotlib is imported only here (``pip install
+"cdpm[viz]"``); no GUI backend is used.
 """
 
 from __future__ import annotations
@@ -21,6 +25,7 @@ import numpy as np
 
 from cdpm.errors import InputError, MissingExtraError
 from cdpm.viewer.state import (
+    AXIS_RGB,
     COLORS,
     CableState,
     PoseGeometry,
@@ -31,6 +36,7 @@ from cdpm.viewer.state import (
     link_segments,
     pose_state,
     tension_scale,
+    with_unit,
 )
 
 __all__ = ["render_pose", "check_picture_path", "PLANES"]
@@ -45,6 +51,8 @@ _CABLE_STYLE = {
 }
 #: a taut cable is drawn wider, so a slack one on the same line shows inside it
 _CABLE_WIDTH = {CableState.TAUT: 3.2, CableState.SLACK: 1.8, CableState.UNAVAILABLE: 1.8}
+#: length of an orientation output's axes, as a fraction of the scene's extent
+_TRIAD_SIZE = 0.15
 
 
 def _import_matplotlib():
@@ -127,6 +135,7 @@ def render_pose(
     everything = np.concatenate([joints, out, *cable_points, np.zeros((1, 3))])
     plane = _choose_plane(plane, everything)
     h, v = PLANES[plane]
+    drawing = geometry.drawing
 
     if ax is None:
         fig = Figure(figsize=figsize, dpi=dpi)
@@ -193,23 +202,57 @@ def render_pose(
         label_at = (route[0] if on_world[0] else route[-1])[[h, v]]
         key = tuple(int(k) for k in np.round(label_at / tol))
         label = name if cstate is not CableState.TAUT else f"{name} ({state.tension[i]:.3g} N)"
+        if i in drawing.cables:  # its length is an output: a halo
+            (halo,) = ax.plot(
+                route[:, h],
+                route[:, v],
+                color=state.verdict_rgb,
+                lw=11,
+                alpha=0.35,
+                solid_capstyle="round",
+                zorder=2.5,
+            )
         groups.setdefault(key, (label_at, []))[1].append((i, label))
 
-    verdict_rgb = state.verdict_rgb
-    marker = ax.scatter(
-        out[:, h],
-        out[:, v],
-        marker="*",
-        s=260,
-        color=verdict_rgb,
-        edgecolor="0.1",
-        linewidth=0.8,
-        zorder=6,
-    )
+    marker = None  # a star on each output point (joint and cable outputs have none)
+    if len(out):
+        marker = ax.scatter(
+            out[:, h],
+            out[:, v],
+            marker="*",
+            s=260,
+            color=state.verdict_rgb,
+            edgecolor="0.1",
+            linewidth=0.8,
+            zorder=6,
+        )
     frame_labels = [
         ax.annotate(name, (p[h], p[v]), xytext=(8, -12), textcoords="offset points", fontsize=9)
         for name, p in zip(out_labels, out, strict=True)
     ]
+    extent = max(float(np.ptp(everything[:, [h, v]], axis=0).max()), 1e-9)
+    triads = [
+        _draw_triad(ax, T, _TRIAD_SIZE * extent, h, v)
+        for T, turns in zip(
+            geometry.output_placements(), geometry.output_point_rotation, strict=True
+        )
+        if turns
+    ]
+    frame_labels += [label for axes in triads for label in axes]
+    for joint, names in drawing.joints.items():
+        at = placements[robot.model.getJointId(joint)][:3, 3]
+        frame_labels.append(
+            ax.annotate(
+                ", ".join(names),
+                (at[h], at[v]),
+                xytext=(9, 7),
+                textcoords="offset points",
+                fontsize=9,
+                color="0.15",
+                zorder=7,
+                bbox={"boxstyle": "round,pad=0.1", "facecolor": "white", "edgecolor": "none"},
+            )
+        )
 
     axes = "xyz"
     ax.set_xlabel(f"{axes[h]} [m]")
@@ -226,16 +269,27 @@ def render_pose(
         titles = [title]
     handles = [seen_states[s] for s in CableState if s in seen_states]
     legend_labels = [_state_label(s, scale) for s in CableState if s in seen_states]
-    handles.append(marker)
-    legend_labels.append(f"output: POC {_verdict_text(state)}")
+    if marker is not None:
+        handles.append(marker)
+        legend_labels.append(f"output point: POC {_verdict_text(state)}")
+    if triads:
+        handles.append(tuple(_axis_handles()))
+        legend_labels.append("orientation output: its frame's axes x, y, z")
+    # joint and cable outputs: their values (the picture shows where, not how much)
+    for k, out in enumerate(robot.spec.outputs):
+        kinds = {term.kind for term in out.terms}
+        if kinds & {"joint", "cable"}:
+            handles.append(halo if "cable" in kinds else _no_handle())
+            legend_labels.append(
+                f"{out.name} = {_number(state.output[k])} {state.output_units[k]}: "
+                f"{state.output_definitions[k]}"
+            )
     # under the axes: inside, any spot covers a cable, a link or a label somewhere
-    legend = ax.legend(
-        handles, legend_labels, loc="upper center", fontsize=8, ncol=2, frameon=False
-    )
+    legend = _legend(ax, handles, legend_labels, ncol=2)
     renderer = _renderer(fig)
     if renderer is not None and legend.get_window_extent(renderer).width > fig.bbox.width:
         legend.remove()
-        legend = ax.legend(handles, legend_labels, loc="upper center", fontsize=8, frameon=False)
+        legend = _legend(ax, handles, legend_labels, ncol=1)
     centre = 0.5 * (everything[:, [h, v]].min(axis=0) + everything[:, [h, v]].max(axis=0))
     labels = _CableLabels(ax, list(groups.values()), centre, frame_labels)
     for _ in range(3):  # the layout moves the axes; labels, limits and legend follow
@@ -247,6 +301,79 @@ def render_pose(
     if target is not None:
         fig.savefig(target, dpi=dpi)
     return fig
+
+
+def _draw_triad(ax, T: np.ndarray, length: float, h: int, v: int) -> list:
+    """The axes of a frame at its world placement T (4, 4), projected on
+    the plane (h, v): arrows of ``length`` [m], x red, y green, z blue, each
+    named at its tip; an axis seen end-on is named beside the origin, with
+    ``(out)`` or ``(in)``: towards or away from the viewer. Returns the names."""
+    origin = T[:3, 3]
+    toward = np.cross(np.eye(3)[h], np.eye(3)[v])  # out of the picture
+    labels = []
+    for k, (name, rgb) in enumerate(zip("xyz", AXIS_RGB, strict=True)):
+        axis = T[:3, k]
+        tip = origin + length * axis
+        if np.hypot(axis[h], axis[v]) > 0.25:
+            ax.annotate(
+                "",
+                xy=(tip[h], tip[v]),
+                xytext=(origin[h], origin[v]),
+                arrowprops={"arrowstyle": "-|>", "color": rgb, "lw": 2.2, "mutation_scale": 12},
+                zorder=6.5,
+            )
+            text, at, offset = name, (tip[h], tip[v]), (3, 3)
+        else:
+            side = "out" if float(axis @ toward) > 0 else "in"
+            text, at, offset = f"{name} ({side})", (origin[h], origin[v]), (-8, 8)
+        labels.append(
+            ax.annotate(
+                text,
+                at,
+                xytext=offset,
+                textcoords="offset points",
+                ha="right" if offset[0] < 0 else "left",
+                fontsize=8,
+                color=rgb,
+                fontweight="bold",
+                zorder=7,
+                bbox={
+                    "boxstyle": "round,pad=0.05",
+                    "facecolor": "white",
+                    "edgecolor": "none",
+                    "alpha": 0.7,
+                },
+            )
+        )
+    return labels
+
+
+def _axis_handles() -> list:
+    """Legend handles of a triad: three short lines in the axes' colours."""
+    from matplotlib.lines import Line2D
+
+    return [Line2D([], [], color=rgb, lw=2.0) for rgb in AXIS_RGB]
+
+
+def _no_handle():
+    """A legend handle that draws nothing (an entry that is only text)."""
+    from matplotlib.lines import Line2D
+
+    return Line2D([], [], linestyle="none")
+
+
+def _legend(ax, handles: list, labels: list[str], ncol: int):
+    from matplotlib.legend_handler import HandlerTuple
+
+    return ax.legend(
+        handles,
+        labels,
+        loc="upper center",
+        fontsize=8,
+        ncol=ncol,
+        frameon=False,
+        handler_map={tuple: HandlerTuple(ndivide=None, pad=0.0)},
+    )
 
 
 def check_picture_path(path: str | os.PathLike) -> Path:
@@ -412,7 +539,9 @@ class _CableLabels:
 def _verdict_text(state: PoseState) -> str:
     if state.verdict is None:
         return "unavailable"
-    margin = "" if state.margin is None else f" (r_T {_number(state.margin)} m)"
+    margin = ""
+    if state.margin is not None:
+        margin = f" (r_T {with_unit(_number(state.margin), state.margin_unit)})"
     return f"{str(state.verdict).upper()}{margin}"
 
 

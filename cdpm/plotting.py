@@ -108,11 +108,13 @@ def check_image_path(path: str | os.PathLike) -> Path:
     when matplotlib writes its extension, ``path`` + ``.png`` without one.
 
     Raises:
-        InputError: matplotlib cannot write the extension (the message lists
-            those it can).
+        InputError: ``path`` is a folder, or matplotlib cannot write the
+            extension (the message lists those it can).
     """
     _matplotlib()
     out = Path(path).expanduser()
+    if out.is_dir():
+        raise InputError(f"{out} is a folder; give an image file name, e.g. {out / 'map.png'}")
     check_output_folder(out)
     if not out.suffix:
         return out.with_name(out.name + ".png")  # what matplotlib would write
@@ -134,6 +136,11 @@ def check_image_path(path: str | os.PathLike) -> Path:
     return out
 
 
+#: highest resolution of a picture [dots per inch]: a page-wide figure at
+#: this resolution is already about 10^8 pixels
+MAX_DPI = 1200
+
+
 def check_dpi(dpi: Any) -> float:
     """``dpi`` as a float, when it is a positive finite number.
 
@@ -144,8 +151,11 @@ def check_dpi(dpi: Any) -> float:
         value = float(dpi)
     except (TypeError, ValueError):
         value = math.nan
-    if not (math.isfinite(value) and value > 0):
-        raise InputError(f"dpi={dpi} must be a positive number of dots per inch")
+    if not (math.isfinite(value) and 0 < value <= MAX_DPI):
+        raise InputError(
+            f"dpi={dpi} must be a number of dots per inch from 1 to {MAX_DPI} (print quality "
+            "is 300-600)"
+        )
     return value
 
 
@@ -158,7 +168,7 @@ def _load(ds_or_path):
 
 
 def _pose_dims(ds, variable: str) -> list[str]:
-    return [d for d in ds[variable].dims if d not in ("output", "xyz")]
+    return [d for d in ds[variable].dims if d not in ("output", "xyz", "cable")]
 
 
 def _sampled_axes(ds) -> list[str]:
@@ -430,7 +440,9 @@ def _base_text(ds, axes_names: Sequence[str]) -> str:
         return ""
     if len(names) != len(base):  # natural coordinates that are not named one by one
         return ""
-    fixed = [f"{n} = {v:.4g}" for n, v in zip(names, base, strict=True) if n not in axes_names]
+    fixed = [  # + 0.0: no "-0"
+        f"{n} = {v + 0.0:.4g}" for n, v in zip(names, base, strict=True) if n not in axes_names
+    ]
     if not fixed:
         return ""
     if len(fixed) > _MAX_BASE_IN_TITLE:
@@ -446,7 +458,7 @@ def _poses_text(ds, axes_names: Sequence[str]) -> str:
     elif len(axes_names) == 1:
         poses = f"{axes_names[0]}: {ds.sizes[axes_names[0]]} poses"
     else:
-        sizes = [ds.sizes[d] for d in ds.dims if d not in ("output", "xyz")]
+        sizes = [ds.sizes[d] for d in ds.dims if d not in ("output", "xyz", "cable")]
         poses = " x ".join(str(n) for n in sizes) + " grid"
     base = _base_text(ds, axes_names)
     return f"{poses}, {base}" if base else poses

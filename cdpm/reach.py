@@ -16,6 +16,13 @@ the acceleration scale is ``a = max(g, 1 m/s^2)``, the budget
 ``T = sqrt(2 (l / 10) / a)``: the time in which the budget's acceleration
 moves the robot by a tenth of its size (a linearisation is a local model),
 each to 3 significant digits.
+
+Units: r_T is a radius in output space, in the outputs' common unit
+(:func:`reach_unit`): metres for positions and lengths, radians for
+rotations and revolute joints. When the outputs mix metres and radians
+(a pose output x, y, z, rx, ry, rz) the ball is taken with one metre
+counted as one radian ("m and rad, one to one"); a spec that wants another
+exchange rate scales its outputs with a weighted sum (docs/outputs.md).
 """
 
 from __future__ import annotations
@@ -33,7 +40,14 @@ if TYPE_CHECKING:  # pragma: no cover
     from cdpm.linearisation import Linearisation, LinearisationBatch
     from cdpm.robot import CableRobot
 
-__all__ = ["ReachSettings", "reach_settings", "reach_bounds", "reach_margins_at"]
+__all__ = [
+    "ReachSettings",
+    "reach_settings",
+    "reach_bounds",
+    "reach_margins_at",
+    "reach_unit",
+    "output_scales",
+]
 
 
 @dataclass(frozen=True)
@@ -174,12 +188,53 @@ def robot_size(robot: CableRobot) -> float:
     return _model_scales(robot)[2]
 
 
+def output_scales(robot: CableRobot) -> np.ndarray:
+    """How far each output moves when the robot turns by about one radian,
+    shape (p,) [each output's unit]: the sum over its terms of ``|weight|``
+    times the robot's size l [m] for terms in metres (positions, cable
+    lengths, prismatic joints) or times 1 for terms in radians (rotations,
+    revolute joints). The scale that round-off of an output's row is judged
+    against (:func:`cdpm.linearisation.output_jacobian_rounded`)."""
+    size = robot_size(robot)
+    return np.array(
+        [
+            sum(abs(t.weight) * (1.0 if t.unit == "rad" else size) for t in out.terms)
+            for out in robot.spec.outputs
+        ],
+        dtype=float,
+    )
+
+
+def reach_unit(output_units: Any) -> str:
+    """The unit of r_T, a radius in output space, from the outputs' units:
+    their common unit (``"m"``, ``"rad"``, or a spec's ``unit:``), else
+    e.g. ``"m and rad, one to one"`` (a metre counted as a radian; an output
+    whose terms mix both, unit ``"mixed"``, counts as both)."""
+    found = {u for unit in output_units for u in (("m", "rad") if unit == "mixed" else (unit,))}
+    others = [u for u in dict.fromkeys(output_units) if u in found and u not in ("m", "rad")]
+    units = [u for u in ("m", "rad") if u in found] + others
+    if len(units) == 1:
+        return units[0]
+    if not units:
+        return "m"
+    return f"{' and '.join(units)}, one to one"
+
+
 def reach_scale(robot: CableRobot, settings: ReachSettings) -> float:
-    """``(F / m) T^2 / 2`` [m]: how far the budget's force moves the robot's
-    mass from rest in T (the defaults make it a tenth of the robot's size);
-    the scale of r_T."""
+    """The scale of r_T [its unit, :func:`reach_unit`]: ``(F / m) T^2 / 2``
+    [m], how far the budget's force moves the robot's mass from rest in T
+    (the defaults make it a tenth of the robot's size), for outputs in
+    metres; for outputs in radians that distance divided by the robot's
+    size l [m] (the angle it turns a body of size l by). With several
+    outputs, the least of their scales (:func:`output_scales` divided by
+    l, times the metre scale), so that a round-off floor taken from it is
+    below every output's real motion."""
     mass = _model_scales(robot)[3]
-    return settings.tension_budget / mass * settings.horizon**2 / 2
+    metres = settings.tension_budget / mass * settings.horizon**2 / 2
+    scales = output_scales(robot)
+    if not scales.size:
+        return metres
+    return metres * (float(scales.min()) / robot_size(robot))
 
 
 def reach_margins_at(
@@ -199,11 +254,14 @@ def reach_margins_at(
             direction that no input ever reaches, so r_T = 0 there exactly
             (the quadrature would leave round-off).
 
-    Values below REACH_ZERO_RTOL times :func:`reach_scale` are round-off
-    (e.g. a folded arm whose output Jacobian is round-off) and read 0.
+    Values below REACH_ZERO_RTOL times :func:`reach_scale` (in the
+    outputs' unit: metres, or radians through the robot's size) are
+    round-off (e.g. a folded arm whose output Jacobian is round-off) and
+    read 0.
 
     Returns:
-        :class:`cdpm.analysis.reach.ReachMargins` (value [output units],
+        :class:`cdpm.analysis.reach.ReachMargins` (value [the outputs' unit,
+        :func:`reach_unit`],
         error estimate, intervals), each (N,).
     """
     from cdpm.analysis.reach import ReachMargins, reach_margins

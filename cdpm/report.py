@@ -13,13 +13,22 @@ raising.
 from __future__ import annotations
 
 import html
-import math
-import re
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from cdpm._report_text import (
+    criteria_lines,
+    impulse_scale,
+    indent,
+    labelled,
+    pose_head,
+    tension_table,
+    units_of_outputs,
+    without_negative_zeros,
+    without_round_off,
+)
 from cdpm.analysis._common import to_plain
 from cdpm.equilibrium import InfeasibleEquilibriumError
 from cdpm.errors import InputError
@@ -28,8 +37,6 @@ from cdpm.linearisation import (
     largest_magnitude,
     linearise,
     matrix_text,
-    named_values,
-    round_to_scale,
 )
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -68,6 +75,10 @@ class PoseReport:
         length_scale: the robot's size at the pose [m]: the largest distance
             of a cable route point or an output from the world origin. Printed
             outputs below the last printed digit of it show as 0 (round-off).
+        outputs: the spec's outputs (:class:`cdpm.spec.OutputDef`: unit and
+            formula of each), in order; empty: every output in metres.
+        criteria_attrs: the map store's attributes of each criterion for
+            this robot (their ``units``; ``output_units`` of ``y``).
     """
 
     model_name: str
@@ -86,6 +97,8 @@ class PoseReport:
     reach: Any = None
     neighbourhood: Any = None
     length_scale: float | None = None
+    outputs: tuple[Any, ...] = ()
+    criteria_attrs: dict[str, dict] = field(default_factory=dict, repr=False)
 
     @property
     def feasible(self) -> bool:
@@ -93,8 +106,22 @@ class PoseReport:
         return True
 
     @property
+    def output_units(self) -> tuple[str, ...]:
+        """The unit of each output (``"m"``, ``"rad"``, a spec's ``unit:``)."""
+        return units_of_outputs(self.outputs, len(self.linearisation.output_names))
+
+    @property
+    def reach_unit(self) -> str:
+        """The unit of r_T: the outputs' common unit, or e.g. ``"m and rad,
+        one to one"`` (:func:`cdpm.reach.reach_unit`)."""
+        from cdpm.reach import reach_unit
+
+        return reach_unit(self.output_units)
+
+    @property
     def reach_margin(self) -> tuple[float, float]:
-        """(r_T [m], its error estimate [m]); NaN when not computed."""
+        """(r_T, its error estimate), in :attr:`reach_unit` (metres for
+        position outputs); NaN when not computed."""
         return (
             float(self.criteria.get("reach_margin", np.nan)),
             float(self.criteria.get("reach_margin_error", np.nan)),
@@ -112,9 +139,15 @@ class PoseReport:
                 "mode grows by more than 1e8 in that time (use a shorter --horizon)",
                 f"  {self.reach.describe()}",
             ]
+        unit = self.reach_unit
+        if "," in unit:  # mixed metres and radians
+            head = f"Reach margin r_T = {r + 0.0:.4g} ({unit}; {exact})"
+            moved = f"{r + 0.0:.4g} m or rad in every direction of output space"
+        else:
+            head = f"Reach margin r_T = {r + 0.0:.4g} {unit} ({exact})"
+            moved = f"{r + 0.0:.4g} {unit} in every direction"
         return [
-            f"Reach margin r_T = {r + 0.0:.4g} m ({exact}): within T = {self.reach.horizon:.3g} s "
-            f"the cables can move {names} {r + 0.0:.4g} m in every direction",
+            f"{head}: within T = {self.reach.horizon:.3g} s the cables can move {names} {moved}",
             f"  {self.reach.describe()}",
         ]
 
@@ -128,6 +161,7 @@ class PoseReport:
             "q": lin.q.tolist(),
             "coordinates": dict(zip(self.coordinate_names, self.natural.tolist(), strict=True)),
             "output": dict(zip(lin.output_names, lin.output.tolist(), strict=True)),
+            "output_units": dict(zip(lin.output_names, self.output_units, strict=True)),
             "cables": [
                 {
                     "name": name,
@@ -157,23 +191,27 @@ class PoseReport:
                 **self.reach.as_dict(),
                 "reach_margin": self.reach_margin[0],
                 "error": self.reach_margin[1],
+                "unit": self.reach_unit,
             },
             "neighbourhood": None if self.neighbourhood is None else self.neighbourhood.to_plain(),
         }
 
     def __str__(self) -> str:
         lin = self.linearisation
-        lines = [*_pose_head(self, lin.output, lin.output_names), *self._equilibrium_lines()]
+        lines = [
+            *pose_head(self, lin.output, lin.output_names, self.outputs),
+            *self._equilibrium_lines(),
+        ]
         lines += [
             "",
             "Linearisation (state = (dq, dq'))",
-            _indent(f"A =\n{matrix_text(lin.A)}"),
-            _indent(f"B =\n{matrix_text(lin.B)}"),
-            _indent(f"C =\n{matrix_text(lin.C)}"),
+            indent(f"A =\n{matrix_text(lin.A)}"),
+            indent(f"B =\n{matrix_text(lin.B)}"),
+            indent(f"C =\n{matrix_text(lin.C)}"),
         ]
         verdicts = [
-            _labelled("Positive output controllability (Theorem 1)", self.poc),
-            _labelled("Positive controllability (Brammer)", self.positive_controllability),
+            labelled("Positive output controllability (Theorem 1)", self.poc),
+            labelled("Positive controllability (Brammer)", self.positive_controllability),
             f"Output controllability: {self.output_controllability}",
             f"Controllability (Kalman): {self.controllability}",
             f"Wrench closure: {self.wrench_closure}",
@@ -182,24 +220,28 @@ class PoseReport:
         # the span margin is on unit vectors, the eigenvalues are A's
         a_scale = largest_magnitude(lin.A)
         scales = {
-            "impulse index": _impulse_scale(self.poc),
+            "impulse index": impulse_scale(self.poc),
             "margin": 1.0,
             "eigenvalue": a_scale,
             "A^T v =": a_scale,
         }
-        lines += ["", "Verdicts", *[_indent(without_round_off(v, scales)) for v in verdicts]]
-        lines += [_indent(line) for line in self._reach_lines()]
+        lines += ["", "Verdicts", *[indent(without_round_off(v, scales)) for v in verdicts]]
+        lines += [indent(line) for line in self._reach_lines()]
         if self.neighbourhood is not None:
             lines += ["", *self.neighbourhood.lines()]
         if self.criteria:
             lines += ["", "Map criteria (as a workspace map stores them)"]
             lines += [
-                _indent(line)
-                for line in _criteria_lines(
-                    self.criteria, lin.output_names, self.length_scale or 0.0
+                indent(line)
+                for line in criteria_lines(
+                    self.criteria,
+                    lin.output_names,
+                    self.length_scale or 0.0,
+                    self.output_units,
+                    self.criteria_attrs,
                 )
             ]
-        return _without_negative_zeros("\n".join(lines))
+        return without_negative_zeros("\n".join(lines))
 
     def _equilibrium_lines(self) -> list[str]:
         lin = self.linearisation
@@ -219,7 +261,7 @@ class PoseReport:
         inputs = {1: "u >= 0 (pull only)", -1: "u <= 0 (release only)", 0: "free"}
         signs = lin.input_sign if lin.input_sign is not None else lin.sign_constrained.astype(int)
         words = [inputs[int(sign)] for sign in signs]
-        return head + _tension_table(
+        return head + tension_table(
             lin.cable_names, self.cable_lengths, lin.tension, states, words, "input"
         )
 
@@ -239,7 +281,7 @@ class InfeasiblePoseReport:
         q: configuration vector, shape (nq,).
         natural: natural coordinates of the pose, shape (nv,).
         coordinate_names: names of the natural coordinates.
-        output: outputs y = h(q) [m], shape (p,).
+        output: outputs y = h(q), shape (p,), each in its unit (``outputs``).
         output_names: names of the outputs.
         cable_names: names of the cables.
         cable_lengths: cable lengths [m], shape (m,).
@@ -254,6 +296,9 @@ class InfeasiblePoseReport:
         length_scale: the robot's size at the pose [m] (as :class:`PoseReport`).
         neighbourhood_radius: the ``neighbourhood`` asked for [rad or m], or
             None; it is not computed at a pose without an equilibrium.
+        outputs: the spec's outputs (unit and formula of each), as
+            :class:`PoseReport`.
+        criteria_attrs: the criteria's store attributes, as :class:`PoseReport`.
     """
 
     model_name: str
@@ -269,11 +314,18 @@ class InfeasiblePoseReport:
     criteria: dict[str, Any] = field(default_factory=dict)
     length_scale: float | None = None
     neighbourhood_radius: Any = None
+    outputs: tuple[Any, ...] = ()
+    criteria_attrs: dict[str, dict] = field(default_factory=dict, repr=False)
 
     @property
     def feasible(self) -> bool:
         """False: no tension within the cable bounds holds the pose."""
         return False
+
+    @property
+    def output_units(self) -> tuple[str, ...]:
+        """The unit of each output (as :attr:`PoseReport.output_units`)."""
+        return units_of_outputs(self.outputs, len(self.output_names))
 
     @property
     def reason(self) -> str:
@@ -304,6 +356,7 @@ class InfeasiblePoseReport:
             "q": self.q.tolist(),
             "coordinates": dict(zip(self.coordinate_names, self.natural.tolist(), strict=True)),
             "output": dict(zip(self.output_names, self.output.tolist(), strict=True)),
+            "output_units": dict(zip(self.output_names, self.output_units, strict=True)),
             "cables": [
                 {
                     "name": name,
@@ -346,12 +399,12 @@ class InfeasiblePoseReport:
             f"[{low:g}, {high:g}]" for low, high in zip(eq.tension_min, eq.tension_max, strict=True)
         ]
         lines = [
-            *_pose_head(self, self.output, self.output_names),
+            *pose_head(self, self.output, self.output_names, self.outputs),
             f"Equilibrium ({method}): INFEASIBLE, residual |L^T f + G + w_ext| = "
             f"{eq.residual:.3g} (N or N m)",
             f"  {eq.message}",
             f"  closest tensions: {_closest_words(eq)}",
-            *_tension_table(
+            *tension_table(
                 self.cable_names,
                 self.cable_lengths,
                 eq.tension,
@@ -361,7 +414,7 @@ class InfeasiblePoseReport:
             ),
             "",
             "No linearisation and no verdicts:",
-            *_indent(_wrap(self.reason)).splitlines(),
+            *indent(_wrap(self.reason)).splitlines(),
         ]
         if self.neighbourhood_radius is not None:
             lines += [
@@ -372,12 +425,16 @@ class InfeasiblePoseReport:
         if self.criteria:
             lines += ["", "Map criteria (as a workspace map stores them)"]
             lines += [
-                _indent(line)
-                for line in _criteria_lines(
-                    self.criteria, self.output_names, self.length_scale or 0.0
+                indent(line)
+                for line in criteria_lines(
+                    self.criteria,
+                    self.output_names,
+                    self.length_scale or 0.0,
+                    self.output_units,
+                    self.criteria_attrs,
                 )
             ]
-        return _without_negative_zeros("\n".join(lines))
+        return without_negative_zeros("\n".join(lines))
 
     def _repr_html_(self) -> str:
         return f"<pre>{html.escape(str(self))}</pre>"
@@ -402,142 +459,6 @@ def _wrap(text: str, width: int = 88) -> str:
     import textwrap
 
     return textwrap.fill(text, width)
-
-
-# ---------------------------------------------------------------- printing
-#
-# Numbers print rounded to the scale they stand next to (see the printing
-# helpers of cdpm.linearisation); the analysis results' own text is cleaned
-# of round-off in the quantities they decide.
-
-#: a decided quantity (a margin, an eigenvalue) below this fraction of its
-#: scale is round-off of 0
-ROUND_OFF_RTOL = 1e-12
-
-
-# "margin -1.5e-33": a label followed by one number
-_NUMBER = r"-?\d+(?:\.\d*)?(?:e[+-]?\d+)?"
-
-
-def without_round_off(text: str, scales: dict[str, float]) -> str:
-    """``text`` with each number after a label of ``scales`` (e.g.
-    ``"margin"``) shown as 0 when it is below ROUND_OFF_RTOL times that
-    label's scale."""
-    for label, scale in scales.items():
-        if not (np.isfinite(scale) and scale > 0):
-            continue
-
-        def zero(match: re.Match, scale=scale) -> str:
-            small = abs(float(match.group(2))) <= ROUND_OFF_RTOL * scale
-            return match.group(1) + ("0" if small else match.group(2))
-
-        text = re.sub(rf"(\b{re.escape(label)} )({_NUMBER})", zero, text)
-    return text
-
-
-# A printed zero with a minus sign: "-0", "-0.000", "-0e+00" (from format
-# specs) or numpy's "-0." (followed by padding, "," or "]"), standing alone.
-_NEGATIVE_ZERO = re.compile(r"(?<![\w.])-(0(?:\.0*)?(?:e[+-]?\d+)?)(?![\w.])")
-
-
-def _without_negative_zeros(text: str) -> str:
-    """``text`` with every printed negative zero shown as zero.
-
-    Values such as -1e-17 print as ``-0`` at a few significant digits (and
-    an exact -0.0 always does); the sign carries no information there.
-    numpy's ``-0.`` becomes `` 0.`` so matrix columns stay aligned.
-    """
-
-    def positive(match: re.Match) -> str:
-        zero = match.group(1)
-        return (" " if zero == "0." else "") + zero
-
-    return _NEGATIVE_ZERO.sub(positive, text)
-
-
-def _criteria_lines(
-    criteria: dict[str, Any], output_names=(), length_scale: float = 0.0
-) -> list[str]:
-    """One line per criterion: verdict and status codes by name, quantities
-    with their units (per-output values with the outputs' names; arrays
-    rounded to their scale, lengths [m] to at least ``length_scale``)."""
-    from cdpm.maps.criteria import CRITERIA
-
-    lines = []
-    for name, value in criteria.items():
-        c = CRITERIA.get(name)
-        if c is not None and c.flags is not None:
-            names = {code: key for key, code in c.flags.items()}
-            text = f"{names.get(int(value), str(value))} ({int(value)})"
-        else:
-            arr = np.asarray(value, dtype=float) + 0.0
-            scale = largest_magnitude(arr)
-            if c is not None and c.units == "m":
-                scale = max(scale, length_scale)
-            if c is not None and c.dims == ("output",) and len(output_names) == arr.size:
-                text = named_values(output_names, arr, scale)
-            elif arr.ndim:
-                text = np.array2string(round_to_scale(arr, scale), precision=6, suppress_small=True)
-            else:
-                text = f"{float(arr):.6g}"
-            if c is not None and c.units not in (None, "1"):
-                text += f" {c.units}"
-        lines.append(f"{name + ':':<24}{text}")
-    return lines
-
-
-def _labelled(label: str, result: Any) -> str:
-    """A result's text under ``label`` (without the result's own name)."""
-    text = str(result)
-    head, sep, rest = text.partition(": ")
-    if sep and head.lower() in label.lower():
-        text = rest
-    return f"{label}: {text}"
-
-
-def _indent(text: str, prefix: str = "  ") -> str:
-    return "\n".join(prefix + line for line in text.splitlines())
-
-
-def _impulse_scale(poc: Any) -> float:
-    """The size of the POC result's output curves ``|W C e^{At} b_j s_j|``
-    on its margin horizon (the scale of its impulse index); NaN when it
-    cannot be evaluated."""
-    from scipy.linalg import expm
-
-    try:
-        A, B, C = poc.A, poc.B, poc.C
-        if poc.input_scale is not None:
-            B = B * poc.input_scale
-        if poc.output_weight is not None:
-            W = np.asarray(poc.output_weight, dtype=float)
-            C = W[:, None] * C if W.ndim == 1 else W @ C
-        times = np.linspace(0.0, float(poc.margin_horizon), 5)
-        return max(largest_magnitude(C @ expm(A * t) @ B) for t in times)
-    except (AttributeError, TypeError, ValueError, np.linalg.LinAlgError):
-        return math.nan
-
-
-def _tension_table(names, lengths, tensions, states, last: list[str], last_head: str) -> list[str]:
-    """The cable table: name, length [m], tension [N] (rounded to the
-    largest tension), state and a last column."""
-    tensions = round_to_scale(tensions, largest_magnitude(tensions))
-    lines = [f"  {'name':<12} {'length [m]':>11} {'tension [N]':>12}  {'state':<7} {last_head}"]
-    for name, length, f, state, extra in zip(names, lengths, tensions, states, last, strict=True):
-        lines.append(f"  {name:<12} {length:>11.6f} {f:>12.6g}  {state:<7} {extra}".rstrip())
-    return lines
-
-
-def _pose_head(report: Any, output, output_names) -> list[str]:
-    """The report's first lines: model, pose, coordinates and outputs."""
-    where = f"pose {report.pose_name!r}" if report.pose_name else "the given q"
-    y_scale = max(largest_magnitude(output), report.length_scale or 0.0)
-    return [
-        f"cdpm report: {report.model_name}, {where}",
-        f"  coordinates: {named_values(report.coordinate_names, report.natural)}",
-        f"  outputs:     {named_values(output_names, output, y_scale) or '(none)'}",
-        "",
-    ]
 
 
 def analyze_pose(
@@ -646,6 +567,8 @@ def analyze_pose(
         reach=reach,
         neighbourhood=ball,
         length_scale=_length_scale(kin),
+        outputs=tuple(robot.spec.outputs),
+        criteria_attrs={name: c.attrs(robot) for name, c in CRITERIA.items()},
     )
 
 
@@ -673,6 +596,8 @@ def _infeasible_report(
         criteria={name: c.compute(batch)[0] for name, c in CRITERIA.items()},
         length_scale=_length_scale(kin),
         neighbourhood_radius=neighbourhood,
+        outputs=tuple(robot.spec.outputs),
+        criteria_attrs={name: c.attrs(robot) for name, c in CRITERIA.items()},
     )
 
 

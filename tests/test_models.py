@@ -14,6 +14,7 @@ import yaml
 import cdpm
 from cdpm.cli import main
 from cdpm.equilibrium import equilibrium_tension
+from cdpm.robot import spec_in_folder
 from tests.conftest import MODELS, execute_notebook
 
 linearise = cdpm.linearise
@@ -21,6 +22,8 @@ linearise = cdpm.linearise
 G = 9.81
 MODEL_SPECS = sorted(MODELS.glob("*/*.yaml"))
 NEW_MODELS = ("two_link_vertical", "spatial_8cable", "multilink_arm", "double_pendulum_cables")
+#: specs beside a model's own one: the same robot with other outputs
+SECOND_SPECS = ("spatial_8cable/spatial_8cable_pose.yaml",)
 
 
 def load(spec):
@@ -36,10 +39,38 @@ def test_the_library_ships_the_new_models():
     names = {p.parent.name for p in MODEL_SPECS}
     assert set(NEW_MODELS) <= names
     for spec in MODEL_SPECS:
-        assert spec.stem == spec.parent.name  # models/<name>/<name>.yaml
+        # models/<name>/<name>.yaml, or a second spec models/<name>/<name>_*.yaml
+        if spec.stem != spec.parent.name:
+            assert spec.stem.startswith(spec.parent.name + "_")
+            assert f"{spec.parent.name}/{spec.name}" in SECOND_SPECS
+        # the folder stands for its own spec, whatever else it holds
+        assert spec_in_folder(spec.parent) == spec.parent / f"{spec.parent.name}.yaml"
 
 
-@pytest.mark.parametrize("spec", MODEL_SPECS, ids=lambda p: p.parent.name)
+def test_the_pose_spec_is_the_same_robot_with_the_full_pose_as_output():
+    """spatial_8cable_pose.yaml: spatial_8cable.yaml's cables, poses and
+    equilibrium, outputs x, y, z, rx, ry, rz of the platform."""
+    folder = MODELS / "spatial_8cable"
+    assert cdpm.load_robot(folder).spec.path.name == "spatial_8cable.yaml"
+    position = yaml.safe_load((folder / "spatial_8cable.yaml").read_text())
+    pose = yaml.safe_load((folder / "spatial_8cable_pose.yaml").read_text())
+    for key in ("urdf", "gravity", "cables", "poses", "equilibrium", "source"):
+        assert pose[key] == position[key], key
+    robot = cdpm.load_robot(folder / "spatial_8cable_pose.yaml")
+    assert robot.output_names == ("x", "y", "z", "rx", "ry", "rz")
+    assert robot.output_units == ("m",) * 3 + ("rad",) * 3
+    # at 'offset' (roll 0.05, pitch -0.05, yaw 0.1: R = Rz Ry Rx) the outputs
+    # are the rotation vector of R, not the roll-pitch-yaw angles
+    from scipy.spatial.transform import Rotation
+
+    y = robot.output("offset")
+    np.testing.assert_allclose(y[:3], [0.5, -0.3, 1.2], atol=1e-15)
+    rotvec = Rotation.from_euler("xyz", [0.05, -0.05, 0.1]).as_rotvec()
+    np.testing.assert_allclose(y[3:], rotvec, atol=1e-14)
+    assert abs(y[3] - 0.05) > 2e-3  # 0.05245: not the roll angle
+
+
+@pytest.mark.parametrize("spec", MODEL_SPECS, ids=lambda p: p.stem)
 def test_model_has_source_description_and_feasible_named_poses(spec):
     raw = yaml.safe_load(spec.read_text())
     assert raw.get("source") and raw.get("description")
@@ -50,7 +81,7 @@ def test_model_has_source_description_and_feasible_named_poses(spec):
         assert eq.feasible, f"{spec.parent.name} pose {name}: {eq.message}"
 
 
-@pytest.mark.parametrize("spec", MODEL_SPECS, ids=lambda p: p.parent.name)
+@pytest.mark.parametrize("spec", MODEL_SPECS, ids=lambda p: p.stem)
 def test_cdpm_analyze_runs_on_every_model(spec, capsys):
     robot = load(spec)
     pose = next(iter(robot.poses))

@@ -249,3 +249,117 @@ def test_last_link_is_drawn_to_its_points(pendulum):
         ), end
     # link2 reaches up to the output point, 0.2 m from its joint
     assert np.linalg.norm(tip - joint2) == pytest.approx(0.2, abs=1e-9)
+
+
+# ---------------------------------------------------------------- output kinds
+
+
+def _spec_with_outputs(tmp_path, source, outputs: str):
+    """A copy of the spec ``source`` (beside a copy of its URDF) with other outputs."""
+    import shutil
+
+    import cdpm
+
+    text = source.read_text()
+    head, tail = text.split("\noutputs:\n", 1)
+    poses = tail[tail.index("\nposes:") :]
+    spec = cdpm.load_robot(source).spec
+    shutil.copy(spec.urdf_path, tmp_path / spec.urdf_path.name)
+    path = tmp_path / f"{source.stem}_outputs.yaml"
+    path.write_text(f"{head}\noutputs:\n{textwrap.dedent(outputs).strip()}{poses}")
+    return cdpm.load_robot(path)
+
+
+def _arrows(ax):
+    """The arrows drawn in ``ax``: (colour, start, end) in plot coordinates."""
+    from matplotlib.colors import to_rgb
+
+    return [
+        (to_rgb(t.arrow_patch.get_edgecolor()), np.array(t.xyann), np.array(t.xy))
+        for t in ax.texts
+        if getattr(t, "arrow_patch", None) is not None
+    ]
+
+
+def test_orientation_outputs_draw_their_frame_axes(tmp_path):
+    from cdpm.picture import render_pose
+    from cdpm.viewer.state import AXIS_RGB
+
+    robot = _spec_with_outputs(
+        tmp_path,
+        SPATIAL_SPEC,
+        """
+        - {name: x, frame: platform, component: x}
+        - {name: y, frame: platform, component: y}
+        - {name: z, frame: platform, component: z}
+        - {name: rx, frame: platform, component: rx}
+        - {name: ry, frame: platform, component: ry}
+        - {name: rz, frame: platform, component: rz}
+        """,
+    )
+    fig = render_pose(robot, "offset", tmp_path / "pose.png", plane="xy")
+    ax = fig.axes[0]
+    # the platform at (0.5, -0.3, 1.2), turned by roll 0.05, pitch -0.05, yaw 0.1
+    from scipy.spatial.transform import Rotation
+
+    R = Rotation.from_euler("xyz", [0.05, -0.05, 0.1]).as_matrix()
+    arrows = _arrows(ax)
+    assert [a[0] for a in arrows] == [pytest.approx(AXIS_RGB[0]), pytest.approx(AXIS_RGB[1])]
+    extent = 4.0  # the scene's width, the anchors' x from -2 to 2 m
+    for (_, start, end), k in zip(arrows, (0, 1), strict=True):
+        np.testing.assert_allclose(start, [0.5, -0.3], atol=1e-12)
+        np.testing.assert_allclose(end - start, 0.15 * extent * R[:2, k], atol=1e-9)
+    # the z axis points out of the picture: named beside the origin, not drawn
+    texts = [t.get_text() for t in ax.texts]
+    assert "z (out)" in texts and "x" in texts and "y" in texts
+    star = next(c for c in ax.collections if np.allclose(c.get_sizes(), 260))
+    np.testing.assert_allclose(star.get_offsets(), [[0.5, -0.3]], atol=1e-12)
+    assert "x, y, z, rx, ry, rz" in texts  # the six outputs share the platform's marker
+    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert "orientation output: its frame's axes x, y, z" in labels
+    assert any(label.startswith("output point: POC ") for label in labels)
+    px = _pixels(tmp_path / "pose.png")
+    assert _count_near(px, AXIS_RGB[0], tol=25) > 40 and _count_near(px, AXIS_RGB[1], tol=25) > 40
+
+
+def test_joint_and_cable_outputs_get_no_marker(tmp_path):
+    from cdpm.picture import render_pose
+
+    vertical = ROOT / "models" / "two_link_vertical" / "two_link_vertical.yaml"
+    robot = _spec_with_outputs(
+        tmp_path,
+        vertical,
+        """
+        - {name: elbow, joint: q2}
+        - {name: c1_length, cable: c1}
+        """,
+    )
+    fig = render_pose(robot, "nominal", tmp_path / "pose.png")
+    ax = fig.axes[0]
+    assert (ax.get_xlabel(), ax.get_ylabel()) == ("x [m]", "z [m]")
+    assert not [c for c in ax.collections if np.allclose(c.get_sizes(), 260)]  # no star
+    assert _arrows(ax) == []  # no triad
+    # c1, from (0, 0.5) to its attachment on link1, under a halo in the verdict colour
+    q1, q2 = math.pi / 6, math.pi / 3
+    # (its attachment: 0.3 m past link1's centre, 0.5 m out, and 0.1 m across it)
+    c1 = np.array(
+        [0.8 * math.cos(q1) - 0.1 * math.sin(q1), 0.8 * math.sin(q1) + 0.1 * math.cos(q1)]
+    )
+    length = float(np.hypot(c1[0], c1[1] - 0.5))
+    assert robot.output("nominal") == pytest.approx([q2, length], abs=1e-12)
+    (halo,) = [line for line in ax.get_lines() if line.get_alpha() == 0.35]
+    np.testing.assert_allclose(halo.get_xydata(), [[0.0, 0.5], c1], atol=1e-12)
+    from cdpm.viewer import pose_state
+
+    verdict = pose_state(robot, "nominal").verdict_rgb
+    assert halo.get_color() == verdict
+    # the joint output is named at its joint, (cos q1, sin q1)
+    (elbow,) = [t for t in ax.texts if t.get_text() == "elbow"]
+    np.testing.assert_allclose(elbow.xy, [math.cos(q1), math.sin(q1)], atol=1e-12)
+    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert f"elbow = {q2:.3g} rad: joint q2" in labels
+    assert f"c1_length = {length:.3g} m: cable c1" in labels
+    assert not any(label.startswith("output point") for label in labels)
+    # the halo on white: the verdict's green at alpha 0.35
+    light_green = 0.65 + 0.35 * np.array(COLORS["yes"])
+    assert _count_near(_pixels(tmp_path / "pose.png"), light_green, tol=6) > 200

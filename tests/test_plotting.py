@@ -133,7 +133,7 @@ def test_cli_map_and_plot(tmp_path, capsys):
     assert "1271 poses; positive output controllable: yes" in out
     assert "poses/s" in err and "ETA" in err
     ds = open_map(store)
-    assert ds.sizes == {"q1": 41, "q2": 31, "output": 1, "xyz": 3}
+    assert ds.sizes == {"q1": 41, "q2": 31, "output": 1, "xyz": 3, "cable": 4}
     _check_image(png)
     # the same command again resumes a complete map: nothing to compute
     assert main(argv + ["--quiet"]) == 0
@@ -334,8 +334,8 @@ def test_plot_command_checks_the_image_name_before_any_work(small_store, tmp_pat
     assert (tmp_path / "map.svg").read_text().lstrip().startswith("<?xml")
 
 
-@pytest.mark.parametrize("dpi", ["0", "-3", "nan", "ten"])
-def test_plot_and_picture_reject_a_dpi_that_is_not_positive(dpi, tmp_path, capsys):
+@pytest.mark.parametrize("dpi", ["0", "-3", "nan", "ten", "1e6", "100000"])
+def test_plot_and_picture_reject_a_dpi_that_is_not_positive_or_huge(dpi, tmp_path, capsys):
     from cdpm.picture import render_pose
     from cdpm.plotting import save_map_plot
 
@@ -344,11 +344,11 @@ def test_plot_and_picture_reject_a_dpi_that_is_not_positive(dpi, tmp_path, capsy
             main([*command, "-o", str(tmp_path / "x.png"), "--dpi", dpi])
         assert info.value.code == 2
         err = capsys.readouterr().err
-        assert f"argument --dpi: dpi={dpi} must be a positive number of dots per inch" in err
+        assert f"argument --dpi: dpi={dpi} must be a number of dots per inch from 1 to 1200" in err
     if dpi != "ten":
-        with pytest.raises(cdpm.InputError, match="must be a positive number of dots per inch"):
+        with pytest.raises(cdpm.InputError, match="must be a number of dots per inch from 1"):
             save_map_plot(tmp_path / "m.zarr", tmp_path / "x.png", dpi=float(dpi))
-        with pytest.raises(cdpm.InputError, match="must be a positive number of dots per inch"):
+        with pytest.raises(cdpm.InputError, match="must be a number of dots per inch from 1"):
             render_pose(cdpm.load_robot(PAPER_SPEC), "nominal", dpi=float(dpi))
 
 
@@ -981,3 +981,52 @@ def test_one_axis_margin_line_marks_stragglers_off_the_scale(paper_robot):
     assert marks.get_marker() == "^" and not marks.get_clip_on()
     labels = [t.get_text() for t in line.get_legend().get_texts()]
     assert f"$r_T$ above {positive.max():.2g}: off the scale (1)" in labels
+
+
+def test_map_and_plot_of_rotation_and_cable_outputs(tmp_path, capsys):
+    """``cdpm map`` stores y of rotation and cable outputs with their
+    units; ``cdpm plot --outputs`` labels each axis with name, formula and
+    unit, the margin with the reach margin's unit."""
+    import re
+    import shutil
+
+    import matplotlib.pyplot as plt
+
+    from cdpm.plotting import plot_map
+    from tests.conftest import MODELS
+
+    folder = MODELS / "two_link_vertical"
+    shutil.copy(folder / "two_link_vertical.urdf", tmp_path)
+    text = (folder / "two_link_vertical.yaml").read_text()
+    outputs = (
+        "outputs:\n"
+        "  - {name: tip_ry, frame: tip, component: ry}\n"
+        "  - {name: c1_length, cable: c1}\n"
+    )
+    spec = tmp_path / "turns.yaml"
+    spec.write_text(re.sub(r"outputs:\n(?:  - .*\n)+", outputs, text))
+    store, png = tmp_path / "turns.zarr", tmp_path / "turns.png"
+    axes = ["--axis", "q1=-pi:pi:31", "--axis", "q2=-pi:pi:31", "--workers", "1"]
+    assert main(["map", str(spec), *axes, "--out", str(store), "--quiet"]) == 0
+    ds = open_map(store)
+    assert ds["y"].attrs["output_units"] == ["rad", "m"]
+    assert ds["y"].attrs["output_formulas"] == ["", "cable c1"]
+    assert ds["reach_margin"].attrs["units"] == "m and rad, one to one"
+    robot = cdpm.load_robot(spec)
+    for i, j in ((3, 7), (20, 11), (15, 15)):
+        q = np.array([ds["q1"].values[i], ds["q2"].values[j]])
+        np.testing.assert_allclose(ds["y"].values[i, j], robot.output(q), rtol=1e-14)
+    assert main(["plot", str(store), "-o", str(png), "--outputs", "c1_length", "tip_ry"]) == 0
+    _check_image(png)
+    fig = plot_map(ds)
+    verdict, margin, output = fig.axes[:3]
+    assert output.get_xlabel() == "output tip_ry [rad]"
+    assert output.get_ylabel() == "output c1_length = cable c1 [m]"
+    assert output.get_aspect() == "auto"  # radians against metres: no equal aspect
+    (colorbar,) = margin.child_axes
+    assert "[m and rad, one to one]" in colorbar.get_ylabel()
+    assert "for cables without an upper bound" in margin.get_title()
+    plt.close(fig)
+    fig = plot_map(ds, outputs=["tip_ry"])
+    assert fig.axes[-1].get_ylabel() == "output tip_ry [rad]"
+    plt.close(fig)

@@ -379,10 +379,10 @@ def test_servers_listen_on_loopback_only(viewer):
 def test_viewer_display_and_map(viewer, paper_robot):
     state = viewer.display([0.0, 0.0])
     assert state.verdict_key == "no" and viewer.state is state
-    assert viewer._marker_color == COLORS["no"] == VERDICT_RGB[NO]
+    assert viewer.marker_color == COLORS["no"] == VERDICT_RGB[NO]
     assert set(viewer.last_display_seconds) == {"analysis", "draw", "total"}
     state = viewer.display("nominal")
-    assert viewer._marker_color == COLORS["yes"] == VERDICT_RGB[YES]
+    assert viewer.marker_color == COLORS["yes"] == VERDICT_RGB[YES]
     assert viewer._cable_colors == [COLORS["slack"]] * 4
     assert viewer.geometry == "urdf"  # the paper's URDF has visual cylinders
     xr = pytest.importorskip("xarray")
@@ -404,9 +404,9 @@ def test_viewer_marker_has_the_verdict_colour(viewer, paper_robot, monkeypatch, 
 
     monkeypatch.setattr(cdpm.viewer.scene, "pose_state", with_verdict)
     viewer.display("nominal")
-    assert viewer._marker_color == VERDICT_RGB[code]
+    assert viewer.marker_color == VERDICT_RGB[code]
     _, overlay = map_points(_one_pose_map(code))
-    assert tuple(overlay[0]) == viewer._marker_color
+    assert tuple(overlay[0]) == viewer.marker_color
 
 
 def _one_pose_map(code: int):
@@ -769,7 +769,18 @@ def test_import_viewer_loads_no_heavy_dependencies():
 def test_viewer_modules_import_only_modules_below_them():
     import ast
 
-    layers = ["state", "coordinates", "server", "overlay", "scene", "inspector", "panel", "page"]
+    layers = [
+        "outputs",
+        "state",
+        "coordinates",
+        "server",
+        "overlay",
+        "output_marks",
+        "scene",
+        "inspector",
+        "panel",
+        "page",
+    ]
     package = ROOT / "cdpm" / "viewer"
     for k, name in enumerate(layers):
         tree = ast.parse((package / f"{name}.py").read_text())

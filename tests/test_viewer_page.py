@@ -76,8 +76,15 @@ def test_panel_content_at_the_paper_pose(paper_robot):
     assert {c["state"] for c in content["cables"]} == {"slack"}
     assert {c["color"] for c in content["cables"]} == {"#e377c2"}  # COLORS["slack"]
     assert content["outputs"] == [
-        {"name": "tip_x", "value": pytest.approx(math.sqrt(3) / 2), "unit": "m"}
+        {
+            "name": "tip_x",
+            "value": pytest.approx(math.sqrt(3) / 2),
+            "unit": "m",
+            "kind": "position",
+            "definition": "tip.x",
+        }
     ]
+    assert content["reach"]["unit"] == "m"
     assert content["notes"] == [] and content["reason"] is None
     json.dumps(content)  # what the endpoint sends
 
@@ -573,3 +580,95 @@ def test_browser_sliders_picker_and_scene(browser, paper_robot, tmp_path):
         assert _listening(port) == []
     if os.path.isdir("/proc"):
         assert not _alive(server)
+
+
+#: the paper's arm with an orientation, a joint, a cable-length and a sum output
+EVERY_KIND_SPEC = """
+    urdf: arm.urdf
+    gravity: [0, 0, 0]
+    cables:
+      - name: c1
+        route:
+          - {frame: base, point: [0, 0.5, 0]}
+          - {frame: link1, point: [0.8, 0.1, 0]}
+      - name: c2
+        route:
+          - {frame: base, point: [0, -0.5, 0]}
+          - {frame: link2, point: [0.5, -0.1, 0]}
+    outputs:
+      - {name: tip_x, frame: tip, component: x}
+      - {name: tip_rz, frame: tip, component: rz}
+      - {name: elbow, joint: q2}
+      - {name: c1_length, cable: c1}
+      - name: mid_x
+        sum:
+          - {weight: 0.5, frame: link2, component: x}
+          - {weight: 0.5, frame: tip, component: x}
+    poses:
+      p: [0.3, 0.4]
+    """
+
+
+def test_page_legend_says_how_each_output_is_drawn(write_spec):
+    pytest.importorskip("meshcat")
+    from cdpm.viewer import InspectionPage
+
+    robot = cdpm.load_robot(write_spec(EVERY_KIND_SPEC))
+    with InspectionPage(robot, "p") as page:
+        model = page.model_dict()
+    legend = {entry["label"]: entry["meaning"] for entry in model["legend"]["outputs"]}
+    assert list(legend) == ["marker", "axes", "sleeve", "joint"]
+    assert legend["axes"].endswith("the verdict marker at its origin: tip_x, tip_rz")
+    assert "(c1: c1_length)" in legend["sleeve"]
+    assert "(q2: elbow)" in legend["joint"]
+    # a robot with point outputs only gets the marker's line alone
+    paper = cdpm.load_robot(MODELS / "two_link_planar" / "two_link_planar.yaml")
+    from cdpm.viewer.page import _legend
+
+    assert [entry["label"] for entry in _legend(paper)["outputs"]] == ["marker"]
+
+
+def test_browser_lists_every_output_with_its_unit_and_formula(browser, write_spec, tmp_path):
+    from cdpm.viewer import InspectionPage
+    from cdpm.viewer.state import AXIS_RGB
+
+    robot = cdpm.load_robot(write_spec(EVERY_KIND_SPEC))
+    driver = browser
+    with InspectionPage(robot, "p", geometry="generated") as page:
+        driver.get(page.url)
+        driver.execute_async_script(_WAIT_SEQ, 0)
+        rows = driver.execute_script(
+            """
+            return [...document.querySelectorAll("#output-table tbody tr")].map((r) => [
+              r.dataset.output, r.dataset.kind,
+              ...[...r.cells].map((c) => [...c.children].map((d) => d.textContent).join(" | ")
+                                         || c.textContent),
+            ]);
+            """
+        )
+        legend = driver.execute_script(
+            """
+            const title = document.getElementById("legend-outputs-title");
+            return [title.hidden, ...[...document.querySelectorAll("#legend-outputs .item")]
+              .map((i) => i.dataset.legend)];
+            """
+        )
+        reach = driver.find_element("id", "reach").text
+        # the orientation output's triad shows in the scene: its blue z axis
+        # points at the viewer here, its red x and green y axes lie in view
+        pixels = _wait_for_scene(driver, lambda p: _count_near(p, AXIS_RGB[1], tol=40) > 30)
+        Path(tmp_path / "every_kind.png").write_bytes(driver.get_screenshot_as_png())
+        errors = [e for e in driver.get_log("browser") if e["level"] == "SEVERE"]
+    y = robot.output("p")
+    assert rows == [
+        ["tip_x", "position", "tip_x", f"{y[0]:.4f}", "m"],
+        ["tip_rz", "rotation", "tip_rz | tip.rz", "0.7000", "rad"],
+        ["elbow", "joint", "elbow | joint q2", "0.4000", "rad"],
+        ["c1_length", "cable", "c1_length | cable c1", f"{y[3]:.4f}", "m"],
+        ["mid_x", "sum", "mid_x | 0.5 link2.x + 0.5 tip.x", f"{y[4]:.4f}", "m"],
+    ]
+    assert legend == [False, "marker", "axes", "sleeve", "joint"]
+    # outputs in metres and radians: the reach margin counts one as the other
+    assert reach.endswith("[m and rad, one to one] within T = " + reach.split("T = ")[1])
+    assert _count_near(pixels, AXIS_RGB[1], tol=40) > 30, "the triad's green y axis"
+    assert not errors, errors

@@ -58,7 +58,8 @@ class ReachMargins:
     """Reach margins of k systems.
 
     Attributes:
-        value: r_T, shape (k,), >= 0 [output units, weighted].
+        value: r_T, shape (k,), >= 0 [output units, weighted; outputs in
+            different units count one of each as one].
         error: estimate of |value - exact r_T| from the time quadrature,
             shape (k,) (0 where the value is exact).
         intervals: quadrature intervals K per system, shape (k,).

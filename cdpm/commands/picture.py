@@ -8,14 +8,17 @@ from cdpm.commands._pose import add_pose_arguments, pose_from_args
 from cdpm.commands.plot import DPI_TYPE, argument_type
 
 NAME = "picture"
-HELP = "draw a pose (robot, cables by state, POC verdict) to a PNG/PDF/SVG file"
+HELP = "draw a pose (robot, cables by state, outputs, POC verdict) to a PNG/PDF/SVG file"
 DESCRIPTION = """\
 Render the robot at one pose as a 2-D projection with matplotlib, headless:
 links, base anchors, attachment points, cables coloured by state (taut:
 blue, darker with more tension; slack: dashed pink; unavailable: dotted
-grey), the output frame as a star coloured by the positive output
-controllability verdict (green YES, red NO, amber MARGINAL), and the verdict
-in the title. Needs the viz extra: pip install "cdpm[viz]"."""
+grey), the outputs in the colour of the positive output controllability
+verdict (green YES, red NO, amber MARGINAL): a star on each output point,
+the axes of the frame of an orientation output (x red, y green, z blue), a
+halo along a cable whose length is an output, a joint output named at its
+joint; the legend gives the values of joint and cable outputs, the title the
+verdict. Needs the viz extra: pip install "cdpm[viz]"."""
 EPILOG = """\
 examples:
   cdpm picture models/two_link_planar/two_link_planar.yaml --pose nominal -o pose.png

@@ -12,14 +12,17 @@ axis horizontal:
   - the verdict over the first two axes (slices along the third for more
     axes), with the outlines and numbers of the POC regions when the map has
     them (for --variable poc only);
-  - the reach margin r_T [output units] within the map's horizon T on a log
+  - the reach margin r_T [the outputs' unit: m, rad, or m and rad counted one
+    to one] within the map's horizon T on a log
     colour scale (maps without it: the unit-impulse POC margin), a few
     stragglers far beyond the 1st or 99th percentile clipped (the colour bar
     says so); zero margins in red, poses not analysed in greys by reason;
     no panel for a map made with --no-margin;
   - the poses in output space, coloured by verdict: by default the map's
     outputs (one output: against the first axis; two or more: the first two),
-    or those named with --outputs.
+    or those named with --outputs; each axis says the output's unit ([rad]
+    for rotations and revolute joints) and the formula of a joint, cable or
+    sum output (docs/outputs.md).
 A map over one axis is drawn as a verdict band along that axis above a line
 of the margin. Maps of random samples are drawn as scatter plots. `cdpm path
 ... --plot` draws a path over the verdict and margin panels."""
@@ -84,7 +87,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         nargs="+",
         metavar="NAME",
         help="one or two quantities for the output-space panel: names of the map's outputs, "
-        "or FRAME.x, FRAME.y, FRAME.z for the world position of the first output's frame; "
+        "or FRAME.x, FRAME.y, FRAME.z for the world position of the first output drawn at a "
+        "frame; "
         "one is plotted against the first axis (default: the map's outputs; the first two "
         "of three or more)",
     )

@@ -22,14 +22,16 @@ meshcat 3-D view of the robot beside a panel with a slider per natural
 coordinate, the verdicts at the pose (positive output controllability with
 its method and reach margin, Brammer positive controllability, output
 controllability, wrench closure, static feasibility), each cable's state
-and tension, the outputs, the spec's named poses and a "copy as --q"
-button. Moving a slider updates the scene and the panel. Cables are
-coloured by state (taut: blue, darker with more tension; slack: pink;
-unavailable: grey), the output frame marker by the POC verdict (green YES,
-red NO, amber MARGINAL). With --map, overlay a workspace map made by `cdpm
-map` from the same spec (output positions coloured by the POC verdict, its
-margin or another map variable, --color-by; --allow-other-spec for a map
-made from another spec file), with a toggle on the page. Prints the
+and tension, the outputs with their units, the spec's named poses and a
+"copy as --q" button. Moving a slider updates the scene and the panel.
+Cables are coloured by state (taut: blue, darker with more tension; slack:
+pink; unavailable: grey), the outputs' marks by the POC verdict (green YES,
+red NO, amber MARGINAL): a marker on each output point, with the frame's
+axes for an orientation output, and a sleeve on a cable whose length is an
+output. With --map, overlay a workspace map made by `cdpm map` from the
+same spec (output positions coloured by the POC verdict, its margin or
+another map variable, --color-by; --allow-other-spec for a map made from
+another spec file), with a toggle on the page. Prints the
 verdicts and the URL, then serves until Ctrl-C. Needs the viz extra: pip
 install "cdpm[viz]". From another machine, forward both ports it prints:
 ssh -L 7000:127.0.0.1:7000 -L 7001:127.0.0.1:7001 HOST."""

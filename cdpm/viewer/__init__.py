@@ -3,9 +3,11 @@
 :class:`Viewer` draws a cable robot in meshcat (a WebGL viewer served on
 127.0.0.1 and opened in a browser): the URDF's visual geometry (or generated
 links when the URDF has none or its meshes cannot be loaded), the base
-anchors and attachment points, the cables coloured by state, and each output
-point with a marker whose colour gives the positive output controllability
-(POC) verdict at the displayed pose. :meth:`Viewer.display` moves everything to a new pose;
+anchors and attachment points, the cables coloured by state, and the outputs
+in the colour of the positive output controllability (POC) verdict at the
+displayed pose: a marker on each output point, the axes of the frame of an
+orientation output, a sleeve on a cable whose length is an output
+(:mod:`cdpm.viewer.outputs`). :meth:`Viewer.display` moves everything to a new pose;
 :meth:`Viewer.show_map` overlays a workspace map as a point cloud.
 
 :func:`pose_state` computes what is drawn (positions, tensions, cable
@@ -26,10 +28,12 @@ and imported only when a viewer, a widget or a picture is made.
 
 Modules, each importing only those above it:
 
+- :mod:`cdpm.viewer.outputs`: where each output is drawn, from the spec;
 - :mod:`cdpm.viewer.state`: the pose state and colours (no meshcat);
 - :mod:`cdpm.viewer.coordinates`: slider ranges and units of the coordinates;
 - :mod:`cdpm.viewer.server`: the meshcat server process (loopback only);
 - :mod:`cdpm.viewer.overlay`: workspace-map points and their colours;
+- :mod:`cdpm.viewer.output_marks`: the outputs' marks in the meshcat scene;
 - :mod:`cdpm.viewer.scene`: the meshcat scene, :class:`Viewer`;
 - :mod:`cdpm.viewer.inspector`: notebook sliders, :class:`PoseInspector`;
 - :mod:`cdpm.viewer.panel`: every verdict at a pose, :func:`pose_panel`;

@@ -41,10 +41,11 @@ import numpy as np
 from cdpm.errors import CdpmError, InputError
 from cdpm.verdicts import VERDICT_COLORS, VERDICT_LABELS, VERDICT_ORDER
 from cdpm.viewer.coordinates import coordinate_sliders
+from cdpm.viewer.outputs import output_drawing
 from cdpm.viewer.panel import PosePanel, pose_panel, rgb_hex
 from cdpm.viewer.scene import Viewer
 from cdpm.viewer.server import LOOPBACK, check_port
-from cdpm.viewer.state import COLORS, default_pose
+from cdpm.viewer.state import AXIS_RGB, COLORS, default_pose
 
 if TYPE_CHECKING:  # pragma: no cover - for static type checkers only
     from cdpm.robot import CableRobot
@@ -312,8 +313,50 @@ def _slider_model(robot: CableRobot, natural: np.ndarray) -> list[dict]:
     return out
 
 
+def _output_legend(robot: CableRobot) -> list[dict]:
+    """How the robot's outputs are drawn in the scene, one entry per kind
+    present (:mod:`cdpm.viewer.outputs`)."""
+    drawing = output_drawing(robot)
+    entries = []
+    if any(not point.rotation for point in drawing.points):
+        entries.append(
+            {
+                "label": "marker",
+                "meaning": "sphere on an output point, in the POC verdict's colour",
+            }
+        )
+    if any(point.rotation for point in drawing.points):
+        names = ", ".join(p.label for p in drawing.points if p.rotation)
+        entries.append(
+            {
+                "label": "axes",
+                "color": rgb_hex(AXIS_RGB[0]),
+                "to": rgb_hex(AXIS_RGB[2]),
+                "meaning": "the frame of an orientation output (x red, y green, z blue), "
+                f"the verdict marker at its origin: {names}",
+            }
+        )
+    if drawing.cables:
+        names = "; ".join(
+            f"{robot.cable_names[i]}: {', '.join(outs)}" for i, outs in drawing.cables.items()
+        )
+        entries.append(
+            {
+                "label": "sleeve",
+                "meaning": "a cable whose length is an output, sleeved in the verdict's "
+                f"colour ({names})",
+            }
+        )
+    if drawing.joints:
+        names = "; ".join(f"{j}: {', '.join(outs)}" for j, outs in drawing.joints.items())
+        entries.append(
+            {"label": "joint", "meaning": f"joint outputs have no marker: see Outputs ({names})"}
+        )
+    return entries
+
+
 def _legend(robot: CableRobot) -> dict:
-    """Verdict and cable colours (hex) with their labels."""
+    """Verdict, cable and output colours (hex) with their labels."""
     from cdpm.viewer.state import tension_scale
 
     upper = robot.tension_max[np.isfinite(robot.tension_max)]
@@ -347,6 +390,7 @@ def _legend(robot: CableRobot) -> dict:
                 "meaning": "no equilibrium or linearisation at this pose",
             },
         ],
+        "outputs": _output_legend(robot),
     }
 
 

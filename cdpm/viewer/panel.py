@@ -26,7 +26,15 @@ import numpy as np
 from cdpm.errors import CdpmError
 from cdpm.numerics import RANK_RTOL
 from cdpm.verdicts import NOT_ANALYSED, VERDICT_COLORS, verdict_code
-from cdpm.viewer.state import COLORS, PoseState, cable_colors, pose_state, tension_scale
+from cdpm.viewer.state import (
+    COLORS,
+    PoseState,
+    cable_colors,
+    output_line,
+    pose_state,
+    tension_scale,
+    with_unit,
+)
 
 if TYPE_CHECKING:  # pragma: no cover - for static type checkers only
     from cdpm.report import PoseReport
@@ -101,16 +109,18 @@ class PosePanel:
 
     Attributes:
         state: what the scene draws (:class:`~cdpm.viewer.state.PoseState`:
-            cable states, tensions [N], outputs [m], POC verdict).
+            cable states, tensions [N], outputs with their units and
+            formulas, POC verdict).
         report: the :class:`cdpm.PoseReport` of the pose, or None when it
             could not be analysed.
         reason: why it could not be analysed, else None.
         verdicts: the verdict table, one :class:`VerdictRow` per property.
-        reach: the reach margin, ``{"value", "error"}`` [m] and ``{"horizon"}``
+        reach: the reach margin, ``{"value", "error"}`` in ``{"unit"}`` (the
+            outputs' unit, :func:`cdpm.reach.reach_unit`), ``{"horizon"}``
             [s], ``"budget"`` (text), or None when unavailable.
         notes: singular poses and other remarks, one sentence each.
         cable_rgb: colour (r, g, b in 0..1) each cable is drawn in.
-        output_units: unit of each output.
+        output_units: unit of each output (``"m"``, ``"rad"`` or the spec's).
         seconds: wall time [s] of ``analysis`` (:func:`cdpm.analyze_pose`)
             and ``draw`` (the scene, or the state without a viewer).
     """
@@ -159,9 +169,20 @@ class PosePanel:
                 )
             ],
             "outputs": [
-                {"name": name, "value": float(value), "unit": unit}
-                for name, value, unit in zip(
-                    state.output_names, state.output, self.output_units, strict=True
+                {
+                    "name": name,
+                    "value": float(value),
+                    "unit": unit,
+                    "kind": kind,
+                    "definition": definition,
+                }
+                for name, value, unit, kind, definition in zip(
+                    state.output_names,
+                    state.output,
+                    self.output_units,
+                    state.output_kinds,
+                    state.output_definitions,
+                    strict=True,
                 )
             ],
             "marker_color": rgb_hex(state.verdict_rgb),
@@ -176,9 +197,10 @@ class PosePanel:
                 line += f" ({self.reason})"
             elif row.key == "poc" and self.reach is not None:
                 reach = self.reach
+                margin = with_unit(f"{reach['value']:.4g}", reach["unit"])
                 line += (
                     f" ({row.detail.split(':', 1)[0]}); reach margin r_T = "
-                    f"{reach['value']:.4g} m within T = {reach['horizon']:.3g} s"
+                    f"{margin} within T = {reach['horizon']:.3g} s"
                 )
             elif row.detail and row.detail != _NEEDS_LINEARISATION:
                 line += f" ({row.detail})"
@@ -189,8 +211,15 @@ class PosePanel:
             f"{n} = {v:.4f}" for n, v in zip(state.coordinate_names, state.natural, strict=True)
         )
         outputs = ", ".join(
-            f"{n} = {v:.4f} {u}"
-            for n, v, u in zip(state.output_names, state.output, self.output_units, strict=True)
+            output_line(*row)
+            for row in zip(
+                state.output_names,
+                state.output,
+                self.output_units,
+                state.output_kinds,
+                state.output_definitions,
+                strict=True,
+            )
         )
         lines += [f"pose: {coords}  ({q_arguments(state.natural)})"]
         lines += [f"outputs: {outputs or '(none)'}"]
@@ -256,8 +285,6 @@ def pose_panel(robot: CableRobot, q: Any, *, viewer: Viewer | None = None) -> Po
         verdicts, reach, notes = _analysed_rows(report), _reach(report), _notes(report)
     else:
         verdicts, reach, notes = _unavailable_rows(robot, q, reason, error), None, ()
-    from cdpm.maps.criteria import CRITERIA
-
     return PosePanel(
         state=state,
         report=report,
@@ -266,7 +293,7 @@ def pose_panel(robot: CableRobot, q: Any, *, viewer: Viewer | None = None) -> Po
         reach=reach,
         notes=notes,
         cable_rgb=tuple(COLORS["unavailable"] if c is None else c for c in rgb),
-        output_units=(CRITERIA["y"].units,) * len(state.output_names),
+        output_units=tuple(robot.output_units),
         seconds={"analysis": t1 - t0, "draw": t2 - t1},
     )
 
@@ -366,6 +393,7 @@ def _reach(report: PoseReport) -> dict | None:
     return {
         "value": value + 0.0,
         "error": error,
+        "unit": report.reach_unit,
         "horizon": float(report.reach.horizon),
         "budget": report.reach.describe(),
     }

@@ -25,6 +25,9 @@ from typing import Any
 import numpy as np
 
 from cdpm.errors import CdpmError, InputError, MissingExtraError, ModelError
+from cdpm.viewer.output_marks import OutputMarks
+from cdpm.viewer.output_marks import rgb_int as _rgb_int
+from cdpm.viewer.output_marks import segment_transform as _segment_transform
 from cdpm.viewer.overlay import check_map_spec, map_points
 from cdpm.viewer.server import SERVER_TIMEOUT, _Server, check_port
 from cdpm.viewer.state import (
@@ -67,30 +70,6 @@ def _one_line(message: Any) -> str:
     """A Pinocchio or coal error message on one line, without the C++
     source location coal puts before its ``message:``."""
     return " ".join(str(message).split("message:", 1)[-1].split())
-
-
-def _rgb_int(rgb: tuple[float, float, float]) -> int:
-    r, g, b = (int(round(255 * min(max(c, 0.0), 1.0))) for c in rgb)
-    return (r << 16) | (g << 8) | b
-
-
-def _segment_transform(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Transform taking meshcat's unit cylinder (height 1 along y, centred)
-    to the segment a -> b (4, 4)."""
-    d = b - a
-    length = float(np.linalg.norm(d))
-    T = np.eye(4)
-    T[:3, 3] = 0.5 * (a + b)
-    if length < 1e-12:
-        T[:3, :3] = np.diag([1.0, 1e-6, 1.0])
-        return T
-    y = d / length
-    helper = np.array([1.0, 0.0, 0.0]) if abs(y[0]) < 0.9 else np.array([0.0, 0.0, 1.0])
-    x = np.cross(y, helper)
-    x /= np.linalg.norm(x)
-    z = np.cross(x, y)
-    T[:3, 0], T[:3, 1], T[:3, 2] = x, y * length, z
-    return T
 
 
 def _positive(value: Any, name: str, hint: str, allow_zero: bool = False) -> float:
@@ -151,9 +130,12 @@ class Viewer:
     it carries), ``anchors`` (route points fixed to the world, dark
     spheres), ``attachments`` (route points on links, grey spheres),
     ``cables/<name>/<k>`` (segment k of a cable: taut blue by tension, slack
-    pink, unavailable grey), ``output/<frame>`` (the axes of the output's
-    frame and a marker on the output point: green YES, red NO, amber
-    MARGINAL, grey unavailable), ``map`` (workspace map).
+    pink, unavailable grey), ``output/<frame>`` (a marker on each output
+    point, coloured by the verdict: green YES, red NO, amber MARGINAL, grey
+    unavailable; with the frame's axes, ``output/<frame>/triad``, where an
+    orientation output is drawn), ``cables/<name>/<k>/output`` (a sleeve in
+    the verdict colour on a cable whose length is an output), ``map``
+    (workspace map); see :mod:`cdpm.viewer.output_marks`.
 
     Args:
         robot: a :class:`~cdpm.robot.CableRobot`.
@@ -215,7 +197,6 @@ class Viewer:
         self._geometry = PoseGeometry(robot)
         self._tension_scale = tension_scale
         self._cable_colors: list[tuple[float, float, float] | None] = []
-        self._marker_color: tuple[float, float, float] | None = None
         self.state: PoseState | None = None
         #: seconds spent in the last :meth:`display`: ``analysis`` and ``draw``
         self.last_display_seconds: dict[str, float] = {}
@@ -263,6 +244,12 @@ class Viewer:
     def cable_colors(self) -> tuple[tuple[float, float, float] | None, ...]:
         """RGB colour (0..1) each cable is drawn in now (None before the first draw)."""
         return tuple(self._cable_colors)
+
+    @property
+    def marker_color(self) -> tuple[float, float, float] | None:
+        """RGB colour (0..1) of the output markers now: the POC verdict's
+        (None before the first draw)."""
+        return self._marks.color
 
     @property
     def zmq_url(self) -> str:
@@ -418,23 +405,22 @@ class Viewer:
         self._cable_colors[i] = rgb
 
     def _build_outputs(self) -> None:
-        """Axes and marker at each output point, under ``output/<frame>``
-        (``output/<frame>.<k>`` for the k-th further point of a frame)."""
-        g, s = self._g, self._size
-        for name in self._geometry.output_point_names:
-            self._send(f"cdpm/output/{name}/axes", "set_object", g.triad(0.12 * s))
-        self._marker_color = None
+        """Markers at the output points, under ``output/<frame>``
+        (``output/<frame>.<k>`` for the k-th further point of a frame), the
+        axes of the frames of orientation outputs, sleeves on the cables
+        whose lengths are outputs (:class:`OutputMarks`)."""
+        geo = self._geometry
+        self._marks = OutputMarks(
+            self._send,
+            self._g,
+            geo.drawing,
+            self.robot.cable_names,
+            [s.stop - s.start - 1 for s in geo.route_slices],
+            self._size,
+        )
 
     def _set_marker_color(self, rgb: tuple[float, float, float]) -> None:
-        if self._marker_color == rgb:
-            return
-        g = self._g
-        material = g.MeshPhongMaterial(color=_rgb_int(rgb))
-        for name in self._geometry.output_point_names:
-            self._send(
-                f"cdpm/output/{name}/marker", "set_object", g.Sphere(0.035 * self._size), material
-            )
-        self._marker_color = rgb
+        self._marks.set_color(rgb)
 
     def _set_camera(self) -> None:
         """Look at the world origin across the scene's thinnest world axis.
@@ -519,8 +505,7 @@ class Viewer:
                     _segment_transform(route[k], route[k + 1]),
                 )
         self._set_marker_color(marker_rgb)
-        for name, T in zip(geo.output_point_names, geo.output_placements(), strict=True):
-            self._send(f"cdpm/output/{name}", "set_transform", T)
+        self._marks.place(geo.output_placements())
 
     # ------------------------------------------------------------ playback
 

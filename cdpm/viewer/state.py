@@ -28,6 +28,7 @@ import numpy as np
 from cdpm.errors import CdpmError, InputError
 from cdpm.linearisation import linearise
 from cdpm.verdicts import VERDICT_CODES, VERDICT_RGB, verdict_code
+from cdpm.viewer.outputs import OutputDrawing, output_drawing
 
 if TYPE_CHECKING:  # pragma: no cover
     from cdpm.robot import CableRobot
@@ -46,6 +47,7 @@ __all__ = [
     "cable_colors",
     "tension_colors",
     "COLORS",
+    "AXIS_RGB",
 ]
 
 #: RGB colours (0..1) of the drawing, shared by the 3-D view and the picture:
@@ -63,6 +65,13 @@ COLORS: dict[str, tuple[float, float, float]] = {
     "anchor": (0.10, 0.10, 0.10),
     "attachment": (0.35, 0.35, 0.35),
 }
+
+#: RGB colours (0..1) of a frame's x, y and z axes in an orientation output's triad.
+AXIS_RGB: tuple[tuple[float, float, float], ...] = (
+    (0.86, 0.13, 0.13),
+    (0.13, 0.62, 0.20),
+    (0.15, 0.33, 0.86),
+)
 
 
 class CableState(enum.StrEnum):
@@ -87,16 +96,24 @@ class PoseState:
         cable_states: :class:`CableState` of each cable, shape (m,).
         tension: equilibrium tensions f* [N], shape (m,), or None when unavailable.
         output_names: names of the p outputs.
-        output: outputs y [m], shape (p,): the robot's own
-            (:meth:`~cdpm.robot.CableRobot.output`).
-        output_frames: frame of each point the outputs measure (each
-            distinct point once, in the order of the outputs; a frame
-            carrying two points appears twice).
+        output: outputs y, shape (p,), each in its unit (``output_units``):
+            the robot's own (:meth:`~cdpm.robot.CableRobot.output`).
+        output_units: unit of each output (``"m"``, ``"rad"``, or the spec's).
+        output_kinds: kind of each output: ``position``, ``rotation``,
+            ``joint``, ``cable`` or ``sum``
+            (:func:`~cdpm.viewer.outputs.output_kind`).
+        output_definitions: each output as a formula (``tip.x``,
+            ``platform.rz``, ``joint joint2``, ``cable c1``,
+            ``0.5 link1.x + 0.5 tip.x``).
+        output_frames: frame of each point at which outputs are drawn
+            (:class:`~cdpm.viewer.outputs.OutputPoint`: each distinct point
+            once, in the order of the outputs; a frame carrying two points
+            appears twice; joint and cable outputs have none).
         output_frame_positions: world positions [m] of those output points
             (an output's ``point`` in its frame, not the frame's origin),
             shape (n_output_points, 3).
         verdict: POC verdict (:class:`cdpm.analysis.Verdict`) or None when unavailable.
-        margin: reach margin r_T [m] (:mod:`cdpm.reach`; positive when POC
+        margin: reach margin r_T in :attr:`margin_unit` (:mod:`cdpm.reach`; positive when POC
             within the model's horizon) or None.
         reason: why tensions or the verdict are unavailable, else None.
     """
@@ -110,11 +127,23 @@ class PoseState:
     tension: np.ndarray | None
     output_names: tuple[str, ...]
     output: np.ndarray
+    output_units: tuple[str, ...]
+    output_kinds: tuple[str, ...]
+    output_definitions: tuple[str, ...]
     output_frames: tuple[str, ...]
     output_frame_positions: np.ndarray
     verdict: Any
     margin: float | None
     reason: str | None
+
+    @property
+    def margin_unit(self) -> str:
+        """The unit of the reach margin: the outputs' common unit (``"m"``,
+        ``"rad"``), else e.g. ``"m and rad, one to one"``
+        (:func:`cdpm.reach.reach_unit`)."""
+        from cdpm.reach import reach_unit
+
+        return reach_unit(self.output_units)
 
     @property
     def verdict_key(self) -> str:
@@ -147,6 +176,7 @@ class PoseState:
             "q": self.q.tolist(),
             "coordinates": dict(zip(self.coordinate_names, self.natural.tolist(), strict=True)),
             "output": dict(zip(self.output_names, self.output.tolist(), strict=True)),
+            "output_units": dict(zip(self.output_names, self.output_units, strict=True)),
             "verdict": self.verdict_key,
             "margin": self.margin,
             "reason": self.reason,
@@ -166,23 +196,41 @@ class PoseState:
     def _verdict_line(self) -> str:
         if self.verdict is None:
             return f"POC: unavailable ({self.reason})"
-        margin = "" if self.margin is None else f" (reach margin {self.margin:.4g} m)"
+        margin = ""
+        if self.margin is not None:
+            margin = f" (reach margin {with_unit(f'{self.margin:.4g}', self.margin_unit)})"
         return f"POC: {str(self.verdict).upper()}{margin}"
 
     def __str__(self) -> str:
         coords = ", ".join(
             f"{n} = {v:.4f}" for n, v in zip(self.coordinate_names, self.natural, strict=True)
         )
-        outputs = ", ".join(
-            f"{n} = {v:.4f}" for n, v in zip(self.output_names, self.output, strict=True)
-        )
-        lines = [self._verdict_line(), f"pose: {coords}", f"outputs: {outputs or '(none)'}"]
+        lines = [self._verdict_line(), f"pose: {coords}", f"outputs: {self.outputs_text()}"]
         for i, (name, state) in enumerate(zip(self.cable_names, self.cable_states, strict=True)):
             f = "    -" if self.tension is None else f"{self.tension[i]:9.4g} N"
             lines.append(f"  {name:<10} {f}  {state.value}")
         slack = ", ".join(self.slack_cables) or "none"
         lines.append(f"slack cables: {slack}")
         return "\n".join(lines)
+
+    def outputs_text(self) -> str:
+        """The outputs with their units, ``tip_x = 0.8660 m, elbow = 1.0472 rad
+        (joint joint2)``: the formula of each output that is not one point
+        coordinate (an orientation, joint or cable output, a sum)."""
+        return (
+            ", ".join(
+                output_line(*row)
+                for row in zip(
+                    self.output_names,
+                    self.output,
+                    self.output_units,
+                    self.output_kinds,
+                    self.output_definitions,
+                    strict=True,
+                )
+            )
+            or "(none)"
+        )
 
     def _repr_html_(self) -> str:
         r, g, b = (int(255 * c) for c in self.verdict_rgb)
@@ -194,6 +242,20 @@ class PoseState:
         )
 
 
+def with_unit(value: str, unit: str) -> str:
+    """``"0.15 m"``; with a unit of several (``"m and rad, one to one"``)
+    ``"0.15 [m and rad, one to one]"``."""
+    return f"{value} [{unit}]" if "," in unit else f"{value} {unit}"
+
+
+def output_line(name: str, value: float, unit: str, kind: str, definition: str) -> str:
+    """``tip_x = 0.8660 m``; an output of another kind than ``position``
+    (:func:`~cdpm.viewer.outputs.output_kind`) with its formula:
+    ``elbow = 1.0472 rad (joint joint2)``."""
+    text = f"{name} = {value:.4f} {unit}"
+    return text if kind == "position" else f"{text} ({definition})"
+
+
 class PoseGeometry:
     """World positions the drawings need at one pose.
 
@@ -201,8 +263,11 @@ class PoseGeometry:
     never fails, not even at poses where a cable has zero length. The output
     points and outputs are the robot's own
     (:meth:`~cdpm.robot.CableRobot.kinematics_batch`, the points
-    :meth:`~cdpm.robot.CableRobot.output` measures). Call :meth:`update`
-    with a configuration, then read the positions.
+    :attr:`~cdpm.robot.CableRobot.output_points` names); an output point is
+    where outputs are drawn (:mod:`cdpm.viewer.outputs`): a position
+    output's point, an orientation output's frame origin, a sum's first
+    position or orientation term; joint and cable outputs have none. Call
+    :meth:`update` with a configuration, then read the positions.
 
     Args:
         robot: a :class:`~cdpm.robot.CableRobot`.
@@ -214,14 +279,19 @@ class PoseGeometry:
         point_local: each route point in its frame [m], shape (n_points, 3).
         point_joint: parent joint of each route point's frame (0: fixed to
             the world, an anchor), shape (n_points,).
-        output_frames: frame of each distinct point the outputs measure
-            (outputs of the same frame and point share one).
-        output_labels: per output point, the names of the outputs measured
+        drawing: how each output is drawn
+            (:class:`~cdpm.viewer.outputs.OutputDrawing`).
+        output_frames: frame of each output point (outputs of the same
+            frame and point share one).
+        output_labels: per output point, the names of the outputs drawn
             there (``"tip_y, tip_z"``).
         output_point_names: a distinct name per output point: its frame's
             name, ``"<frame>.<k>"`` for the k-th point of a frame (k >= 2).
+        output_point_rotation: per output point, whether an orientation
+            output is drawn there (with its frame's axes).
         output_frame_ids: frame id of each output point's frame (-1: the world).
-        output: outputs y [m] at the last update, shape (p,).
+        output: outputs y at the last update, shape (p,), each in its unit
+            (:attr:`~cdpm.robot.CableRobot.output_units`).
     """
 
     def __init__(self, robot: CableRobot) -> None:
@@ -242,29 +312,15 @@ class PoseGeometry:
             self.route_slices.append(slice(start, len(frames)))
         self.point_frames = np.array(frames, dtype=int)
         self.point_local = np.array(local, dtype=float).reshape(-1, 3)
-        keys: list[tuple] = []
-        labels: list[str] = []
-        first: list[int] = []  # index of the first output measured at each point
-        for k, out in enumerate(robot.spec.outputs):
-            key = (out.frame, tuple(float(c) for c in out.point_in_frame))
-            if key in keys:
-                labels[keys.index(key)] += f", {out.name}"
-            else:
-                keys.append(key)
-                labels.append(out.name)
-                first.append(k)
-        self.output_frames = tuple(frame for frame, _ in keys)
-        per_frame: dict[str, int] = {}
-        names = []
-        for frame in self.output_frames:
-            per_frame[frame] = per_frame.get(frame, 0) + 1
-            k = per_frame[frame]
-            names.append(frame if k == 1 else f"{frame}.{k}")
-        self.output_point_names = tuple(names)
-        self.output_labels = tuple(labels)
+        self.drawing: OutputDrawing = output_drawing(robot)
+        marks = self.drawing.points
+        self.output_frames = tuple(point.frame for point in marks)
+        self.output_point_names = tuple(point.name for point in marks)
+        self.output_labels = tuple(point.label for point in marks)
+        self.output_point_rotation = tuple(point.rotation for point in marks)
         self.output_frame_ids = [self._frame_id(n) for n in self.output_frames]
-        self._output_first = np.array(first, dtype=int)
-        self._output_world = np.zeros((len(robot.spec.outputs), 3))
+        self._output_tracked = np.array([point.tracked for point in marks], dtype=int)
+        self._output_world = np.zeros((len(marks), 3))
         self.output = np.zeros(len(robot.spec.outputs))
         # a route point is fixed to the world when its frame's parent joint is the universe
         self.point_joint = np.array(
@@ -279,10 +335,9 @@ class PoseGeometry:
     def update(self, q: np.ndarray) -> None:
         """Forward kinematics, frame placements and output points at q (nq,)."""
         self._pin.framesForwardKinematics(self.model, self.data, q)
-        # the robot's tracked points: route points, then one per output
+        # the robot's tracked points: route points, then output points
         kin = self._robot.kinematics_batch(np.asarray(q, dtype=float)[None, :])
-        p = self.output.size
-        self._output_world = np.array(kin.point_positions[0, kin.point_positions.shape[1] - p :])
+        self._output_world = np.array(kin.point_positions[0, self._output_tracked]).reshape(-1, 3)
         self.output = np.array(kin.output[0], dtype=float)
 
     def _place(self, frame: int, local: np.ndarray) -> np.ndarray:
@@ -300,8 +355,9 @@ class PoseGeometry:
 
     def output_positions(self) -> np.ndarray:
         """World positions of the output points [m], shape (n_output_points, 3):
-        the points :meth:`~cdpm.robot.CableRobot.output` measures."""
-        return self._output_world[self._output_first].reshape(-1, 3)
+        the points the position outputs measure, the frame origins of
+        orientation outputs."""
+        return self._output_world.copy()
 
     def output_placements(self) -> list[np.ndarray]:
         """Homogeneous world placements (4, 4) of the output points: the
@@ -351,12 +407,18 @@ def skeleton_segments(model) -> list[tuple[int, np.ndarray, np.ndarray]]:
 
 def _carried_points(robot: CableRobot) -> list[tuple[int, np.ndarray]]:
     """(joint, point in the joint's frame [m]) of every cable route point
-    and output point, in spec order (joint 0: fixed to the world)."""
+    and point of a position or orientation output term, in spec order (joint
+    0: fixed to the world)."""
     from cdpm.spec import WORLD_FRAME_NAMES
 
     model = robot.model
     named = [(p.frame, p.point_in_frame) for c in robot.spec.cables for p in c.route]
-    named += [(o.frame, o.point_in_frame) for o in robot.spec.outputs]
+    named += [
+        (t.frame, t.point_in_frame)
+        for o in robot.spec.outputs
+        for t in o.terms
+        if t.kind in ("position", "rotation")
+    ]
     carried = []
     for frame_name, point in named:
         local = np.array(point, dtype=float)
@@ -540,6 +602,9 @@ def pose_state(
         tension=None if tension is None else np.array(tension, dtype=float),
         output_names=tuple(robot.output_names),
         output=geometry.output.copy(),
+        output_units=tuple(robot.output_units),
+        output_kinds=geometry.drawing.kinds,
+        output_definitions=geometry.drawing.definitions,
         output_frames=geometry.output_frames,
         output_frame_positions=geometry.output_positions(),
         verdict=verdict,

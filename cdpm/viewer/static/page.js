@@ -168,11 +168,18 @@ function buildLegend(legend) {
   for (const v of legend.verdicts) {
     verdicts.append(el("span", { class: "item" }, [el("span", { class: "swatch", style: `background:${v.color}` }), ` ${v.label}`]));
   }
-  const cables = $("legend-cables");
-  for (const c of legend.cables) {
+  legendList($("legend-cables"), legend.cables);
+  $("legend-outputs-title").hidden = !legend.outputs.length;
+  legendList($("legend-outputs"), legend.outputs);
+}
+
+// items {label, meaning, color?, to?}: a swatch (a ramp from color to to) when coloured
+function legendList(box, items) {
+  for (const c of items) {
     const fill = c.to ? `linear-gradient(90deg, ${c.color}, ${c.to})` : c.color;
-    cables.append(el("div", { class: "item" }, [
-      el("span", { class: "swatch", style: `background:${fill}` }), " ",
+    const swatch = c.color ? [el("span", { class: "swatch", style: `background:${fill}` }), " "] : [];
+    box.append(el("div", { class: "item", "data-legend": c.label }, [
+      ...swatch,
       el("span", { class: "label", text: c.label }), " ",
       el("span", { class: "meaning", text: c.meaning }),
     ]));
@@ -221,7 +228,9 @@ function reachRow(reach) {
   let text = "unavailable";
   if (reach) {
     const error = reach.error ? ` ± ${Number(reach.error).toPrecision(2)}` : "";
-    text = `${Number(reach.value).toPrecision(4)}${error} m within T = ${Number(reach.horizon).toPrecision(3)} s`;
+    // a unit of several (metres and radians, one to one) in brackets
+    const unit = reach.unit.includes(",") ? ` [${reach.unit}]` : ` ${reach.unit}`;
+    text = `${Number(reach.value).toPrecision(4)}${error}${unit} within T = ${Number(reach.horizon).toPrecision(3)} s`;
   }
   return el("tr", { id: "reach", class: "reach", "data-value": reach ? reach.value : "", title: reach ? reach.budget : "" }, [
     el("td", { text: "r_T" }),
@@ -264,8 +273,12 @@ function render(panel) {
     el("td", { class: "num", text: c.tension === null ? "-" : fmt(c.tension, 3) }),
   ])));
 
-  $("output-table").tBodies[0].replaceChildren(...panel.outputs.map((o) => el("tr", { "data-output": o.name }, [
-    el("td", { text: o.name }),
+  // a position output is its name; any other (orientation, joint, cable, sum) shows its formula
+  $("output-table").tBodies[0].replaceChildren(...panel.outputs.map((o) => el("tr", { "data-output": o.name, "data-kind": o.kind }, [
+    el("td", {}, [
+      el("div", { text: o.name, title: o.definition }),
+      ...(o.kind === "position" ? [] : [el("div", { class: "detail", text: o.definition, title: o.definition })]),
+    ]),
     el("td", { class: "num", text: fmt(o.value) }),
     el("td", { text: o.unit }),
   ])));
