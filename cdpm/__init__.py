@@ -79,6 +79,12 @@ _EXPORTS: dict[str, str] = {
     "reach_settings": "cdpm.reach",
     "poc_neighbourhood": "cdpm.neighbourhood",
     "Neighbourhood": "cdpm.neighbourhood",
+    # choosing the equilibrium tension
+    "tension_range": "cdpm.tension_choice",
+    "TensionRange": "cdpm.tension_choice",
+    "best_tension": "cdpm.tension_choice",
+    "BestTension": "cdpm.tension_choice",
+    "best_tension_batch": "cdpm.tension_choice",
     "plot_map": "cdpm.plotting",
     "save_map_plot": "cdpm.plotting",
     # viewer and pictures (extra: cdpm[viz])
@@ -173,5 +179,12 @@ if TYPE_CHECKING:  # pragma: no cover - for static type checkers only
     from cdpm.simulation import TensionProfile, Trajectory, simulate  # noqa: F401
     from cdpm.spec import CableSpec, load_spec  # noqa: F401
     from cdpm.steering import SteerResult, steer  # noqa: F401
+    from cdpm.tension_choice import (  # noqa: F401
+        BestTension,
+        TensionRange,
+        best_tension,
+        best_tension_batch,
+        tension_range,
+    )
     from cdpm.verification import VerifyReport, verify_pose  # noqa: F401
     from cdpm.viewer import CableState, PoseInspector, PoseState, Viewer, pose_state  # noqa: F401

@@ -294,3 +294,17 @@ RECHECK_EIG_RTOL = 1e-7
 #: modal certificates: an oscillatory mode's unit input rows have full rank when
 #: their singular-value ratio exceeds this
 RECHECK_MODAL_RANK_RTOL = 1e-8
+
+# --------------------------------------------------------------------------
+# choosing the tension (cdpm.tension_choice)
+
+#: primal and dual feasibility tolerance of the tension LPs (HiGHS) [N]
+TENSION_LP_TOL = 1e-9
+#: a least or greatest feasible tension within this times max(1 N, the
+#: largest |bound| or tension of the pose) of a cable's bound is on it; a
+#: cable whose feasible range is shorter than that is fixed by the statics
+TENSION_RANGE_RTOL = 1e-8
+#: default tension cap of cables without an upper bound in the tension search:
+#: this many reach tension budgets F (the robot's weight, or its mass times
+#: 1 m/s^2), or the largest finite maximum tension of a cable if larger
+TENSION_CAP_BUDGETS = 10.0

@@ -33,7 +33,7 @@ def test_infeasible_pose_prints_the_report_and_exits_3(capsys):
     assert main(ZERO_AT_STRETCHED) == 3
     out, err = capsys.readouterr()
     assert "coordinates: q1 = 0, q2 = 0" in out
-    assert "outputs:     tip_x = 2, tip_z = 0" in out  # arm of 1 + 1 m along x
+    assert "outputs:     tip_x = 2 m, tip_z = 0 m" in out  # arm of 1 + 1 m along x
     assert "Equilibrium (zero): INFEASIBLE, residual |L^T f + G + w_ext| = 20.2 (N or N m)" in out
     # cable lengths (kinematics) and the closest tensions the method allows
     assert re.search(r"c1 +0\.894427 +0 +slack +\[0, inf\]", out), out
@@ -104,15 +104,15 @@ def vertical():
 @pytest.mark.parametrize(
     ("argv", "outputs", "every_number"),
     [
-        ([str(PAPER_SPEC), "--q", "pi/2", "0"], "tip_x = 0", True),  # tip_x is 1.2e-16
+        ([str(PAPER_SPEC), "--q", "pi/2", "0"], "tip_x = 0 m", True),  # tip_x is 1.2e-16
         # the tip on the shoulder: C is round-off too, and the POC verdict's own
         # numbers show it (an analysis matter, not a printing one)
-        ([str(PAPER_SPEC), "--q", "0", "pi"], "tip_x = 0", False),
-        ([VERTICAL, "--q", "-3*pi/4", "-pi"], "tip_x = 0, tip_z = 0", True),  # folded
-        ([VERTICAL, "--q", "-pi", "-pi"], "tip_x = 0, tip_z = 0", True),
+        ([str(PAPER_SPEC), "--q", "0", "pi"], "tip_x = 0 m", False),
+        ([VERTICAL, "--q", "-3*pi/4", "-pi"], "tip_x = 0 m, tip_z = 0 m", True),  # folded
+        ([VERTICAL, "--q", "-pi", "-pi"], "tip_x = 0 m, tip_z = 0 m", True),
         (
             [str(MODELS / "double_pendulum_cables"), "--q", "-pi", "-pi"],
-            "tip_y = 0, tip_z = 0.135",
+            "tip_y = 0 m, tip_z = 0.135 m",
             True,
         ),
     ],
@@ -121,7 +121,7 @@ def test_round_off_prints_as_zero(argv, outputs, every_number, capsys):
     assert main(["analyze", *argv]) == 0
     out = capsys.readouterr().out
     assert f"outputs:     {outputs}\n" in out
-    assert f"y:                      {outputs} m" in out
+    assert f"y:                      {outputs}\n" in out
     assert not re.search(r"(?<![\w.])-0(\.0*)?(?![\w.])", out)
     if every_number:
         # the residual measures round-off itself; every other number is
@@ -167,9 +167,9 @@ def test_python_dash_m_runs_the_cli():
 def test_a_folder_of_specs_lists_them(capsys, tmp_path):
     assert main(["analyze", str(MODELS) + "/"]) == 1
     err = capsys.readouterr().err
-    assert err.startswith(f"cdpm analyze: error: {MODELS}/ is a folder; specs in it: ")
-    assert f"{MODELS}/two_link_planar/two_link_planar.yaml, " in err
-    assert f"{MODELS}/two_link_vertical/two_link_vertical.yaml; give one of them" in err
+    head = f"cdpm analyze: error: {MODELS}/ is a folder; give one of the specs in it: "
+    assert err.startswith(head + f"{MODELS}/double_pendulum_cables/double_pendulum_cables.yaml, ")
+    assert f"{MODELS}/spatial_8cable/spatial_8cable_pose.yaml, " in err
     assert "not found" not in err
     # a model folder is its spec, named after it or the only one
     assert main(["analyze", str(MODELS / "two_link_planar"), "--pose", "nominal"]) == 0

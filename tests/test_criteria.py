@@ -150,13 +150,13 @@ def test_register_refuses_what_maps_cannot_store():
 
     with pytest.raises(ValueError, match="already registered; pass replace=True"):
         register(CRITERIA["n_taut"])
-    with pytest.raises(ValueError, match=r"extra dimensions \['cable'\] are not supported"):
-        register(Criterion("per_cable", "float64", np.nan, "x", zeros, dims=("cable",)))
+    with pytest.raises(ValueError, match=r"extra dimensions \['joint'\] are not supported"):
+        register(Criterion("per_joint", "float64", np.nan, "x", zeros, dims=("joint",)))
     with pytest.raises(ValueError, match="is not a numpy dtype"):
         register(Criterion("odd", "nonsense", 0, "x", zeros))
     with pytest.raises(ValueError, match="must be an identifier"):
         register(Criterion("two words", "float64", 0, "x", zeros))
-    assert "per_cable" not in CRITERIA and "odd" not in CRITERIA
+    assert "per_joint" not in CRITERIA and "odd" not in CRITERIA
     # replace=True: the same name again (a notebook cell run twice)
     entry = CRITERIA["n_taut"]
     assert register(entry, replace=True) is entry

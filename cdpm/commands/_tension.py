@@ -12,15 +12,31 @@ if TYPE_CHECKING:  # pragma: no cover
     from cdpm.robot import CableRobot
 
 
-def add_tension_arguments(parser: argparse.ArgumentParser) -> None:
-    """Add --tension METHOD|F... and --pretension N."""
+def add_tension_arguments(parser: argparse.ArgumentParser, best: bool = False) -> None:
+    """Add --tension METHOD|F... and --pretension N; with ``best`` also
+    ``--tension best`` (the search over the feasible tensions) and
+    ``--objective poc|margin``."""
+    search = (
+        "; best: the spec's method and also the search over every feasible equilibrium "
+        "tension for a POC one of largest reach margin (--objective)"
+        if best
+        else ""
+    )
     parser.add_argument(
         "--tension",
         nargs="+",
         metavar="METHOD|F",
         help="equilibrium method (zero, min_norm, pretension) or one tension per cable [N]; "
-        "default: the spec's equilibrium.method (min_norm if none)",
+        f"default: the spec's equilibrium.method (min_norm if none){search}",
     )
+    if best:
+        parser.add_argument(
+            "--objective",
+            choices=("poc", "margin"),
+            help="with --tension best: poc (default) finds whether some feasible tension is POC "
+            "and picks the POC candidate of largest reach margin; margin also refines it "
+            "towards a larger margin",
+        )
     parser.add_argument(
         "--pretension",
         type=float,
@@ -94,16 +110,30 @@ def cli_infeasible_message(result) -> str:
 
 
 def tension_from_args(robot: CableRobot, args: argparse.Namespace):
-    """(tension setting, pretension) from --tension and --pretension, checked."""
-    tension = tension_argument(args.tension)
+    """(tension setting, pretension) from --tension and --pretension, checked;
+    the setting is ``"best"`` for ``--tension best`` where the command
+    offers it (it has --objective)."""
+    tension = tension_argument(args.tension, best=hasattr(args, "objective"))
+    check_objective(tension, getattr(args, "objective", None))
     check_pretension(robot, tension, args.pretension)
     return tension, args.pretension
+
+
+def check_objective(tension, objective: str | None) -> None:
+    """--objective only means something with --tension best."""
+    if objective is not None and tension != "best":
+        raise InputError(
+            f"--objective {objective} sets what the tension search looks for: add --tension "
+            "best, or leave out --objective"
+        )
 
 
 def check_pretension(robot: CableRobot, tension, pretension: float | None) -> None:
     """--pretension only means something for the pretension method, and that
     method needs one (from the flag or the spec)."""
 
+    if tension == "best":  # the spec's method, and the search
+        tension = None
     method = tension if isinstance(tension, str) or tension is None else "given"
     method = method or robot.spec.equilibrium_method
     if pretension is not None and method != "pretension":
@@ -121,13 +151,27 @@ def check_pretension(robot: CableRobot, tension, pretension: float | None) -> No
         )
 
 
-def tension_argument(values: list[str] | None):
-    """None, a method name, or a list of tensions from ``--tension``."""
+def tension_argument(values: list[str] | None, best: bool = False):
+    """None, a method name, a list of tensions, or (with ``best``, for the
+    commands that search the feasible tensions) ``"best"`` from ``--tension``."""
     from cdpm.equilibrium import EQUILIBRIUM_METHODS
     from cdpm.spec import parse_number
 
     if not values:
         return None
+    if "best" in values:
+        if not best:
+            raise InputError(
+                "--tension best (the search over the feasible tensions) is an option of cdpm "
+                f"analyze and cdpm map; here give a method ({', '.join(EQUILIBRIUM_METHODS)}) "
+                "or one tension per cable in N"
+            )
+        if len(values) != 1:
+            raise InputError(
+                f"--tension best searches the tensions itself: give --tension best alone, or "
+                f"the tensions without best (got {' '.join(values)})"
+            )
+        return "best"
     if len(values) == 1 and values[0] in EQUILIBRIUM_METHODS:
         return values[0]
     try:

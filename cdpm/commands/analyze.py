@@ -36,6 +36,11 @@ within the cables' bounds can move the outputs in every direction) and, with
 --neighbourhood R, the POC neighbourhood: how far around the pose every pose of
 a local map is POC.
 
+Each output prints with its unit (m, or rad for rotations and revolute joints)
+and, when it is a joint, a cable length or a weighted sum, its formula; r_T is
+in the outputs' unit, with metres and radians counted one to one when they mix
+(docs/outputs.md).
+
 At a pose that no tension within the cable bounds holds (by the chosen
 method) there is no linearisation: the report then shows the pose, the
 outputs, the cables with the closest tensions within the bounds and their
@@ -59,6 +64,7 @@ examples:
   cdpm analyze models/two_link_planar --pose nominal --tension 0 0 0 0   (given tensions)
   cdpm analyze models/two_link_planar --pose nominal --neighbourhood 0.3 --points 31
   cdpm analyze models/two_link_vertical --pose nominal --horizon 0.5 --tension-budget 10
+  cdpm analyze models/spatial_8cable --pose offset --tension best --objective margin
 
 SPEC is a cable spec YAML file or a folder: models/two_link_planar means
 models/two_link_planar/two_link_planar.yaml (or the folder's only spec); a
@@ -79,7 +85,17 @@ exit status:
   2  bad usage
   3  no tension within the cable bounds holds the pose by the chosen method:
      the report is printed, marked INFEASIBLE, without linearisation or
-     verdicts; stderr says what to change (nothing is written for npz/mat)
+     verdicts; stderr says what to change (nothing is written for npz/mat).
+     With --tension best: no tension within the cable bounds holds the pose
+     at all (when only the spec's method finds none, the search still runs
+     and the status is 0)
+
+--tension best prints the report at the spec's tension, then the feasible
+equilibrium tensions (LPs: each cable's least and greatest tension, which
+cables can or must be slack) and the tension search: whether some feasible
+tension makes the pose POC (a YES is certified at the tension printed; a NO
+means none of the candidates tried is POC), the tension chosen, its verdict,
+its reach margin and how it was found (json: "best_tension").
 
 """
     + Q_HELP
@@ -88,7 +104,7 @@ exit status:
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_pose_arguments(parser)
-    add_tension_arguments(parser)
+    add_tension_arguments(parser, best=True)
     output = parser.add_argument_group("output")
     how = output.add_mutually_exclusive_group()
     how.add_argument(
@@ -134,12 +150,19 @@ def run(args: argparse.Namespace) -> int:
     robot = load_robot(args.spec)
     q = pose_from_args(robot, args)
     tension, _ = tension_from_args(robot, args)
+    search = tension == "best"
+    if search and fmt in ("npz", "mat"):
+        raise InputError(
+            f"--format {fmt} writes one linearisation and --tension best reports two (the "
+            "spec's tension and the best one): run --tension best first, then --tension F1 F2 "
+            f"... with the best tension printed, and --format {fmt}"
+        )
     radius, points = neighbourhood_from_args(robot, args)
     report = cli_equilibrium(
         analyze_pose,
         robot,
         q,
-        tension=tension,
+        tension=None if search else tension,
         pretension=args.pretension,
         horizon=args.horizon,
         tension_budget=args.tension_budget,
@@ -148,6 +171,9 @@ def run(args: argparse.Namespace) -> int:
         infeasible="report",
         command="cdpm analyze",
     )
+    best = _best_tension(robot, q, args) if search else None
+    if search:
+        return _print_with_best(report, best, fmt, output)
     if not report.feasible:
         print(f"cdpm analyze: error: {cli_infeasible_message(report.equilibrium)}", file=sys.stderr)
     if fmt in ("npz", "mat"):
@@ -167,6 +193,57 @@ def run(args: argparse.Namespace) -> int:
         output.write_text(text + "\n", encoding="utf-8")
         print(f"wrote {output}: the {fmt} report of {_where(report)}")
     return 0 if report.feasible else EXIT_NO_EQUILIBRIUM
+
+
+def _best_tension(robot: CableRobot, q, args: argparse.Namespace):
+    """The tension search at q (:func:`cdpm.best_tension`), or None when
+    no tension within the cable bounds holds the pose."""
+    from cdpm.equilibrium import InfeasibleEquilibriumError
+    from cdpm.tension_choice import best_tension
+
+    try:
+        return best_tension(
+            robot,
+            q,
+            args.objective or "poc",
+            horizon=args.horizon,
+            tension_budget=args.tension_budget,
+        )
+    except InfeasibleEquilibriumError:
+        return None
+
+
+def _print_with_best(report, best, fmt: str, output: Path | None) -> int:
+    """Print (or write) the report followed by the tension search."""
+    if best is None:
+        print(
+            "cdpm analyze: error: no tension within the cable bounds holds this pose, so there "
+            "is no tension to choose: try another pose or wider tension bounds in the spec",
+            file=sys.stderr,
+        )
+    elif not report.feasible:
+        print(
+            f"cdpm analyze: note: {cli_infeasible_message(report.equilibrium)}; the tension "
+            "search below uses the other feasible tensions",
+            file=sys.stderr,
+        )
+    if fmt == "json":
+        data = report.as_dict()
+        data["best_tension"] = None if best is None else best.as_dict()
+        text = json_text(data)
+    else:
+        search = (
+            "Tension search: none (no tension within the cable bounds holds the pose)"
+            if best is None
+            else str(best)
+        )
+        text = f"{report}\n\n{search}"
+    if output is None:
+        print(text)
+    else:
+        output.write_text(text + "\n", encoding="utf-8")
+        print(f"wrote {output}: the {fmt} report of {_where(report)} with the tension search")
+    return EXIT_NO_EQUILIBRIUM if best is None else 0
 
 
 def output_from_args(args: argparse.Namespace) -> tuple[str, Path | None]:

@@ -26,6 +26,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+import cdpm.maps.tension_criteria  # noqa: F401  (registers the tension search's criteria)
 from cdpm.maps.criteria import CRITERIA, PoseBatch
 from cdpm.numerics import MIN_SEGMENT_LENGTH, SPAN_TOL
 from cdpm.reach import ReachSettings, reach_settings
@@ -164,6 +165,10 @@ class MapJob:
         variables: the map's variables (registered criteria).
         reach: horizon and tension budget of the reach margin, or None
             for the model's defaults.
+        tension_search: the search over the feasible equilibrium tensions
+            and the reach settings of its r_T, ``(TensionSearch,
+            ReachSettings)`` (a map with ``tension="best"``), or None to
+            skip it.
     """
 
     tension: str | list[float]
@@ -171,6 +176,7 @@ class MapJob:
     tol: float = SPAN_TOL
     variables: tuple[str, ...] = ()
     reach: ReachSettings | None = None
+    tension_search: Any = None
 
     def evaluate(self, robot: CableRobot, natural: np.ndarray) -> dict[str, np.ndarray]:
         """:func:`evaluate_poses` of ``natural`` (N, nv) with these settings;
@@ -182,7 +188,13 @@ class MapJob:
         if error is not None:
             raise error
         return evaluate_poses(
-            robot, natural, self.tension, margin=self.margin, tol=self.tol, reach=self.reach
+            robot,
+            natural,
+            self.tension,
+            margin=self.margin,
+            tol=self.tol,
+            reach=self.reach,
+            tension_search=self.tension_search,
         )
 
 
@@ -194,6 +206,7 @@ def evaluate_poses(
     margin: bool = True,
     tol: float = SPAN_TOL,
     reach: Any = None,
+    tension_search: Any = None,
 ) -> dict[str, np.ndarray]:
     """Every map quantity at the poses ``natural`` (N, nv natural coordinates).
 
@@ -207,12 +220,19 @@ def evaluate_poses(
             :func:`cdpm.positive_output_controllability`).
         reach: the reach margin's :class:`~cdpm.reach.ReachSettings`, or
             None for the model's defaults.
+        tension_search: a :class:`~cdpm.tension_choice.search.TensionSearch`
+            (or a pair of it and the :class:`~cdpm.reach.ReachSettings` of
+            its r_T, default ``reach``) to fill the tension search's criteria
+            (``poc_some_tension``, ``reach_margin_best``, ``tension_best``),
+            or None to leave them NOT_ANALYSED / NaN.
 
     Returns:
         dict: criterion name (:data:`cdpm.maps.criteria.CRITERIA`) -> array
         with leading dimension N.
     """
-    batch = evaluate_batch(robot, natural, tension, margin=margin, tol=tol, reach=reach)
+    batch = evaluate_batch(
+        robot, natural, tension, margin=margin, tol=tol, reach=reach, tension_search=tension_search
+    )
     return {name: c.compute(batch) for name, c in CRITERIA.items()}
 
 
@@ -225,6 +245,7 @@ def evaluate_batch(
     tol: float = SPAN_TOL,
     pretension: float | None = None,
     reach: Any = None,
+    tension_search: Any = None,
 ) -> PoseBatch:
     """The pipeline's stages at N poses (module docstring), as a
     :class:`~cdpm.maps.criteria.PoseBatch` for the criteria to read."""
@@ -247,6 +268,11 @@ def evaluate_batch(
     batch = PoseBatch(robot, kin, status, wrench, static, np.zeros(0, dtype=int))
     if margin:
         batch.reach = reach_settings(robot, reach)
+    if tension_search is not None:
+        search, search_reach = (
+            tension_search if isinstance(tension_search, tuple) else (tension_search, reach)
+        )
+        batch.tension_search = (search, reach_settings(robot, search_reach), tol)
     if ok.size == 0:
         return batch
     LT, load = statics(robot, kin)

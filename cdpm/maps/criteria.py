@@ -58,6 +58,10 @@ class PoseBatch:
         verdicts: their analysis, or None.
         reach: horizon and tension budget of the reach margin, or None to
             skip it (its criteria are then NaN).
+        tension_search: ``(TensionSearch, ReachSettings, tol)`` of the
+            search over the feasible equilibrium tensions
+            (:mod:`cdpm.maps.tension_criteria`), or None to skip it (its
+            criteria are then NOT_ANALYSED / NaN).
     """
 
     robot: CableRobot
@@ -71,6 +75,8 @@ class PoseBatch:
     verdicts: SystemVerdicts | None = None
     reach: ReachSettings | None = None
     reach_cache: Any = field(default=None, repr=False)
+    tension_search: Any = None
+    tension_search_cache: Any = field(default=None, repr=False)
 
     def __len__(self) -> int:
         return int(self.status.shape[0])
@@ -98,7 +104,8 @@ class Criterion:
             or None.
         units: units of a quantity (``"N"``, ``"m"``, ``"1"``), or None.
         dims: names of extra dimensions after the pose dimensions
-            (``"output"``: one per output, ``"xyz"``: 3).
+            (``"output"``: one per output, ``"xyz"``: 3, ``"cable"``: one
+            per cable).
         description: longer explanation for the store's attributes.
         plot: ``"verdict"`` (categorical verdict colours), ``"diverging"``
             (centred at 0), ``"sequential"``, or None (not offered by plots).
@@ -141,7 +148,7 @@ class Criterion:
         """Bytes per pose."""
         size = np.dtype(self.dtype).itemsize
         for dim in self.dims:
-            size *= robot.n_outputs if dim == "output" else 3
+            size *= {"output": robot.n_outputs, "cable": robot.n_cables}.get(dim, 3)
         return size
 
 
@@ -150,10 +157,10 @@ CRITERIA: dict[str, Criterion] = {}
 
 
 #: extra dimensions a criterion may have, and their sizes' meaning
-CRITERION_DIMS = ("output", "xyz")
+CRITERION_DIMS = ("output", "xyz", "cable")
 
 #: names a criterion cannot take (the map's coordinates)
-_RESERVED = ("sample", "output", "xyz")
+_RESERVED = ("sample", "output", "xyz", "cable")
 
 
 def register(criterion: Criterion, *, replace: bool = False) -> Criterion:
@@ -191,7 +198,7 @@ def register(criterion: Criterion, *, replace: bool = False) -> Criterion:
     if bad:
         raise ValueError(
             f"criterion {name!r}: extra dimensions {bad} are not supported; use "
-            f"{CRITERION_DIMS} (one value per output, or x, y, z)"
+            f"{CRITERION_DIMS} (one value per output, x, y, z, or one per cable)"
         )
     CRITERIA[name] = criterion
     return criterion
@@ -267,18 +274,73 @@ def _tension_extreme(reduce) -> Callable[[PoseBatch], np.ndarray]:
     return compute
 
 
+def _marker_output(robot: CableRobot) -> int | None:
+    """Index of the first output drawn at a point of a frame (its first
+    position or rotation term), or None when every output is a joint or a
+    cable length."""
+    drawn = np.flatnonzero(np.asarray(robot.output_points) >= 0)
+    return int(drawn[0]) if drawn.size else None
+
+
 def _output_frame_position(batch: PoseBatch) -> np.ndarray:
     robot = batch.robot
-    if not robot.n_outputs:
+    k = _marker_output(robot)
+    if k is None:
         return np.full((len(batch), 3), np.nan)
-    # tracked points: every route point, then the outputs
-    first = robot.route_point_slices[-1].stop if robot.route_point_slices else 0
-    return np.array(batch.kin.point_positions[:, first])
+    return np.array(batch.kin.point_positions[:, int(robot.output_points[k])])
 
 
 def _frame_attrs(robot: CableRobot) -> dict:
-    frame = robot.spec.outputs[0].frame if robot.spec.outputs else ""
-    return {"long_name": f"world position of frame {frame!r} (first output)", "frame": frame}
+    k = _marker_output(robot)
+    if k is None:
+        return {
+            "long_name": "world position of the first output's frame (none: every output is "
+            "a joint coordinate or a cable length)",
+            "frame": "",
+            "note": "NaN: no output is a position or rotation of a frame",
+        }
+    out = robot.spec.outputs[k]
+    term = out.marker_term
+    point = f" point {list(term.point_in_frame)} of" if any(term.point_in_frame) else ""
+    return {
+        "long_name": f"world position of{point} frame {out.frame!r} (output {out.name!r})",
+        "frame": out.frame,
+        "output": out.name,
+    }
+
+
+def _output_attrs(robot: CableRobot) -> dict:
+    """``y``'s attributes: each output's unit (``output_units``), their
+    common one (``units``) and each output's formula (``output_formulas``,
+    "" for a single frame component)."""
+    from cdpm.reach import reach_unit
+
+    units = list(robot.output_units)
+    common = units[0] if units and len(set(units)) == 1 else "see output_units"
+    return {
+        "units": common,
+        "output_units": units,
+        "output_formulas": [_formula(out) for out in robot.spec.outputs],
+        "description": "each output in its unit (output_units): world coordinates [m], world "
+        "rotation vector components log3(R) [rad], joint coordinates [rad or m], cable "
+        f"lengths [m] or weighted sums of these (docs/outputs.md); r_T is in "
+        f"{reach_unit(units)}",
+    }
+
+
+def _formula(out) -> str:
+    """An output's formula (``joint elbow``, ``0.5 link1.x + 0.5 tip.x``),
+    or "" for one component of a frame (its name and unit say it)."""
+    plain = len(out.terms) == 1 and out.terms[0].weight == 1.0 and out.component
+    return "" if plain else out.describe()
+
+
+def _reach_attrs(robot: CableRobot) -> dict:
+    """The reach margin's unit: the outputs' common unit, or ``"m and rad,
+    one to one"`` for mixed outputs (:func:`cdpm.reach.reach_unit`)."""
+    from cdpm.reach import reach_unit
+
+    return {"units": reach_unit(robot.output_units)}
 
 
 def _n_taut(batch: PoseBatch) -> np.ndarray:
@@ -335,8 +397,11 @@ register(
         description="radius of the largest ball about y0 that the linearisation reaches at "
         "time T from rest, with tension changes within the cables' bounds (+- the tension "
         "budget where a cable has no upper bound); T and the budget are the map's "
-        "reach_horizon and tension_budget attributes (docs/analysis.md)",
+        "reach_horizon and tension_budget attributes (docs/analysis.md). In the outputs' "
+        "unit; outputs in metres and radians count one metre as one radian "
+        "(docs/outputs.md)",
         plot="sequential",
+        robot_attrs=_reach_attrs,
     )
 )
 register(
@@ -349,6 +414,7 @@ register(
         units="m",
         description="|r(K) - r(K/2)| of Simpson's rule on K and K/2 intervals; 0 where r_T "
         "is exact (A^2 = 0)",
+        robot_attrs=_reach_attrs,
     )
 )
 register(
@@ -394,6 +460,7 @@ register(
         lambda b: np.array(b.kin.output),
         units="m",
         dims=("output",),
+        robot_attrs=_output_attrs,
     )
 )
 register(
@@ -401,7 +468,8 @@ register(
         "output_frame_position",
         "float64",
         np.nan,
-        "world position of the first output's point",
+        "world position of the first output's point (the first output with a frame "
+        "term; NaN when every output is a joint or a cable length)",
         _output_frame_position,
         units="m",
         dims=("xyz",),
