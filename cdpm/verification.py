@@ -262,8 +262,11 @@ def verify_pose(
     q = lin.q
     size = default_radius(robot, q)[1]
     R = RADIUS_FRACTION * size if radius is None else float(radius)
-    if not (np.isfinite(R) and R > 0):
-        raise InputError(f"radius must be a positive distance, got {radius!r}")
+    if not (np.isfinite(R) and 0 < R <= size):
+        raise InputError(
+            f"radius must be a positive distance of at most the robot's size, {size:.3g} "
+            f"(targets near the pose: the check is local), got {radius!r}"
+        )
     if not (isinstance(random_directions, (int, np.integer)) and random_directions >= 0):
         raise InputError(f"random_directions must be a count >= 0, got {random_directions!r}")
     p = robot.n_outputs

@@ -34,6 +34,8 @@ examples:
   cdpm map models/two_link_vertical --axis q1=-pi:pi:121 --axis q2=-pi:pi:121 \\
       --tension pretension --pretension 5 --tension-bounds 0:60 --out pre.zarr
   cdpm map SPEC --axis q1=-pi:pi:61 --gravity 0 0 0 --tension-bounds c1=0:inf --plot g0.png
+  cdpm map models/spatial_8cable --axis platform_joint.x=-0.5:0.5:11 --tension best \
+      --out best.zarr      (also: POC for some feasible tension, its tension and margin)
 
 AXIS is NAME=LOW:HIGH:COUNT (a grid of COUNT values), NAME=V1,V2,... (given
 values) or, with --samples, NAME=LOW:HIGH (a sampling range); values accept
@@ -69,14 +71,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="pose of the other coordinates: a pose name, NAME=VALUE pairs or "
         "all values (default: the spec's first pose)",
     )
-    add_tension_arguments(parser)
+    add_tension_arguments(parser, best=True)
     add_robot_arguments(parser)
     parser.add_argument(
         "--workers",
         type=int,
         metavar="N",
-        help="local processes computing chunks, this one included (default: one per CPU; "
-        "1 = in this process only); not with --scheduler",
+        help="local processes computing chunks, this one included (default: one per CPU this "
+        "process may use, at most 16; 1 = in this process only); not with --scheduler",
     )
     parser.add_argument(
         "--scheduler",
@@ -158,8 +160,12 @@ def parse_axis(text: str, sampled: bool):
                 f"--axis {text!r}: COUNT of axis {name!r} must be an integer, "
                 f"got {parts[2]!r} (e.g. {name}=0:1:11)"
             ) from exc
-        if count < 1:
-            raise InputError(f"--axis {text!r}: COUNT must be at least 1")
+        from cdpm.maps import MAX_AXIS_POINTS
+
+        if count < 1 or count > MAX_AXIS_POINTS:
+            raise InputError(
+                f"--axis {text!r}: COUNT must be from 1 to {MAX_AXIS_POINTS:,}, got {count:,}"
+            )
         return name, np.linspace(low, high, count)
     if sampled:
         raise InputError(f"--axis {text!r}: with --samples give a range NAME=LOW:HIGH")
@@ -317,13 +323,14 @@ def robot_from_args(args: argparse.Namespace):
     """(robot, the spec's robot, tension setting) from SPEC, --gravity,
     --tension-bounds, --tension and --pretension, all checked before any
     work; the robot carries the overrides (:func:`cdpm.maps.override_robot`)."""
-    from cdpm.commands._tension import check_pretension, tension_argument
+    from cdpm.commands._tension import check_objective, check_pretension, tension_argument
     from cdpm.errors import InputError
     from cdpm.maps import override_robot
     from cdpm.robot import load_robot
 
     spec_robot = load_robot(args.spec)
-    tension = tension_argument(args.tension)
+    tension = tension_argument(args.tension, best=hasattr(args, "objective"))
+    check_objective(tension, getattr(args, "objective", None))
     _check_tension(spec_robot, tension, args.pretension)
     check_pretension(spec_robot, tension, args.pretension)
     robot = override_robot(spec_robot, gravity=parse_gravity(args.gravity))
@@ -352,6 +359,8 @@ def _check_tension(robot: CableRobot, tension, pretension: float | None) -> None
 
     from cdpm.errors import InputError
 
+    if tension == "best":  # the spec's method, and the search
+        tension = None
     method = tension if isinstance(tension, str) or tension is None else "given"
     method = method or robot.spec.equilibrium_method
     if pretension is not None and not (math.isfinite(pretension) and pretension >= 0):
@@ -416,6 +425,22 @@ def _interrupted(args: argparse.Namespace) -> int:
     return 130
 
 
+def _some_tension_line(ds) -> str:
+    """``POC for some feasible tension: yes 12 (60.0%), ...`` of a map
+    made with --tension best."""
+    import numpy as np
+
+    from cdpm.maps import VERDICT_CODES
+
+    some = np.asarray(ds["poc_some_tension"].values)
+    words = ", ".join(
+        f"{name} {int((some == code).sum())} ({100 * (some == code).mean():.1f}%)"
+        for name, code in VERDICT_CODES.items()
+        if (some == code).any()
+    )
+    return f"positive output controllable for some feasible tension (tension search): {words}"
+
+
 def _regions_line(labels) -> str:
     """``POC regions: 4 (sizes 1191, 1034, ...)`` from a map's poc_region."""
     import json
@@ -477,6 +502,7 @@ def run(args: argparse.Namespace) -> int:
             horizon=None if reach is None else reach.horizon,
             tension_budget=None if reach is None else reach.tension_budget,
             announce=announce,
+            tension_objective=args.objective or "poc",
         )
     except KeyboardInterrupt:
         return _interrupted(args)
@@ -493,6 +519,8 @@ def run(args: argparse.Namespace) -> int:
         if (poc == code).any()
     )
     print(f"{robot.spec.path.name}: {total} poses; positive output controllable: {words}")
+    if tension == "best":
+        print(_some_tension_line(ds))
     if "poc_region" in ds:
         print(_regions_line(ds["poc_region"]))
     flagged = {n: int((status == c).sum()) for n, c in STATUS_CODES.items() if c > 0}

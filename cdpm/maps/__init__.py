@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Callable, Mapping
+from contextlib import nullcontext
 from typing import TYPE_CHECKING, Any
 
 from cdpm.errors import InputError
@@ -47,10 +48,26 @@ __all__ = [
 #: largest map kept in memory (without ``store=``) [bytes]
 IN_MEMORY_MAX = 2 * 1024**3
 
+#: most poses one map may have (a grid's product or samples): about a day
+#: of work for a 32-core machine at the cheapest models' speed
+MAX_MAP_POSES = 10**10
+
+#: most points one grid axis may have
+MAX_AXIS_POINTS = 10**7
+
+#: most local processes a map starts by default (more cores than this
+#: rarely pay off against the chunks' writing, and a default should not
+#: fill a shared many-core machine)
+DEFAULT_MAX_WORKERS = 16
+
 #: largest chunk when poses go through the analyser (under load: a few
 #: tenths of a millisecond per pose): writing a chunk costs about 20 ms
 #: whatever its size, and a chunk of this size about half a second
 PER_POSE_CHUNK_SIZE = 1024
+
+#: chunk size of maps with the tension search (``tension="best"``: tens of
+#: LPs and candidate analyses per pose, 0.03 to 1 s a pose)
+TENSION_SEARCH_CHUNK_SIZE = 64
 
 
 def _per_pose_chunk_size(n_poses: int) -> int:
@@ -80,6 +97,7 @@ def workspace_map(
     tension_budget: Any = None,
     pretension: float | None = None,
     announce: Callable[[MapRunInfo], None] | None = None,
+    tension_objective: str = "poc",
 ):
     """Map positive output controllability and classic criteria over poses.
 
@@ -94,14 +112,19 @@ def workspace_map(
             configuration, natural coordinates or ``{coordinate: value}``;
             default the spec's first named pose (else neutral).
         tension: equilibrium tension: None (the spec's method), a method
-            name (``zero``, ``min_norm``, ``pretension``) or tensions [N] (m,).
-            Other gravity or tension bounds: map
+            name (``zero``, ``min_norm``, ``pretension``) or tensions [N] (m,);
+            or ``"best"``: the spec's method, and beside its verdicts the
+            search over the feasible equilibrium tensions at every pose
+            (:func:`cdpm.tension_choice.best_tension_batch`: variables
+            ``poc_some_tension``, ``reach_margin_best``, ``tension_best``,
+            which other maps leave NOT_ANALYSED / NaN). Other gravity or tension bounds: map
             ``cdpm.maps.override_robot(robot, gravity=..., tension_bounds=...)``.
         samples: draw this many random poses uniformly in the ``axes`` ranges.
         seed: random seed for ``samples``.
         workers: local processes computing chunks, this one included
             (``workers - 1`` worker processes are started); default one per
-            CPU (at most one per chunk); 1 runs in this process only.
+            CPU this process may use, at most DEFAULT_MAX_WORKERS = 16 (and at
+            most one per chunk); 1 runs in this process only.
         scheduler: address ``"tcp://host:port"`` of a Dask distributed
             scheduler (or a ``distributed.Client``) to run the chunks on
             (its workers compute them: give no ``workers`` with it).
@@ -129,6 +152,8 @@ def workspace_map(
         pretension: least tension [N] of every cable for the ``pretension``
             method (default: the spec's ``equilibrium.pretension``); only
             with that method. Stored in the settings (a resume compares it).
+        tension_objective: the search's objective with ``tension="best"``:
+            ``"poc"`` or ``"margin"`` (:func:`cdpm.tension_choice.best_tension`).
         announce: called once before the chunks run with a
             :class:`MapRunInfo`: chunks already in the
             store, chunks to compute, and where they run (``.lines()`` says
@@ -154,6 +179,7 @@ def workspace_map(
     """
     from cdpm._version import __version__
     from cdpm.maps._evaluate import zero_equilibrium
+    from cdpm.maps._lock import store_lock
     from cdpm.maps._plan import make_plan
     from cdpm.maps._runner import ProgressPrinter, RobotSource, prestart_workers, run_chunks
     from cdpm.maps._store import MemorySink, ZarrSink
@@ -178,8 +204,28 @@ def workspace_map(
     if samples is not None:
         if isinstance(axes, SampledAxes):
             raise InputError("give either samples=N with ranges, or sample_axes(...), not both")
+        _check_samples(samples, len(axes) if isinstance(axes, Mapping) else 1)
         axes = sample_axes(axes, samples, seed)
+    n_poses = _n_poses(axes)
+    if n_poses > MAX_MAP_POSES:
+        raise InputError(
+            f"a map of {n_poses:,} poses is more than the {MAX_MAP_POSES:,} one map may have; "
+            "use fewer points per axis, or split the map into several"
+        )
+    search = None
+    if isinstance(tension, str) and tension == "best":
+        from cdpm.tension_choice.search import tension_search
+
+        search = tension_search(tension_objective)
+        tension = None
+    elif tension_objective != "poc":
+        raise InputError(
+            f"tension_objective={tension_objective!r} applies to the tension search: pass "
+            "tension='best', or leave out tension_objective"
+        )
     setting = resolve_tension(robot, tension)
+    if chunk_size is None and search is not None:
+        chunk_size = TENSION_SEARCH_CHUNK_SIZE
     if chunk_size is None:
         if zero_equilibrium(robot, setting):
             chunk_size = DEFAULT_CHUNK_SIZE
@@ -188,29 +234,57 @@ def workspace_map(
     tol = check_tol(tol)
     reach = reach_settings(robot, horizon, tension_budget) if margin else None
     source = RobotSource.from_robot(robot)  # with the robot's departures from its spec
+    searched = None
+    if search is not None:
+        used = reach_settings(robot, horizon, tension_budget)
+        searched = {
+            **search.as_dict(),
+            "reach_horizon": used.horizon,
+            "tension_budget": used.tension_budget,
+        }
     plan = make_plan(
-        robot, axes, base, setting, chunk_size, __version__, margin, tol, reach, source.overrides
+        robot,
+        axes,
+        base,
+        setting,
+        chunk_size,
+        __version__,
+        margin,
+        tol,
+        reach,
+        source.overrides,
+        tension_search=searched,
     )
     if store is None:
         _check_in_memory_size(robot, plan)
     if workers is None:
-        workers = os.cpu_count() or 1
+        workers = default_workers()
     if not isinstance(workers, int) or workers < 1:
         raise InputError(f"workers must be a positive integer, got {workers!r}")
     if scheduler is None and workers > 1:
         prestart_workers()  # their start-up overlaps the store's creation
-    sink = MemorySink(robot, plan) if store is None else ZarrSink(store, robot, plan, overwrite)
-    done = sink.done()
-    todo = [k for k in range(plan.n_chunks) if k not in done]
-    if progress is True:
-        if announce is None:
-            announce = _print_to_stderr
-        progress = ProgressPrinter(sum(plan.chunk_size(k) for k in todo)) if todo else None
-    elif progress is False:
-        progress = None
-    job = MapJob(setting, bool(margin), float(tol), tuple(plan.settings["variables"]), reach)
-    run_chunks(robot, plan, job, todo, sink, workers, scheduler, progress, announce, source)
-    return attach_regions(sink.dataset(), store)
+    # one run per store: a second run on a busy store refuses before touching it
+    owner = nullcontext() if store is None else store_lock(store)
+    with owner:
+        sink = MemorySink(robot, plan) if store is None else ZarrSink(store, robot, plan, overwrite)
+        done = sink.done()
+        todo = [k for k in range(plan.n_chunks) if k not in done]
+        if progress is True:
+            if announce is None:
+                announce = _print_to_stderr
+            progress = ProgressPrinter(sum(plan.chunk_size(k) for k in todo)) if todo else None
+        elif progress is False:
+            progress = None
+        job = MapJob(
+            setting,
+            bool(margin),
+            float(tol),
+            tuple(plan.settings["variables"]),
+            reach,
+            None if search is None else (search, reach_settings(robot, horizon, tension_budget)),
+        )
+        run_chunks(robot, plan, job, todo, sink, workers, scheduler, progress, announce, source)
+        return attach_regions(sink.dataset(), store)
 
 
 def _print_to_stderr(info: MapRunInfo) -> None:
@@ -230,11 +304,15 @@ def _check_executor(workers: Any, scheduler: Any) -> None:
             "cluster's workers compute the chunks: leave out workers (add Dask workers with "
             "`dask worker ADDRESS`), or leave out scheduler to run locally"
         )
+    if isinstance(scheduler, str):
+        from cdpm.maps._scheduler import check_scheduler_address
+
+        check_scheduler_address(scheduler)  # before the store is created
 
 
 def _check_pretension_method(robot: CableRobot, tension: Any, pretension: Any) -> None:
     """A pretension only means something for the ``pretension`` method."""
-    if tension is None:
+    if tension is None or (isinstance(tension, str) and tension == "best"):
         method = str(robot.spec.equilibrium_method)
     else:
         method = tension if isinstance(tension, str) else "given tensions"
@@ -273,6 +351,32 @@ def _n_poses(axes) -> int:
         return int(np.prod([np.size(v) for v in axes.values()]))
     except (AttributeError, TypeError):
         return 1  # make_plan explains what is wrong with the axes
+
+
+def default_workers() -> int:
+    """The default number of local processes of a map: one per CPU this
+    process may run on (its affinity, which containers and ``taskset``
+    limit), at most DEFAULT_MAX_WORKERS."""
+    try:
+        cpus = len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):  # not Linux
+        cpus = os.cpu_count() or 1
+    return max(1, min(cpus, DEFAULT_MAX_WORKERS))
+
+
+def _check_samples(samples: Any, n_ranges: int) -> None:
+    """Refuse a sample count whose coordinates alone would not fit in
+    IN_MEMORY_MAX, before drawing them."""
+    import numpy as np
+
+    if isinstance(samples, (int, np.integer)) and samples > 0:
+        need = int(samples) * max(n_ranges, 1) * 8
+        if int(samples) > MAX_MAP_POSES or need > IN_MEMORY_MAX:
+            raise InputError(
+                f"{int(samples):,} samples need {need / 1024**3:,.1f} GiB for their coordinates "
+                f"alone (at most {IN_MEMORY_MAX / 1024**3:g} GiB); sample fewer poses, or map "
+                "several sample sets with different seeds"
+            )
 
 
 def _check_in_memory_size(robot: CableRobot, plan) -> None:

@@ -78,6 +78,8 @@ def sample_axes(
     """
     if not isinstance(n, (int, np.integer)) or n < 1:
         raise InputError(f"samples must be a positive integer, got {n!r}")
+    if seed is not None and not (isinstance(seed, (int, np.integer)) and 0 <= seed < 2**63):
+        raise InputError(f"seed must be an integer from 0 to 2**63 - 1, got {seed!r}")
     if not ranges:
         raise InputError("give at least one coordinate range to sample, e.g. {'q1': (-3.14, 3.14)}")
     rng = np.random.default_rng(seed)
@@ -242,12 +244,15 @@ def make_plan(
     tol: float | None = None,
     reach=None,
     overrides: Mapping[str, Any] | None = None,
+    tension_search: Mapping[str, Any] | None = None,
 ) -> MapPlan:
     """Validate the axes and the base pose and lay out the chunks.
 
     ``overrides`` (:func:`robot_overrides`) are the robot's departures from
     its spec file; they enter the settings (compared when resuming) only
     when there are any, so maps of the spec as it is keep their settings.
+    ``tension_search`` (the search's settings as plain data, with ``tension="best"``)
+    enters them likewise only when the map asks for the search.
     """
     if not isinstance(chunk_size, (int, np.integer)) or chunk_size < 1:
         raise InputError(f"chunk_size must be a positive integer, got {chunk_size!r}")
@@ -318,6 +323,8 @@ def make_plan(
         settings["seed"] = axes.seed
     if overrides:
         settings["overrides"] = dict(overrides)
+    if tension_search:
+        settings["tension_search"] = dict(tension_search)
     return MapPlan(
         mode=mode,
         names=tuple(names),
@@ -348,6 +355,10 @@ def settings_difference(stored: dict, current: dict) -> list[str]:
             lines.append("the cable spec or its URDF changed (file hash differs)")
         elif key == "overrides":
             lines += _overrides_difference(a or {}, b or {})
+        elif key == "tension_search":
+            lines.append(
+                f"tension search (tension 'best'): stored {_search_text(a)}, now {_search_text(b)}"
+            )
         elif key not in stored:
             lines.append(
                 f"{key}: not recorded in the store (made by an earlier cdpm), now {b!r}; "
@@ -356,6 +367,12 @@ def settings_difference(stored: dict, current: dict) -> list[str]:
         else:
             lines.append(f"{key}: stored {a!r}, now {b!r}")
     return lines
+
+
+def _search_text(info) -> str:
+    if not info:
+        return "none"
+    return ", ".join(f"{k} {v}" for k, v in info.items())
 
 
 def _axis_text(info) -> str:

@@ -151,15 +151,49 @@ def single_threaded_blas():
     return threadpool_limits(limits=1, user_api="blas")
 
 
-def _init_process(source: RobotSource | None = None, plan=None, job=None, writer=None) -> None:
+def _init_process(
+    source: RobotSource | None = None, plan=None, job=None, writer=None, driver: int | None = None
+) -> None:
     # Ctrl-C goes to the whole process group: the driver handles it and
     # stops the workers, which must not print tracebacks of their own
     import signal
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if driver is not None:
+        threading.Thread(target=_exit_with_driver, args=(driver,), daemon=True).start()
     _WORKER["blas"] = single_threaded_blas()  # for the life of the worker
     if source is not None:
         _WORKER.update(robot=_state(source), plan=plan, job=job, writer=writer)
+
+
+#: how often a worker checks that the process that started it is alive [s]
+DRIVER_CHECK_SECONDS = 0.5
+
+
+def _exit_with_driver(driver: int) -> None:
+    """End this worker soon after the process that started it ends, however
+    it ends (SIGKILL leaves it no chance to stop its workers): a chunk being
+    written then has no done marker, so a resumed map recomputes it."""
+    while _process_alive(driver):
+        time.sleep(DRIVER_CHECK_SECONDS)
+    os._exit(0)
+
+
+def _process_alive(pid: int) -> bool:
+    """True while process ``pid`` runs (a zombie, dead but not yet reaped,
+    counts as ended)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as stat:
+            state = stat.read().rsplit(b")", 1)[1].split()[0]
+    except (OSError, IndexError):
+        return True
+    return state not in (b"Z", b"X")
 
 
 def _process_chunk(index: int) -> tuple[int, dict | None]:
@@ -454,7 +488,7 @@ def _run_processes(
         max_workers=n_proc,
         mp_context=ctx,
         initializer=_init_process,
-        initargs=(source, plan, job, writer),
+        initargs=(source, plan, job, writer, os.getpid()),
     )
     # the fork server imports its modules before it forks a worker: start it
     # in the background (the first submit would wait for it) and compute
@@ -495,6 +529,29 @@ def _run_processes(
     executor.shutdown(wait=True)
 
 
+def _scheduler_lost_errors() -> tuple[type[BaseException], ...]:
+    """The exceptions a future's result raises when its scheduler is gone."""
+    import asyncio
+    import concurrent.futures
+
+    errors: list[type[BaseException]] = [
+        asyncio.CancelledError,
+        concurrent.futures.CancelledError,
+        OSError,
+        TimeoutError,
+    ]
+    try:
+        from distributed.comm.core import CommClosedError
+
+        errors.append(CommClosedError)
+    except ImportError:  # pragma: no cover - dask absent: _run_dask says so
+        pass
+    return tuple(errors)
+
+
+_SCHEDULER_LOST = _scheduler_lost_errors()
+
+
 def _run_dask(plan, job, todo, finished, scheduler, source, started) -> None:
     try:
         import distributed
@@ -505,7 +562,7 @@ def _run_dask(plan, job, todo, finished, scheduler, source, started) -> None:
     own = isinstance(scheduler, str)
     if own:
         try:
-            client = distributed.Client(scheduler, timeout="20s")
+            client = distributed.Client(scheduler, timeout="10s")
         except (OSError, TimeoutError) as exc:
             raise InputError(
                 f"cannot reach the Dask scheduler at {scheduler!r}: {exc}; start one with "
@@ -534,8 +591,17 @@ def _run_dask(plan, job, todo, finished, scheduler, source, started) -> None:
 
         for _ in range(min(len(pending), 2 * n_workers)):
             submit()
+        done = 0
         for future in queue:
-            finished(*future.result())
+            try:
+                result = future.result()
+            except _SCHEDULER_LOST as exc:
+                from cdpm.maps._scheduler import lost_scheduler_error
+
+                address = scheduler if own else str(client.scheduler.address)
+                raise lost_scheduler_error(address, done, len(todo), exc) from None
+            finished(*result)
+            done += 1
             future.release()
             if pending:
                 submit()

@@ -131,11 +131,13 @@ def _coords(robot: CableRobot, plan: MapPlan) -> dict:
             coords[name] = ("sample", v, {"units": units[name], "long_name": name})
     coords["output"] = ("output", np.array(robot.output_names, dtype=str))
     coords["xyz"] = ("xyz", np.array(["x", "y", "z"]))
+    if any("cable" in c.dims for c in CRITERIA.values()):
+        coords["cable"] = ("cable", np.array(robot.cable_names, dtype=str))
     return coords
 
 
 def _extra_size(robot: CableRobot, dim: str) -> int:
-    return robot.n_outputs if dim == "output" else 3
+    return {"output": robot.n_outputs, "cable": robot.n_cables}.get(dim, 3)
 
 
 class MemorySink:
@@ -393,6 +395,6 @@ def open_map(path):
     if "poc" not in ds.data_vars:
         raise InputError(
             f"map store {p} is an incomplete cdpm map (no 'poc' variable: its run stopped "
-            "while creating it); run the same `cdpm map SPEC ... --out {p}` again to remake it"
+            f"while creating it); run the same `cdpm map SPEC ... --out {p}` again to remake it"
         )
     return ds

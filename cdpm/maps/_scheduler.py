@@ -1,0 +1,85 @@
+"""A Dask scheduler's address, checked before a map does any work.
+
+``tcp://host:port`` (or ``tls://``, ``ws://``, ``wss://``; ``host:port``
+means tcp) with a port in 1..65535; the scheduler must accept a
+connection within SCHEDULER_CONNECT_SECONDS, so an address nothing listens
+on is reported at once, before the map's store is created.
+"""
+
+from __future__ import annotations
+
+import socket
+
+from cdpm.errors import InputError
+
+__all__ = ["check_scheduler_address", "SCHEDULER_CONNECT_SECONDS", "lost_scheduler_error"]
+
+#: seconds to wait for the scheduler to accept a connection
+SCHEDULER_CONNECT_SECONDS = 5.0
+
+_SCHEMES = ("tcp", "tls", "ws", "wss")
+_START = (
+    "start one with `dask scheduler` (and workers with `dask worker ADDRESS`), or leave out "
+    "the scheduler (--scheduler) to run on local processes"
+)
+
+
+def check_scheduler_address(address: str, connect: bool = True) -> str:
+    """The address, checked; with ``connect`` also that something listens.
+
+    Raises:
+        InputError: a malformed address, a bad port, or nothing reachable
+            there (the message says which, and how to start a scheduler).
+    """
+    if not isinstance(address, str) or not address.strip():
+        raise InputError(f"scheduler address {address!r} is empty; give e.g. tcp://127.0.0.1:8786")
+    text = address.strip()
+    scheme, sep, rest = text.partition("://")
+    if not sep:
+        scheme, rest = "tcp", text
+    if scheme == "inproc":  # a scheduler in this process (LocalCluster(processes=False))
+        return text
+    if scheme not in _SCHEMES:
+        raise InputError(
+            f"scheduler address {text!r}: protocol {scheme!r} is not one of "
+            f"{', '.join(_SCHEMES)}; give e.g. tcp://127.0.0.1:8786"
+        )
+    host, colon, port_text = rest.rpartition(":")
+    host = host.strip("[]")
+    if not colon or not host or "/" in host or "/" in port_text:
+        raise InputError(
+            f"scheduler address {text!r} is not HOST:PORT; give e.g. tcp://127.0.0.1:8786"
+        )
+    try:
+        port = int(port_text)
+    except ValueError:
+        raise InputError(
+            f"scheduler address {text!r}: port {port_text!r} is not a number; Dask's default "
+            "is 8786"
+        ) from None
+    if not 1 <= port <= 65535:
+        raise InputError(
+            f"scheduler address {text!r}: port {port} is outside 1..65535; Dask's default is 8786"
+        )
+    if connect and scheme in ("tcp", "tls"):
+        try:
+            with socket.create_connection((host, port), timeout=SCHEDULER_CONNECT_SECONDS):
+                pass
+        except OSError as exc:
+            reason = exc.strerror or type(exc).__name__
+            if isinstance(exc, TimeoutError):
+                reason = f"no answer within {SCHEDULER_CONNECT_SECONDS:g} s"
+            raise InputError(
+                f"cannot reach the Dask scheduler at {text} ({reason}); {_START}"
+            ) from None
+    return text
+
+
+def lost_scheduler_error(address: str, done: int, total: int, exc: BaseException) -> InputError:
+    """The error for a scheduler lost during a map, with the resume hint."""
+    kind = type(exc).__name__
+    return InputError(
+        f"lost the Dask scheduler at {address} after {done} of {total} chunks ({kind}); the "
+        "finished chunks are kept in the store: start the scheduler and its workers again "
+        "and re-run the same command to resume"
+    )

@@ -1,0 +1,93 @@
+"""Killed maps: no process outlives the command, and the resumed map equals
+an uninterrupted one value by value."""
+
+from __future__ import annotations
+
+import os
+import random
+import signal
+import subprocess
+import sys
+import time
+import uuid
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import cdpm
+
+VERTICAL = Path(__file__).parent.parent / "models" / "two_link_vertical"
+N = 81
+
+
+def _command(out: Path) -> list[str]:
+    return [
+        sys.executable, "-m", "cdpm", "map", str(VERTICAL),
+        "--axis", f"q1=-pi:pi:{N}", "--axis", f"q2=-pi:pi:{N}",
+        "--out", str(out), "--workers", "2", "--chunk-size", "256", "--quiet",
+    ]  # fmt: skip
+
+
+def _marked(marker: str) -> list[int]:
+    """Processes whose environment carries ``marker`` (a command and every
+    process it started)."""
+    found = []
+    needle = f"CDPM_TEST_MARK={marker}".encode()
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            environ = (entry / "environ").read_bytes()
+            state = (entry / "stat").read_bytes().rsplit(b")", 1)[1].split()[0]
+        except OSError:
+            continue
+        if needle in environ.split(b"\0") and state not in (b"Z", b"X"):
+            found.append(int(entry.name))
+    return found
+
+
+def _wait_gone(marker: str, seconds: float) -> list[int]:
+    end = time.monotonic() + seconds
+    while time.monotonic() < end:
+        left = _marked(marker)
+        if not left:
+            return []
+        time.sleep(0.1)
+    return _marked(marker)
+
+
+@pytest.fixture(scope="module")
+def reference():
+    axes = {"q1": np.linspace(-np.pi, np.pi, N), "q2": np.linspace(-np.pi, np.pi, N)}
+    return cdpm.workspace_map(VERTICAL, axes, workers=1, chunk_size=256)
+
+
+@pytest.mark.skipif(not Path("/proc/self/environ").exists(), reason="needs /proc")
+@pytest.mark.parametrize("trial", range(4))
+def test_killed_map_leaves_no_process_and_resumes_exactly(tmp_path, reference, trial):
+    rng = random.Random(trial)
+    how = (signal.SIGKILL, signal.SIGTERM)[trial % 2]
+    out = tmp_path / "m.zarr"
+    marker = uuid.uuid4().hex
+    env = {**os.environ, "CDPM_TEST_MARK": marker}
+    run = subprocess.Popen(_command(out), env=env, stderr=subprocess.PIPE, text=True)
+    # kill once some chunks are done, at a random moment after
+    end = time.monotonic() + 120
+    while time.monotonic() < end and not any((out / ".cdpm" / "done").glob("*")):
+        time.sleep(0.05)
+    time.sleep(rng.uniform(0.0, 1.0))
+    run.send_signal(how)
+    code = run.wait(timeout=60)
+    stderr = run.stderr.read()
+    if how == signal.SIGTERM and code != 0:
+        assert code == 130, stderr
+        assert "interrupted" in stderr and "Traceback" not in stderr
+    left = _wait_gone(marker, 5.0)
+    assert not left, f"processes left after {how.name}: {left}"
+    again = subprocess.run(_command(out), env=env, capture_output=True, text=True, timeout=600)
+    assert again.returncode == 0, again.stderr
+    assert not _wait_gone(marker, 5.0)
+    resumed = cdpm.open_map(out)
+    for name in ("poc", "status", "reach_margin", "y", "tension_max"):
+        np.testing.assert_array_equal(resumed[name].values, reference[name].values, err_msg=name)
