@@ -80,6 +80,8 @@ def criteria_lines(
     lines = []
     for name, value in criteria.items():
         c = CRITERIA.get(name)
+        if c is not None and c.on_request and _all_fill(value, c.fill):
+            continue  # not asked for at this pose
         attrs = (criteria_attrs or {}).get(name, {})
         units = attrs.get("units", c.units if c is not None else None)
         if c is not None and c.flags is not None:
@@ -101,6 +103,14 @@ def criteria_lines(
                 text += f" {units}"
         lines.append(f"{name + ':':<24}{text}")
     return lines
+
+
+def _all_fill(value, fill) -> bool:
+    """Every entry of ``value`` is the criterion's fill value (NaN counts)."""
+    arr = np.asarray(value)
+    if isinstance(fill, float) and np.isnan(fill):
+        return bool(np.all(np.isnan(arr.astype(float))))
+    return bool(np.all(arr == fill))
 
 
 def units_of_outputs(outputs, p: int) -> tuple[str, ...]:

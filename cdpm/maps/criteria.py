@@ -111,6 +111,8 @@ class Criterion:
             (centred at 0), ``"sequential"``, or None (not offered by plots).
         robot_attrs: ``robot -> dict`` of store attributes that depend on
             the robot (e.g. a frame name), or None.
+        on_request: computed only when asked for (e.g. the tension search),
+            else left at ``fill``; reports list it only when computed.
     """
 
     name: str
@@ -124,6 +126,7 @@ class Criterion:
     description: str = ""
     plot: str | None = None
     robot_attrs: Callable[[CableRobot], dict] | None = None
+    on_request: bool = False
 
     @property
     def is_verdict(self) -> bool:

@@ -76,6 +76,7 @@ register(
         "tensions may be); not_analysed without the tension search (map with tension='best') "
         "or without any feasible tension (docs/analysis.md, 'Choosing the tension')",
         plot="verdict",
+        on_request=True,
     )
 )
 register(
@@ -90,6 +91,7 @@ register(
         "largest found among the candidate tensions; NaN without the tension search",
         plot="sequential",
         robot_attrs=_reach_attrs,
+        on_request=True,
     )
 )
 register(
@@ -103,5 +105,6 @@ register(
         dims=("cable",),
         description="the tension of poc_some_tension and reach_margin_best; NaN without the "
         "tension search",
+        on_request=True,
     )
 )

@@ -120,6 +120,7 @@ def explore(
     tol = P.tol
     least = np.where(least <= lower + tol, lower, least)
     greatest = np.where(np.isfinite(upper) & (greatest >= upper - tol), upper, greatest)
+    greatest = np.where(greatest <= lower + tol, lower, greatest)  # round-off above f_min
     greatest = np.maximum(greatest, least)
     if unbounded.any():
         # the least cap with which some equilibrium stays: min max f_i over
