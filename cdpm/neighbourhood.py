@@ -62,7 +62,7 @@ class SampledPose:
         distance_box, distance_ball: ``|dq / scale|`` in the inf- and 2-norm.
         verdict, status: its POC verdict and status codes (cdpm.verdicts).
         outside_limits: it lies outside the URDF joint limits.
-        margin: its reach margin r_T [m] (NaN when not analysed).
+        margin: its reach margin r_T [output units] (NaN when not analysed).
     """
 
     natural: np.ndarray
@@ -174,6 +174,7 @@ class Neighbourhood:
     tol: float
     seconds: float
     reason: str
+    margin_unit: str = "m"
 
     @property
     def unit(self) -> str:
@@ -222,7 +223,8 @@ class Neighbourhood:
         if self.nearest_suspect is not None:
             a, b = self.nearest_suspect
             out.append(
-                f"  nearest suspect edge: r_T = {a.margin:.3g} and {b.margin:.3g} m at "
+                f"  nearest suspect edge: r_T = {a.margin:.3g} and {b.margin:.3g} "
+                f"{self.margin_unit} at "
                 f"({a.where(names, varied)}) and ({b.where(names, varied)}), "
                 f"{a.distance_box:.4g} and {b.distance_box:.4g} {u} away "
                 f"({self.suspect_edges} suspect edges in all)"
@@ -567,7 +569,7 @@ def poc_neighbourhood(
     from cdpm.maps._plan import coordinate_units
     from cdpm.maps._runner import single_threaded_blas
     from cdpm.paths import suspect_edges
-    from cdpm.reach import reach_settings
+    from cdpm.reach import reach_settings, reach_unit
     from cdpm.robot import CableRobot, load_robot
 
     started = time.perf_counter()
@@ -695,4 +697,5 @@ def poc_neighbourhood(
         tol=tol,
         seconds=time.perf_counter() - started,
         reason=reason,
+        margin_unit=reach_unit(robot.output_units),
     )

@@ -451,14 +451,14 @@ def run(args: argparse.Namespace) -> int:
         )
         if rows:
             print(f"reach margin: {reach.describe()}")
-            _print_rows(box, args, result, reach, what)
+            _print_rows(robot, box, args, result, reach, what)
     if not rows:
         print(f"cdpm find: {_none_found(box, args, counts, what)}", file=sys.stderr)
         return NONE_FOUND_EXIT
     return 0
 
 
-def _print_rows(box: SearchBox, args, result, reach, what: str) -> None:
+def _print_rows(robot, box: SearchBox, args, result, reach, what: str) -> None:
     rows = result["rows"]
     if args.where == "poc":
         among = (
@@ -470,7 +470,10 @@ def _print_rows(box: SearchBox, args, result, reach, what: str) -> None:
         print(f"{len(rows)} {what} pose(s) of the most reach margin r_T, among {among}:")
     else:
         print(f"{len(rows)} {what} pose(s) of the least peak tension:")
-    header = f"  {'#':>2}  {'r_T [m]':>10}  {'POC':<12}  {'peak tension [N]':>16}"
+    from cdpm.reach import reach_unit
+
+    unit = reach_unit(robot.output_units).replace(" and ", ", ").replace(", one to one", "")
+    header = f"  {'#':>2}  {f'r_T [{unit}]':>10}  {'POC':<12}  {'peak tension [N]':>16}"
     if box.center is not None:
         header += f"  {'distance':>8}"
     print(header + "  pose")

@@ -272,8 +272,11 @@ def _steer_legs(robot: CableRobot, ds, path, legs: int, out) -> list[dict]:
         "equilibrium of a waypoint to the output of the next one listed:",
         file=out,
     )
+    from cdpm.reach import reach_unit
+
+    unit = reach_unit(robot.output_units).replace(" and ", ", ").replace(", one to one", "")
     print(
-        f"  {'leg':>4} {'from':>5} {'to':>5} {'distance [m]':>13} {'miss [m]':>10} "
+        f"  {'leg':>4} {'from':>5} {'to':>5} {f'distance [{unit}]':>13} {f'miss [{unit}]':>10} "
         f"{'T [s]':>7}  reached",
         file=out,
     )
