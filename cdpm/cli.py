@@ -100,11 +100,15 @@ def main(argv: list[str] | None = None) -> int:
     except CdpmError as exc:
         print(f"cdpm {args.command}: error: {exc}", file=sys.stderr)
         return 1
+    except BrokenPipeError:
+        # output piped into e.g. `head`, which closed early: not an error
+        import os
+
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
     except OSError as exc:
         # a file or folder the system refused (unwritable, missing parent,
         # name too long...): one line naming it, never a traceback
-        if isinstance(exc, BrokenPipeError):
-            raise
         name = exc.filename if exc.filename is not None else ""
         what = f" {name!r}" if name else ""
         print(
@@ -120,12 +124,6 @@ def main(argv: list[str] | None = None) -> int:
             file=sys.stderr,
         )
         return 1
-    except BrokenPipeError:
-        # output piped into e.g. `head`, which closed early: not an error
-        import os
-
-        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-        return 0
     except KeyboardInterrupt:
         print(f"cdpm {args.command}: interrupted", file=sys.stderr)
         return 130
