@@ -161,7 +161,9 @@ class CableRobot:
         for j in range(1, model.njoints):
             name = model.names[j]
             mass = float(model.inertias[j].mass)
-            moments = np.linalg.eigvalsh(np.array(model.inertias[j].inertia))
+            inertia = np.array(model.inertias[j].inertia)
+            finite = np.all(np.isfinite(inertia))
+            moments = np.linalg.eigvalsh(inertia) if finite else np.full(3, np.nan)
             if mass != 0 and not low <= mass <= high:
                 problems.append(f"the body moved by joint {name!r} has mass {mass:g} kg")
             if not (np.all(np.isfinite(moments)) and np.abs(moments).max() <= MODEL_INERTIA_MAX):

@@ -61,7 +61,7 @@ def read_urdf(path: Path):
             "which cdpm does not read because they can expand without bound or read other "
             "files; remove them and write the values out"
         ]
-    except ParseError as exc:
+    except (ParseError, LookupError, ValueError) as exc:  # LookupError: unknown encoding
         return None, [f"{path.name} is not well-formed XML: {exc}"]
     if root.tag != "robot":
         return None, [f"{path.name}: the root element is <{root.tag}>, expected <robot>"]

@@ -168,7 +168,8 @@ def _parse_xml(path: Path, what: str) -> ET.Element:
             f"{path}: declares entities or external references, which cdpm does not read "
             "because they can expand without bound or read other files; write the values out"
         ) from None
-    except ET.ParseError as exc:
+    except (ET.ParseError, LookupError, ValueError) as exc:
+        # LookupError: an encoding Python does not know
         raise InputError(
             f"{path}: not well-formed XML ({exc}); expected a CASPR {what} file"
         ) from None
