@@ -224,8 +224,7 @@ class Neighbourhood:
             a, b = self.nearest_suspect
             out.append(
                 f"  nearest suspect edge: r_T = {a.margin:.3g} and {b.margin:.3g} "
-                f"{self.margin_unit} at "
-                f"({a.where(names, varied)}) and ({b.where(names, varied)}), "
+                f"{self.margin_unit} at ({a.where(names, varied)}) and ({b.where(names, varied)}), "
                 f"{a.distance_box:.4g} and {b.distance_box:.4g} {u} away "
                 f"({self.suspect_edges} suspect edges in all)"
             )

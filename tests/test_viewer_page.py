@@ -23,6 +23,7 @@ from cdpm.errors import InputError
 from cdpm.viewer import COLORS, CableState, coordinate_ranges, coordinate_sliders, pose_state
 from cdpm.viewer.panel import pose_panel, q_arguments
 from tests.conftest import MODELS
+from tests.output_kinds import EVERY_KIND_SPEC
 
 NOMINAL = np.array([math.pi / 6, math.pi / 3])
 VERTICAL_SPEC = MODELS / "two_link_vertical" / "two_link_vertical.yaml"
@@ -580,33 +581,6 @@ def test_browser_sliders_picker_and_scene(browser, paper_robot, tmp_path):
         assert _listening(port) == []
     if os.path.isdir("/proc"):
         assert not _alive(server)
-
-
-#: the paper's arm with an orientation, a joint, a cable-length and a sum output
-EVERY_KIND_SPEC = """
-    urdf: arm.urdf
-    gravity: [0, 0, 0]
-    cables:
-      - name: c1
-        route:
-          - {frame: base, point: [0, 0.5, 0]}
-          - {frame: link1, point: [0.8, 0.1, 0]}
-      - name: c2
-        route:
-          - {frame: base, point: [0, -0.5, 0]}
-          - {frame: link2, point: [0.5, -0.1, 0]}
-    outputs:
-      - {name: tip_x, frame: tip, component: x}
-      - {name: tip_rz, frame: tip, component: rz}
-      - {name: elbow, joint: q2}
-      - {name: c1_length, cable: c1}
-      - name: mid_x
-        sum:
-          - {weight: 0.5, frame: link2, component: x}
-          - {weight: 0.5, frame: tip, component: x}
-    poses:
-      p: [0.3, 0.4]
-    """
 
 
 def test_page_legend_says_how_each_output_is_drawn(write_spec):

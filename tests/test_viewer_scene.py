@@ -18,6 +18,7 @@ from cdpm.spec import package_share_directory
 from cdpm.viewer import pose_state
 from cdpm.viewer.state import AXIS_RGB, PoseGeometry
 from tests.conftest import MODELS
+from tests.output_kinds import EVERY_KIND_SPEC
 from tests.test_viewer import _material_color, _server_scene, _viewer_servers
 
 PENDULUM_SPEC = MODELS / "double_pendulum_cables" / "double_pendulum_cables.yaml"
@@ -238,31 +239,6 @@ def test_missing_mesh_falls_back_to_generated_links_with_one_warning(write_spec,
 
 # ---------------------------------------------------------------- every output kind
 
-#: the paper's arm (two 1 m links about z) with one output of each kind
-EVERY_KIND_SPEC = """
-    urdf: arm.urdf
-    gravity: [0, 0, 0]
-    cables:
-      - name: c1
-        route:
-          - {frame: base, point: [0, 0.5, 0]}
-          - {frame: link1, point: [0.8, 0.1, 0]}
-      - name: c2
-        route:
-          - {frame: base, point: [0, -0.5, 0]}
-          - {frame: link2, point: [0.5, -0.1, 0]}
-    outputs:
-      - {name: tip_x, frame: tip, component: x}
-      - {name: tip_rz, frame: tip, component: rz}
-      - {name: elbow, joint: q2}
-      - {name: c1_length, cable: c1}
-      - name: mid_x
-        sum:
-          - {weight: 0.5, frame: link2, component: x}
-          - {weight: 0.5, frame: tip, component: x}
-    poses:
-      p: [0.3, 0.4]
-    """
 Q1, Q2 = 0.3, 0.4
 
 

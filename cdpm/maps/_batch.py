@@ -66,3 +66,25 @@ def configurations(robot: CableRobot, natural: np.ndarray) -> np.ndarray:
             qs[:, iq : iq + 3] = part[:, :3]
             qs[:, iq + 3 : iq + 7] = _rpy_quaternions(part[:, 3:6])
     return qs
+
+
+def check_poses(robot: CableRobot, natural) -> np.ndarray:
+    """Poses as a float array (N, nv) of finite natural coordinates, or an
+    InputError naming the expected shape."""
+    from cdpm.errors import InputError
+
+    try:
+        arr = np.asarray(natural, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"poses must be numbers (natural coordinates): {exc}") from exc
+    if arr.ndim == 1 and arr.size == robot.nv:
+        arr = arr[None]
+    if arr.ndim != 2 or arr.shape[1] != robot.nv:
+        raise InputError(
+            f"poses must have shape (N, {robot.nv}) (natural coordinates "
+            f"{', '.join(robot.coordinate_names)}), got shape {arr.shape}"
+        )
+    if not np.all(np.isfinite(arr)):
+        bad = np.flatnonzero(~np.all(np.isfinite(arr), axis=1))
+        raise InputError(f"poses {bad[:5].tolist()} have non-finite coordinates")
+    return arr

@@ -27,6 +27,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 import cdpm.maps.tension_criteria  # noqa: F401  (registers the tension search's criteria)
+from cdpm.maps._batch import check_poses
 from cdpm.maps.criteria import CRITERIA, PoseBatch
 from cdpm.numerics import MIN_SEGMENT_LENGTH, SPAN_TOL
 from cdpm.reach import ReachSettings, reach_settings
@@ -110,28 +111,6 @@ def check_tol(tol: Any) -> float:
     if not (0 < value < 1):
         raise InputError(f"tol must be an angle in (0, 1) rad, got {tol!r} (default {SPAN_TOL})")
     return value
-
-
-def check_poses(robot: CableRobot, natural: Any) -> np.ndarray:
-    """Poses as a float array (N, nv) of finite natural coordinates, or an
-    InputError naming the expected shape."""
-    from cdpm.errors import InputError
-
-    try:
-        arr = np.asarray(natural, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise InputError(f"poses must be numbers (natural coordinates): {exc}") from exc
-    if arr.ndim == 1 and arr.size == robot.nv:
-        arr = arr[None]
-    if arr.ndim != 2 or arr.shape[1] != robot.nv:
-        raise InputError(
-            f"poses must have shape (N, {robot.nv}) (natural coordinates "
-            f"{', '.join(robot.coordinate_names)}), got shape {arr.shape}"
-        )
-    if not np.all(np.isfinite(arr)):
-        bad = np.flatnonzero(~np.all(np.isfinite(arr), axis=1))
-        raise InputError(f"poses {bad[:5].tolist()} have non-finite coordinates")
-    return arr
 
 
 def zero_equilibrium(robot: CableRobot, setting) -> bool:

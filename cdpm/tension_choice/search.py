@@ -189,21 +189,6 @@ class BestTensionBatch:
         return int(self.status.shape[0])
 
 
-def _check_natural(robot: CableRobot, natural: Any) -> np.ndarray:
-    try:
-        arr = np.asarray(natural, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise InputError(f"poses must be numbers (natural coordinates): {exc}") from exc
-    if arr.ndim == 1 and arr.size == robot.nv:
-        arr = arr[None]
-    if arr.ndim != 2 or arr.shape[1] != robot.nv or not np.all(np.isfinite(arr)):
-        raise InputError(
-            f"poses must be finite natural coordinates of shape (N, {robot.nv}) "
-            f"({', '.join(robot.coordinate_names)}), got shape {arr.shape}"
-        )
-    return arr
-
-
 def best_tension_batch(
     robot: CableRobot,
     natural: Any,
@@ -239,7 +224,7 @@ def best_tension_batch(
     Raises:
         InputError: bad poses or settings.
     """
-    from cdpm.maps._batch import configurations
+    from cdpm.maps._batch import check_poses, configurations
     from cdpm.reach import reach_settings
 
     settings = tension_search(
@@ -252,7 +237,7 @@ def best_tension_batch(
         tension_cap=tension_cap,
     )
     reach = reach_settings(robot, horizon, tension_budget)
-    natural = _check_natural(robot, natural)
+    natural = check_poses(robot, natural)
     kin = robot.kinematics_batch(configurations(robot, natural), dynamics=True)
     return search_tensions(robot, kin, settings, reach, tol)
 
