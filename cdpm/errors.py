@@ -19,6 +19,7 @@ __all__ = [
     "capped_lines",
     "MAX_LISTED_PROBLEMS",
     "MAX_PROBLEM_CHARS",
+    "MAX_MESSAGE_CHARS",
 ]
 
 #: problems a message lists before "and N more"
@@ -53,8 +54,21 @@ def capped_lines(lines: list[str]) -> list[str]:
     return out
 
 
+#: longest message a cdpm error prints [characters]; the full text stays in
+#: ``exc.args[0]``
+MAX_MESSAGE_CHARS = 4000
+
+
 class CdpmError(Exception):
-    """Base class of all errors raised by cdpm."""
+    """Base class of all errors raised by cdpm. Its message is cut to
+    MAX_MESSAGE_CHARS characters (quoted user input can be long)."""
+
+    def __str__(self) -> str:
+        text = super().__str__()
+        if len(text) <= MAX_MESSAGE_CHARS:
+            return text
+        cut = MAX_MESSAGE_CHARS - 40
+        return f"{text[:cut]}... ({len(text) - cut:,} more characters)"
 
 
 class SpecError(CdpmError, ValueError):

@@ -271,11 +271,14 @@ def reach_margins_at(
     if A.ndim == 2:
         A, B, C, f = A[None], B[None], C[None], f[None]
     lower, upper = reach_bounds(robot, f, settings.tension_budget)
-    r = reach_margins(A, B, C, lower, upper, settings.horizon)
-    zero = r.value < REACH_ZERO_RTOL * reach_scale(robot, settings)
-    error = r.error
-    if verdict_no is not None:
-        no = np.asarray(verdict_no, dtype=bool)
-        zero |= no
-        error = np.where(no, 0.0, error)  # exact
-    return ReachMargins(np.where(zero, 0.0, r.value), error, r.intervals)
+    k = A.shape[0]
+    no = np.zeros(k, dtype=bool) if verdict_no is None else np.asarray(verdict_no, dtype=bool)
+    # NO poses: r_T = 0 exactly, with no quadrature (whose zonotope may have
+    # many more outputs than the state has dimensions)
+    value, error, intervals = np.zeros(k), np.zeros(k), np.ones(k, dtype=int)
+    todo = np.flatnonzero(~no)
+    if todo.size:
+        r = reach_margins(A[todo], B[todo], C[todo], lower[todo], upper[todo], settings.horizon)
+        value[todo], error[todo], intervals[todo] = r.value, r.error, r.intervals
+    zero = value < REACH_ZERO_RTOL * reach_scale(robot, settings)
+    return ReachMargins(np.where(zero, 0.0, value), error, intervals)

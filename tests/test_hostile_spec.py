@@ -177,3 +177,12 @@ def test_caspr_xml_with_entities_is_refused(tmp_path):
     cables.write_text(bomb.replace("bodies_system", "cables"))
     with pytest.raises(cdpm.InputError, match="declares entities or external references"):
         import_caspr(bodies, cables, tmp_path / "out")
+
+
+def test_every_cdpm_error_message_is_capped():
+    from cdpm.errors import MAX_MESSAGE_CHARS
+
+    exc = cdpm.InputError("x" * 10_000)
+    assert len(str(exc)) <= MAX_MESSAGE_CHARS
+    assert str(exc).endswith("more characters)")
+    assert len(exc.args[0]) == 10_000  # the full text is kept

@@ -177,8 +177,11 @@ def _parse_xml(path: Path, what: str) -> ET.Element:
 
 def _describe(element: ET.Element) -> str:
     """``<tag a="b" ...>`` of an element, for messages."""
-    attrs = " ".join(f'{k}="{v}"' for k, v in element.attrib.items())
-    return f"<{element.tag}{' ' + attrs if attrs else ''}>"
+    def short(value: str) -> str:
+        return value if len(value) <= 60 else value[:57] + "..."
+
+    attrs = " ".join(f'{short(k)}="{short(v)}"' for k, v in list(element.attrib.items())[:6])
+    return f"<{short(element.tag)}{' ' + attrs if attrs else ''}>"
 
 
 def _text(parent: ET.Element, tag: str, path: Path, where: str) -> str:
