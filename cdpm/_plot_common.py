@@ -34,6 +34,7 @@ VERDICT_TITLES = {
     "positive_controllable": "positive controllability (Brammer)",
     "output_controllable": "output controllability verdict",
     "static_feasible": "static feasibility verdict",
+    "poc_some_tension": "POC for some feasible tension",
 }
 
 #: status code -> colour of a pose that was not analysed, by reason; greys

@@ -90,19 +90,27 @@ def _budget_used(ds) -> bool:
         return True
 
 
-def margin_scale(ds) -> MarginScale | None:
-    """The margin variable of ``ds`` and its labels (None without one)."""
-    if "reach_margin" in ds:
-        units = ds["reach_margin"].attrs.get("units") or "output units"
+#: the margin drawn beside a verdict other than poc: the tension search's
+#: verdict goes with the reach margin at its chosen tension
+MARGIN_OF_VERDICT = {"poc_some_tension": "reach_margin_best"}
+
+
+def margin_scale(ds, verdict: str = "poc") -> MarginScale | None:
+    """The margin variable of ``ds`` drawn beside ``verdict``, and its
+    labels (None without one)."""
+    name = MARGIN_OF_VERDICT.get(verdict, "reach_margin")
+    if name in ds:
+        units = ds[name].attrs.get("units") or "output units"
         horizon = _attr(ds, "reach_margin", "reach_horizon")
         budget = _attr(ds, "reach_margin", "tension_budget")
         within = f" within $T$ = {horizon:.3g} s" if horizon is not None else ""
-        title = f"reach margin $r_T$ [{units}]{within} (log scale)"
+        what = "at the chosen tension " if name != "reach_margin" else ""
+        title = f"reach margin $r_T$ {what}[{units}]{within} (log scale)"
         if budget is not None and _budget_used(ds):
             # bounded cables use their own bounds (docs/analysis.md)
             title += f"\ntension changes up to ±{budget:.3g} N\nfor cables without an upper bound"
         return MarginScale(
-            "reach_margin",
+            name,
             title,
             f"$r_T$ [{units}], log scale",
             "$r_T$ = 0 (not POC, or $T$ too short)",

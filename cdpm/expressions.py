@@ -76,7 +76,9 @@ def parse_number(value: Any) -> float:
         result = _eval_node(tree.body, 0)
     except ZeroDivisionError as exc:
         raise ValueError(f"{value!r} divides by zero") from exc
-    except (ValueError, OverflowError) as exc:
+    except OverflowError:
+        raise ValueError(f"{value!r} is too large for a number (beyond 1.8e308)") from None
+    except ValueError as exc:
         raise ValueError(f"{value!r} is not a number ({exc})") from exc
     if isinstance(result, complex):
         raise ValueError(f"{value!r} is not a real number (its value is complex)")

@@ -197,6 +197,13 @@ def parse_outputs(
             terms = None if term is None else [term]
         if not terms:
             continue
+        if "unit" in item and "sum" not in item:
+            problems.add(
+                f"{where}.unit",
+                f"the unit of a single component is fixed ({terms[0].unit}); unit: names the "
+                "unit of a weighted sum (sum: [...]); leave it out here",
+            )
+            continue
         unit = _output_unit(problems, where, item.get("unit"), terms)
         if unit is None:
             continue
@@ -295,7 +302,8 @@ def _parse_term(
         if extra:
             problems.add(
                 where,
-                f"{' and '.join(extra)} apply to frame outputs only; leave "
+                f"{' and '.join(extra)} {'apply' if len(extra) > 1 else 'applies'} to frame "
+                "outputs only; leave "
                 f"{'them' if len(extra) > 1 else 'it'} out of a {kind} output",
             )
             return None
@@ -353,14 +361,25 @@ def _parse_term(
     )
 
 
+def _fixed_joint_type():
+    import pinocchio as pin
+
+    return pin.FrameType.FIXED_JOINT
+
+
 def _joint_term(problems: Problems, where: str, name: Any, model: Any, weight: float):
     """A joint term: one-degree-of-freedom joints only (their coordinate
     is the natural one, and its rate is the tangent direction)."""
     if model is None:
         return None
     joints = [model.names[j] for j in range(1, model.njoints)]
-    if not isinstance(name, str) or name not in joints:
-        problems.add(where, f"{name!r} is not a joint of the URDF; joints: {', '.join(joints)}")
+    if not isinstance(name, str):
+        problems.add(where, f"expected one joint name, got {name!r}; joints: {', '.join(joints)}")
+        return None
+    if name not in joints:
+        fixed = any(f.name == name for f in model.frames if f.type == _fixed_joint_type())
+        why = "a fixed joint, which has no coordinate" if fixed else "not a joint of the URDF"
+        problems.add(where, f"{name!r} is {why}; joints with a coordinate: {', '.join(joints)}")
         return None
     joint = model.joints[model.getJointId(name)]
     short = joint.shortname()

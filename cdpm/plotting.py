@@ -159,6 +159,21 @@ def check_dpi(dpi: Any) -> float:
     return value
 
 
+def _require_computed(ds, variable: str) -> None:
+    """Refuse a variable computed only on request (the tension search) in a
+    map made without that request: every pose would be 'not analysed'."""
+    from cdpm.maps.criteria import CRITERIA
+    from cdpm.verdicts import NOT_ANALYSED
+
+    criterion = CRITERIA.get(variable)
+    if criterion is not None and criterion.on_request:
+        if bool((ds[variable] == NOT_ANALYSED).all()):
+            raise InputError(
+                f"{variable!r} was not computed in this map: it comes from the tension "
+                "search; make the map with --tension best (tension='best')"
+            )
+
+
 def _load(ds_or_path):
     if isinstance(ds_or_path, (str, os.PathLike)):
         from cdpm.maps import open_map
@@ -252,6 +267,7 @@ def plot_map(
     if variable not in ds or "flag_values" not in ds[variable].attrs or variable == "status":
         choices = [v for v in ds.data_vars if "flag_values" in ds[v].attrs and v != "status"]
         raise InputError(f"{variable!r} is not a verdict of this map; choose one of {choices}")
+    _require_computed(ds, variable)
     dims = _pose_dims(ds, variable)
     sample = dims == ["sample"]
     axes_names = _sampled_axes(ds) if sample else list(dims)
@@ -261,7 +277,7 @@ def plot_map(
     choice = choice if output_view else None
     if path is not None:
         path = check_path(path, axes_names, plotted)
-    scale = margin_scale(ds) if margin else None
+    scale = margin_scale(ds, variable) if margin else None
     missing = None  # a margin asked for but not in the map: said in the title, no panel
     if scale is not None and not margin_computed(ds, scale):
         missing, scale = scale, None

@@ -133,6 +133,14 @@ class PoseReport:
         r, err = self.reach_margin
         names = ", ".join(self.linearisation.output_names) or "the outputs"
         exact = "exact" if err == 0 else f"+- {err:.2g}, quadrature estimate"
+        if not np.isfinite(r) and np.isnan(err):
+            p, m = len(self.linearisation.output_names), len(self.linearisation.cable_names)
+            return [
+                f"Reach margin r_T: not computed: with {p} outputs and {m} cables its facet "
+                "search is too large (docs/analysis.md, 'Reach margin'); fewer outputs (or a "
+                "weighted sum of them) make it tractable",
+                f"  {self.reach.describe()}",
+            ]
         if not np.isfinite(r):
             return [
                 f"Reach margin r_T: not resolvable within T = {self.reach.horizon:.3g} s: a "
@@ -142,7 +150,8 @@ class PoseReport:
         unit = self.reach_unit
         if "," in unit:  # mixed metres and radians
             head = f"Reach margin r_T = {r + 0.0:.4g} ({unit}; {exact})"
-            moved = f"{r + 0.0:.4g} m or rad in every direction of output space"
+            either = unit.removesuffix(", one to one").replace(" and ", " or ")
+            moved = f"{r + 0.0:.4g} {either} in every direction of output space"
         else:
             head = f"Reach margin r_T = {r + 0.0:.4g} {unit} ({exact})"
             moved = f"{r + 0.0:.4g} {unit} in every direction"

@@ -106,6 +106,9 @@ TABLE = [
     (["analyze", "a\0b"], "NUL"),
     (["path", "{d}/m.zarr", "--from", "0", "0", "--to", "1e300", "1"], "off the map"),
     (["verify", PLANAR, "--radius", "1e300"], "at most the robot's size"),
+    (["find", PLANAR, "--tries", "100000000"], "at most 1,000,000 poses"),
+    (["plot", "{d}/m.zarr", "-o", "{d}/p.png", "--variable", "poc_some_tension"],
+     "--tension best"),  # fmt: skip
 ]
 
 

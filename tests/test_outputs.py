@@ -269,7 +269,7 @@ def test_a_weighted_sum_is_the_weighted_sum_of_its_terms(tmp_path):
 
 BAD_OUTPUTS = [
     ("{frame: tip, component: rx, point: [1, 0, 0]}", "is the same at every point of it; leave"),
-    ("{joint: q9}", r"'q9' is not a joint of the URDF; joints: q1, q2"),
+    ("{joint: q9}", r"'q9' is not a joint of the URDF; joints with a coordinate: q1, q2"),
     ("{cable: c9}", r"'c9' is not a cable of this spec; cables: c1"),
     ("{frame: tip, component: x, joint: q1}", "name exactly one of frame .* got frame and joint"),
     ("{name: s, frame: tip, sum: [{frame: tip, component: x}]}", "give either sum or frame"),
@@ -277,7 +277,10 @@ BAD_OUTPUTS = [
     ("{name: s, sum: [{weight: 0, frame: tip, component: x}]}", "must be finite and nonzero"),
     ("{name: s, sum: [{weight: .nan, frame: tip, component: x}]}", "must be finite and nonzero"),
     ("{frame: tip, component: roll}", r"'roll' is not valid; use one of x, y, z, rx, ry, rz"),
-    ("{joint: q1, component: x}", "apply to frame outputs only; leave it out of a joint"),
+    ("{joint: q1, component: x}", "applies to frame outputs only; leave it out of a joint"),
+    ("{joint: q1, unit: m}", r"the unit of a single component is fixed \(rad\)"),
+    ("{joint: tip_joint}", "is a fixed joint, which has no coordinate"),
+    ("{joint: [q1, q2]}", "expected one joint name"),
 ]
 
 

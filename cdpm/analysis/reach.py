@@ -44,6 +44,7 @@ from cdpm.analysis.margin import state_samples
 from cdpm.numerics import (
     REACH_BLOCK_ELEMENTS,
     REACH_GROWTH_MAX,
+    REACH_MAX_FACET_WORK,
     REACH_NODES,
     REACH_NODES_HIGH,
     REACH_ZERO_RTOL,
@@ -121,12 +122,16 @@ def _reach_margins(A, B, C, lower, upper, horizon, weight) -> ReachMargins:
     CB = Cw @ B  # (k, p, m)
     cb_bound = T * np.einsum("km,km->k", wide, np.sqrt((CB * CB).sum(axis=1)))
     exact = square_zero(A) if n else np.ones(k, dtype=bool)
+    skipped = np.zeros(k, dtype=bool)
+    if exact.any() and facet_work(m, p) > REACH_MAX_FACET_WORK:
+        value[exact], error[exact], intervals[exact] = np.nan, np.nan, 0  # not computed
+        skipped, exact = exact, np.zeros(k, dtype=bool)
     if exact.any():
         i = np.flatnonzero(exact)
         G = (T * T / 2) * (Cw[i] @ (A[i] @ B[i]))  # (k', p, m)
         value[i] = zonotope_inradii(G * half[i][:, None], np.einsum("kpm,km->kp", G, mid[i]))
         error[i] = cb_bound[i]
-    rest = np.flatnonzero(~exact)
+    rest = np.flatnonzero(~exact & ~skipped)
     if rest.size:
         # growing modes: beyond e^{Re(lambda) T} = REACH_GROWTH_MAX every
         # sample lines up with the fastest mode and the zonotope's width
@@ -137,11 +142,17 @@ def _reach_margins(A, B, C, lower, upper, horizon, weight) -> ReachMargins:
         rest = rest[growth <= math.log(REACH_GROWTH_MAX)]
     if rest.size:
         K = reach_nodes(p)
+        if facet_work(K * m, p) > REACH_MAX_FACET_WORK:
+            # too many facet candidates to enumerate (the set of them alone
+            # would not fit in memory): not computed
+            value[rest], error[rest], intervals[rest] = np.nan, np.nan, 0
+            rest = rest[:0]
+    if rest.size:
         intervals[rest] = K
         value[rest], error[rest] = _quadrature(
             A[rest], B[rest], Cw[rest], mid[rest], half[rest], T, K
         )
-    overflow = ~(np.isfinite(value) & np.isfinite(error))
+    overflow = ~(np.isfinite(value) & np.isfinite(error)) & ~np.isnan(error)
     value[overflow], error[overflow] = np.nan, np.inf
     return ReachMargins(np.maximum(value, 0.0), error, intervals)
 
@@ -174,6 +185,12 @@ def _quadrature(A, B, Cw, mid, half, T: float, K: int):
         D = (Gs * half[:, None, None, :]).reshape(k, Gs.shape[1], -1)
         values.append(zonotope_inradii(D, center))
     return values[0], np.abs(values[0] - values[1])
+
+
+def facet_work(generators: int, p: int) -> float:
+    """Work of the facet search of a zonotope with ``generators`` generators
+    in R^p: C(N, p-1) candidate normals times (N + p)."""
+    return math.comb(generators, max(p - 1, 0)) * float(generators + p)
 
 
 def simpson_weights(K: int, T: float) -> np.ndarray:

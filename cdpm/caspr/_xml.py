@@ -177,6 +177,7 @@ def _parse_xml(path: Path, what: str) -> ET.Element:
 
 def _describe(element: ET.Element) -> str:
     """``<tag a="b" ...>`` of an element, for messages."""
+
     def short(value: str) -> str:
         return value if len(value) <= 60 else value[:57] + "..."
 

@@ -68,6 +68,10 @@ BATCH = 256
 STRAIN_FACTOR = 10
 
 
+#: most poses one search draws (--tries)
+FIND_MAX_TRIES = 10**6
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("spec", metavar="SPEC", help="cable spec YAML file (or its model folder)")
     parser.add_argument(
@@ -426,6 +430,11 @@ def run(args: argparse.Namespace) -> int:
     for option, value, least in (("--count", args.count, 1), ("--tries", args.tries, 1)):
         if value < least:
             raise InputError(f"{option} {value}: give a whole number >= {least}")
+    if args.tries > FIND_MAX_TRIES:
+        raise InputError(
+            f"--tries {args.tries:,}: at most {FIND_MAX_TRIES:,} poses per search (about "
+            "0.1 ms each); for more, map them: cdpm map SPEC --samples N ... --out map.zarr"
+        )
     if args.rank < args.count:
         raise InputError(
             f"--rank {args.rank} is less than --count {args.count}: rank at least as many "

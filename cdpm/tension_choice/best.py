@@ -91,6 +91,7 @@ class BestTension:
     search: TensionSearch
     reach: ReachSettings
     method: str
+    margin_unit: str = "m"
 
     @property
     def verdict(self) -> str:
@@ -107,7 +108,9 @@ class BestTension:
         if int(self.default_verdict) == NOT_ANALYSED:
             default += f" (method {self.default_method!r} finds no equilibrium here)"
         else:
-            default += f", r_T = {_margin(self.default_margin)} ({self.default_method})"
+            default += (
+                f", r_T = {_margin(self.default_margin, self.margin_unit)} ({self.default_method})"
+            )
         what = {
             YES: "YES: this feasible tension makes the pose POC (certified)",
         }.get(
@@ -115,10 +118,14 @@ class BestTension:
             f"{self.verdict.upper()}: none of the {self.n_candidates} tensions tried is POC",
         )
         exact = "exact" if err == 0 else f"+- {err:.2g}"
+        gain = r - self.default_margin
+        if int(self.default_verdict) == YES and math.isfinite(gain) and 0 < gain <= err:
+            exact += "; its gain over the default is within this error estimate"
         out = [
             f"Best tension (objective {self.objective}): {what}",
             f"  default tension: {default}",
-            f"  chosen tension: {self.found_by}; r_T = {_margin(r)} ({exact}); POC "
+            f"  chosen tension: {self.found_by}; r_T = {_margin(r, self.margin_unit)} "
+            f"({exact}); POC "
             f"{self.poc.verdict.value.upper()} ({self.poc.method})",
         ]
         from cdpm.linearisation import named_values
@@ -150,7 +157,9 @@ class BestTension:
                 "sign_constrained": self.linearisation.sign_constrained.tolist(),
                 "default": {
                     "method": self.default_method,
-                    "tension": self.default_tension.tolist(),
+                    "tension": dict(
+                        zip(self.cable_names, self.default_tension.tolist(), strict=True)
+                    ),
                     "verdict": VERDICT_LABELS[int(self.default_verdict)],
                     "reach_margin": self.default_margin,
                 },
@@ -165,8 +174,8 @@ class BestTension:
         )
 
 
-def _margin(r: float) -> str:
-    return f"{r + 0.0:.4g} m" if math.isfinite(r) else "not resolvable"
+def _margin(r: float, unit: str) -> str:
+    return f"{r + 0.0:.4g} {unit}" if math.isfinite(r) else "not resolvable"
 
 
 def describe_search(search: TensionSearch, default_method: str, cap: float | None) -> str:
@@ -239,6 +248,7 @@ def best_tension(
     from cdpm.equilibrium import InfeasibleEquilibriumError, equilibrium_tension
     from cdpm.errors import CdpmError, ModelError
     from cdpm.linearisation import linearise
+    from cdpm.reach import reach_unit
 
     kin = robot.kinematics(q)  # validates q; raises on a zero-length cable
     natural = robot.to_natural(kin.q)
@@ -297,6 +307,7 @@ def best_tension(
             batch.default_method,
             rng.tension_cap if np.any(~np.isfinite(robot.tension_max)) else None,
         ),
+        margin_unit=reach_unit(robot.output_units),
     )
 
 
