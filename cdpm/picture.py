@@ -454,6 +454,10 @@ def _fit_title(ax, titles: list[str], renderer, fontsize: float = 10) -> None:
         ax.set_title("\n".join(wrapped), fontsize=fontsize)
 
 
+#: most cable names one merged label lists before "and N more"
+LABEL_MAX_NAMES = 4
+
+
 class _CableLabels:
     """Cable names at their anchors (above those in the upper half of the
     scene, below the others, running towards the middle); labels whose boxes
@@ -479,8 +483,11 @@ class _CableLabels:
         scale = max(float(np.abs(d).max()), 1e-12)
         inward = 0 if abs(d[0]) < 0.05 * scale else -int(np.sign(d[0]))
         up = 1 if d[1] >= -0.05 * scale else -1
+        texts = [text for _, text in sorted(names)]
+        if len(texts) > LABEL_MAX_NAMES:  # a long line would run off the figure
+            texts = texts[: LABEL_MAX_NAMES - 1] + [f"and {len(texts) - LABEL_MAX_NAMES + 1} more"]
         return self.ax.annotate(
-            ", ".join(text for _, text in sorted(names)),
+            ", ".join(texts),
             tuple(point),
             xytext=(-3 * inward, 6 * up),
             textcoords="offset points",
@@ -517,6 +524,9 @@ class _CableLabels:
         ax.apply_aspect()
         frame = ax.get_window_extent(renderer)
         boxes = [t.get_window_extent(renderer) for t in self.texts + self.obstacles]
+        # a label wider or taller than half the axes cannot be brought inside by
+        # growing the limits (its size is in points): it is left to overflow
+        boxes = [b for b in boxes if b.width < frame.width / 2 and b.height < frame.height / 2]
         if all(frame.containsx(b.x0) and frame.containsx(b.x1) for b in boxes) and all(
             frame.containsy(b.y0) and frame.containsy(b.y1) for b in boxes
         ):
@@ -540,7 +550,9 @@ def _verdict_text(state: PoseState) -> str:
     if state.verdict is None:
         return "unavailable"
     margin = ""
-    if state.margin is not None:
+    if state.margin is not None and not np.isfinite(state.margin):
+        margin = " (r_T not computed)"
+    elif state.margin is not None:
         margin = f" (r_T {with_unit(_number(state.margin), state.margin_unit)})"
     return f"{str(state.verdict).upper()}{margin}"
 
