@@ -31,6 +31,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import textwrap
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -493,9 +494,12 @@ def _suptitle(fig, ds, title: str | None, axes_names, missing: MarginScale | Non
         spec = Path(str(ds.attrs.get("spec", "map"))).name
         head = f"{spec}: {_poses_text(ds, axes_names)}"
         tail = f"equilibrium tension {tension}"
+        if "poc_some_tension" in ds and bool((ds["poc_some_tension"] >= 0).any()):
+            tail += " (and the tension search)"
         # about 12 characters per inch at 11 points
-        fits = len(head) + len(tail) + 2 <= 12 * fig.get_figwidth()
-        title = f"{head}, {tail}" if fits else f"{head}\n{tail}"
+        width = int(12 * fig.get_figwidth())
+        fits = len(head) + len(tail) + 2 <= width
+        title = f"{head}, {tail}" if fits else f"{textwrap.fill(head, width)}\n{tail}"
         if missing is not None:
             what = "reach margin" if missing.variable == "reach_margin" else "POC margin"
             title += f"\n{what} not computed (map made with --no-margin): no margin panel"
