@@ -408,6 +408,17 @@ def _check_outputs(args: argparse.Namespace) -> None:
             "cluster's workers compute the chunks: leave out --workers (start more Dask workers "
             f"with `dask worker {args.scheduler}`), or leave out --scheduler to run locally"
         )
+    for option, value in (
+        ("--samples", args.samples),
+        ("--workers", args.workers),
+        ("--chunk-size", args.chunk_size),
+    ):
+        if value is not None and value < 1:
+            raise InputError(f"{option} {value}: give a whole number >= 1")
+    if args.scheduler:
+        from cdpm.maps._scheduler import check_scheduler_address
+
+        check_scheduler_address(args.scheduler)  # before the model is loaded
 
 
 def _interrupted(args: argparse.Namespace) -> int:
