@@ -87,8 +87,12 @@ TABLE = [
     ),  # fmt: skip
     (
         ["map", PLANAR, "--axis", "q1=0:1:5", "--out", "{d}/d.zarr", "--chunk-size", "0"],
-        "positive integer",
+        "--chunk-size 0: give a whole number >= 1",
     ),  # fmt: skip
+    (
+        ["map", PLANAR, "--axis", "q1=0:1", "--samples", "-5", "--out", "{d}/d.zarr"],
+        "--samples -5: give a whole number >= 1",
+    ),
     (
         ["map", PLANAR, "--axis", "q1=0:1:5", "--out", "{d}/d.zarr", "--horizon", "nan"],
         "horizon",
@@ -107,8 +111,10 @@ TABLE = [
     (["path", "{d}/m.zarr", "--from", "0", "0", "--to", "1e300", "1"], "off the map"),
     (["verify", PLANAR, "--radius", "1e300"], "at most the robot's size"),
     (["find", PLANAR, "--tries", "100000000"], "at most 1,000,000 poses"),
-    (["plot", "{d}/m.zarr", "-o", "{d}/p.png", "--variable", "poc_some_tension"],
-     "--tension best"),  # fmt: skip
+    (
+        ["plot", "{d}/m.zarr", "-o", "{d}/p.png", "--variable", "poc_some_tension"],
+        "--tension best",
+    ),  # fmt: skip
 ]
 
 
