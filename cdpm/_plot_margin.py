@@ -273,7 +273,21 @@ def colorbar_beside(ax, fig, mappable, scale: MarginScale, limits: MarginRange):
     label = scale.colorbar_label
     if limits.clip_note:
         label += f"\n({limits.clip_note})"
-    return fig.colorbar(mappable, cax=cax, label=label, extend=limits.extend)
+    bar = fig.colorbar(mappable, cax=cax, label=label, extend=limits.extend)
+    plain_log_ticks(bar.ax.yaxis, limits.low, limits.high)
+    return bar
+
+
+def plain_log_ticks(axis, low: float, high: float) -> None:
+    """Over less than a decade, a log axis shows few or no powers of ten:
+    label its ticks with plain numbers (1.42, 1.43) instead of 1.42x10^0."""
+    if not (0 < low < high < 10 * low):
+        return
+    from matplotlib.ticker import FormatStrFormatter, MaxNLocator
+
+    axis.set_major_locator(MaxNLocator(5))
+    axis.set_minor_formatter(FormatStrFormatter(""))
+    axis.set_major_formatter(FormatStrFormatter("%.3g"))
 
 
 def margin_computed(ds, scale: MarginScale) -> bool:
@@ -392,6 +406,7 @@ def margin_line(ax, x, values, status, verdict, scale: MarginScale) -> list:
     ax.plot(x[alone], positive[alone], ".", color="0.15", ms=4)
     limits = margin_range(positive)
     ax.set_ylim(limits.low / 1.5, limits.high * 1.5)
+    plain_log_ticks(ax.yaxis, limits.low / 1.5, limits.high * 1.5)
     edges = cell_edges(x)
     cats = _categories()
     for k in np.unique(category[category > ZERO]):

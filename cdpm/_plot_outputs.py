@@ -87,13 +87,30 @@ def _unit(ds, name: str) -> str | None:
     return ds["output_frame_position"].attrs.get("units", "m")
 
 
+def _varying_outputs(ds, outs: list[str]) -> list[str]:
+    """The first two outputs, unless fewer than two of them vary over the
+    map: then the two whose values span the widest range (in map order)."""
+    import numpy as np
+
+    y = np.asarray(ds["y"].values, dtype=float).reshape(-1, len(outs))
+    with np.errstate(invalid="ignore"):
+        span = np.nan_to_num(np.nanmax(y, axis=0) - np.nanmin(y, axis=0)) if y.size else None
+    if span is None or (span[:2] > 0).all():
+        return outs[:2]
+    if np.count_nonzero(span > 0) == 1:  # one varies: it against the map's coordinate
+        return [outs[int(np.argmax(span))]]
+    best = sorted(np.argsort(-span, kind="stable")[:2])
+    return [outs[k] for k in best]
+
+
 def choose_outputs(ds, outputs) -> OutputChoice | None:
     """The quantities the output-space panel plots.
 
     Args:
         ds: the map.
         outputs: None for the default (one output: it against the first
-            coordinate; two or more: the first two), else one or two names
+            coordinate; two or more: the first two, or the two that vary
+            most when one of the first two is constant), else one or two names
             of the map's outputs (the ``output`` coordinate of ``y``) or
             ``FRAME.x|y|z`` for the world position of the first output's
             frame.
@@ -108,9 +125,15 @@ def choose_outputs(ds, outputs) -> OutputChoice | None:
     """
     outs, frames = _output_names(ds), _frame_names(ds)
     if outputs is None:
-        if len(outs) >= 2:
-            note = f"first 2 of {len(outs)} outputs" if len(outs) > 2 else ""
-            return OutputChoice(tuple(outs[:2]), note)
+        if len(outs) > 2:
+            picked = _varying_outputs(ds, outs)
+            if picked == outs[:2]:
+                return OutputChoice(tuple(picked), f"first 2 of {len(outs)} outputs")
+            if len(picked) == 1:
+                return OutputChoice(tuple(picked), "the only output that varies")
+            return OutputChoice(tuple(picked), f"the 2 of {len(outs)} outputs that vary most")
+        if len(outs) == 2:
+            return OutputChoice(tuple(outs))
         if outs:
             return OutputChoice((outs[0],))
         return OutputChoice(tuple(frames[:2])) if frames else None
