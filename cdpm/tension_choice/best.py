@@ -165,7 +165,8 @@ class BestTension:
                 },
                 "n_candidates": self.n_candidates,
                 "n_yes": self.n_yes,
-                "search": self.search.as_dict(),
+                # the cap used (the default's value when none was given)
+                "search": {**self.search.as_dict(), "tension_cap": self.tension_range.tension_cap},
                 "reach": self.reach.as_dict(),
                 "method": self.method,
                 "exact_and_sampled": EXACT_AND_SAMPLED,
