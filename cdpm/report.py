@@ -243,7 +243,12 @@ class PoseReport:
             lines += [
                 indent(line)
                 for line in criteria_lines(
-                    self.criteria,
+                    {
+                        name: value
+                        for name, value in self.criteria.items()
+                        # without the reach margin (margin=False), not listed
+                        if self.reach is not None or not name.startswith("reach_margin")
+                    },
                     lin.output_names,
                     self.length_scale or 0.0,
                     self.output_units,
@@ -481,6 +486,7 @@ def analyze_pose(
     neighbourhood: Any = None,
     neighbourhood_points: int | None = None,
     infeasible: str = "raise",
+    margin: bool = True,
 ) -> PoseReport | InfeasiblePoseReport:
     """Linearise ``robot`` at ``q`` and decide every property at that pose.
 
@@ -539,7 +545,11 @@ def analyze_pose(
     natural = robot.to_natural(lin.q)
     eq = lin.equilibrium
     setting = lin.tension if eq is None or eq.method == "given" else eq.method
-    batch = evaluate_batch(robot, natural[None], setting, pretension=pretension, reach=reach)
+    if not margin:  # r_T skipped: its criteria stay NaN and the report leaves it out
+        reach = None
+    batch = evaluate_batch(
+        robot, natural[None], setting, pretension=pretension, margin=margin, reach=reach
+    )
     criteria = {name: c.compute(batch)[0] for name, c in CRITERIA.items()}
     ball = None
     if neighbourhood is not None:
@@ -552,7 +562,7 @@ def analyze_pose(
             points=neighbourhood_points,
             tension=setting,
             pretension=pretension,
-            horizon=reach,
+            horizon=reach_settings(robot, horizon, tension_budget),
             pose_name=pose_name,
         )
     return PoseReport(

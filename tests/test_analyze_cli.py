@@ -288,3 +288,16 @@ def test_submodules_are_attributes_after_a_plain_import():
     import cdpm
 
     assert callable(cdpm.maps.open_map) and callable(cdpm.reach.reach_settings)
+
+
+def test_analyze_without_the_reach_margin(capsys):
+    import math
+
+    spec = str(MODELS / "spatial_8cable" / "spatial_8cable_pose.yaml")
+    assert main(["analyze", spec, "--pose", "centre", "--no-margin"]) == 0
+    out = capsys.readouterr().out
+    assert "Positive output controllability (Theorem 1): YES" in out
+    assert "Reach margin" not in out and "reach_margin" not in out
+    report = cdpm.analyze_pose(cdpm.load_robot(spec), "centre", margin=False)
+    assert report.reach is None and math.isnan(report.reach_margin[0])
+    assert report.as_dict()["reach"] is None

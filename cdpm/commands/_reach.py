@@ -5,8 +5,8 @@ from __future__ import annotations
 import argparse
 
 
-def add_reach_arguments(parser: argparse.ArgumentParser) -> None:
-    """``--horizon T`` and ``--tension-budget F``."""
+def add_reach_arguments(parser: argparse.ArgumentParser, margin_switch: bool = False) -> None:
+    """``--horizon T`` and ``--tension-budget F`` (and ``--no-margin``)."""
     group = parser.add_argument_group(
         "reach margin r_T (how far tension changes move the outputs in T seconds)"
     )
@@ -21,6 +21,12 @@ def add_reach_arguments(parser: argparse.ArgumentParser) -> None:
         help="largest tension change [N], up or down, of a cable without an upper bound "
         "(cables with one use their bounds; default: the model's, printed)",
     )
+    if margin_switch:
+        group.add_argument(
+            "--no-margin",
+            action="store_true",
+            help="skip the reach margin (the verdicts are the same; much faster with many outputs)",
+        )
 
 
 def reach_from_args(robot, args: argparse.Namespace):

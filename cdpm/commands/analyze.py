@@ -139,7 +139,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="grid points per coordinate of the --neighbourhood map, odd (default: as many "
         "as a budget of a few thousand poses allows)",
     )
-    add_reach_arguments(parser)
+    add_reach_arguments(parser, margin_switch=True)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -169,6 +169,7 @@ def run(args: argparse.Namespace) -> int:
         neighbourhood=radius,
         neighbourhood_points=points,
         infeasible="report",
+        margin=not args.no_margin,
         command="cdpm analyze",
     )
     best = _best_tension(robot, q, args) if search else None
