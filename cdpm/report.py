@@ -221,7 +221,8 @@ class PoseReport:
         verdicts = [
             labelled("Positive output controllability (Theorem 1)", self.poc),
             labelled("Positive controllability (Brammer)", self.positive_controllability),
-            f"Output controllability: {self.output_controllability}",
+            f"Output controllability: {self.output_controllability}"
+            + self._more_outputs_than_dof(),
             f"Controllability (Kalman): {self.controllability}",
             f"Wrench closure: {self.wrench_closure}",
         ]
@@ -256,6 +257,14 @@ class PoseReport:
                 )
             ]
         return without_negative_zeros("\n".join(lines))
+
+    def _more_outputs_than_dof(self) -> str:
+        """A note when p > nv: the outputs move only through the nv
+        coordinates, so their rank is at most nv whatever the cables do."""
+        p, nv = len(self.linearisation.output_names), len(self.coordinate_names)
+        if p <= nv:
+            return ""
+        return f" ({p} outputs, {nv} degrees of freedom: never output controllable)"
 
     def _equilibrium_lines(self) -> list[str]:
         lin = self.linearisation

@@ -301,3 +301,20 @@ def test_analyze_without_the_reach_margin(capsys):
     report = cdpm.analyze_pose(cdpm.load_robot(spec), "centre", margin=False)
     assert report.reach is None and math.isnan(report.reach_margin[0])
     assert report.as_dict()["reach"] is None
+
+
+def test_more_outputs_than_degrees_of_freedom_is_said(tmp_path, capsys):
+    folder = tmp_path / "arm"
+    shutil.copytree(MODELS / "two_link_vertical", folder)
+    spec = folder / "two_link_vertical.yaml"
+    text = re.sub(
+        r"(?ms)^outputs:.*?(?=^\w)",
+        "outputs:\n  - {frame: tip, component: x}\n  - {frame: tip, component: z}\n"
+        "  - {joint: q2}\n",
+        spec.read_text(),
+    )
+    spec.write_text(text)
+    assert main(["analyze", str(spec), "--pose", "nominal", "--no-margin"]) == 0
+    out = capsys.readouterr().out
+    assert "(3 outputs, 2 degrees of freedom: never output controllable)" in out
+    assert "Positive output controllability (Theorem 1): NO" in out
