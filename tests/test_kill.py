@@ -91,3 +91,18 @@ def test_killed_map_leaves_no_process_and_resumes_exactly(tmp_path, reference, t
     resumed = cdpm.open_map(out)
     for name in ("poc", "status", "reach_margin", "y", "tension_max"):
         np.testing.assert_array_equal(resumed[name].values, reference[name].values, err_msg=name)
+
+
+def test_run_killed_while_labelling_regions_resumes(tmp_path):
+    """A run killed while it wrote ``poc_region`` leaves the array on disk but
+    not in the consolidated metadata; the next run rewrites it."""
+    import json
+
+    out = tmp_path / "m.zarr"
+    axes = {"q1": np.linspace(-3, 3, 9), "q2": np.linspace(-3, 3, 9)}
+    first = cdpm.workspace_map(VERTICAL, axes, store=out, workers=1)
+    meta = json.loads((out / "zarr.json").read_text())
+    meta["consolidated_metadata"]["metadata"].pop("poc_region")
+    (out / "zarr.json").write_text(json.dumps(meta))
+    again = cdpm.workspace_map(VERTICAL, axes, store=out, workers=1)
+    np.testing.assert_array_equal(again["poc_region"].values, first["poc_region"].values)

@@ -509,6 +509,8 @@ def _write_labels(path: Path, labels) -> None:
         warnings.simplefilter("ignore", FutureWarning)
         if REGION_VARIABLE in group:
             del group[REGION_VARIABLE]
+        # overwrite: a run killed while it wrote the labels leaves an array
+        # that the consolidated metadata does not list
         array = group.create_array(
             REGION_VARIABLE,
             shape=labels.shape,
@@ -517,6 +519,7 @@ def _write_labels(path: Path, labels) -> None:
             fill_value=0,
             dimension_names=list(labels.dims),
             attributes=dict(labels.attrs),
+            overwrite=True,
         )
         array[...] = labels.values
         zarr.consolidate_metadata(str(path))
