@@ -509,8 +509,7 @@ def _write_labels(path: Path, labels) -> None:
         warnings.simplefilter("ignore", FutureWarning)
         if REGION_VARIABLE in group:
             del group[REGION_VARIABLE]
-        # overwrite: a run killed while it wrote the labels leaves an array
-        # that the consolidated metadata does not list
+        # overwrite: a run killed mid-write leaves an array the metadata omits
         array = group.create_array(
             REGION_VARIABLE,
             shape=labels.shape,
