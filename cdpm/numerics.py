@@ -111,8 +111,6 @@ GRID_POINTS_HIGH = 64
 REACH_NODES = {1: 64, 2: 32, 3: 12}
 #: ... and for p >= 4
 REACH_NODES_HIGH = 4
-#: reach margin: array elements per block of the facet search (bounds memory)
-REACH_BLOCK_ELEMENTS = 4_000_000
 #: reach margin: the most work of one pose's facet search, C(N, p-1) facet
 #: candidates times (N + p) for N generators in p output dimensions (about
 #: 10 s); beyond it r_T is not computed (NaN, with a NaN error estimate)
@@ -120,6 +118,10 @@ REACH_MAX_FACET_WORK = 5e8
 #: a facet candidate whose normal is shorter than this times the product of
 #: its generators' lengths comes from dependent generators and is skipped
 ZONOTOPE_NORMAL_RTOL = 1e-12
+#: the facet search's upper bound of an inradius is raised by this times the
+#: sum of the generators' lengths (their round-off), so that it never rules
+#: out the least facet
+ZONOTOPE_BOUND_RTOL = 1e-12
 #: output Jacobian entries below this times the robot's size [m] are the
 #: round-off of forward kinematics and set to 0 (a folded arm's tip on its
 #: shoulder: 1e-16 for an arm metres long)

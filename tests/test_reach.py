@@ -45,6 +45,48 @@ def test_zonotope_inradius_equals_the_hull_of_its_vertices(p):
         assert got == pytest.approx(expected, rel=1e-10, abs=1e-12)
 
 
+def _inradius_by_every_facet(D, c):
+    """Reference: the plain search over every (p-1)-subset of generators,
+    normals from the SVD, no bounds, no sweep; (k,) before clipping."""
+    k, p, N = D.shape
+    out = np.full(k, np.inf)
+    for s in range(k):
+        for subset in itertools.combinations(range(N), p - 1):
+            S = D[s][:, subset]
+            if p > 1 and np.linalg.matrix_rank(S, tol=1e-9 * np.abs(S).max()) < p - 1:
+                continue
+            n = np.linalg.svd(S.T)[2][-1] if p > 1 else np.ones(1)
+            out[s] = min(out[s], np.abs(n @ D[s]).sum() - abs(n @ c[s]))
+    return np.maximum(out, 0.0)
+
+
+@pytest.mark.parametrize("p", [2, 3, 4, 6])
+def test_the_compiled_facet_search_equals_the_plain_one(p):
+    """The kernel's sweep (p = 2), run and ceiling bounds (p = 3) and
+    pruned enumeration (p >= 4) return the plain search's least facet, on
+    awkward generator sets: parallel and antiparallel pairs, zero
+    generators, generators on the axes, centres inside and outside, and
+    every run length (``group``)."""
+    rng = np.random.default_rng(10 + p)
+    N = {2: 24, 3: 18, 4: 12, 6: 9}[p]
+    k = 40
+    D = rng.normal(size=(k, p, N)) * rng.uniform(0.01, 5.0, size=(k, 1, N))
+    D[:8, :, 1] = 2.0 * D[:8, :, 0]  # parallel
+    D[8:16, :, 3] = -0.5 * D[8:16, :, 2]  # antiparallel
+    D[16:20, :, 4] = 0.0  # a zero generator
+    D[20:24, 1:, :3] = 0.0  # on the first axis
+    D[24:28, 0, 5:8] = 0.0  # in the other coordinates' plane
+    # centres up to about the zonotope's size: 0 inside some, outside others
+    reach = np.linalg.norm(D, axis=1).sum(axis=1, keepdims=True) / p
+    c = rng.normal(size=(k, p)) * rng.uniform(0.0, 1.5, size=(k, 1)) * reach
+    c[:4] = 0.0
+    expected = _inradius_by_every_facet(D, c)
+    assert (expected > 0).sum() >= 5 and (expected == 0).sum() >= 3  # both kinds
+    for group in [g for g in range(1, N + 1) if N % g == 0]:
+        got = zonotope_inradii(D, c, group=group)
+        np.testing.assert_allclose(got, expected, rtol=1e-10, atol=1e-12)
+
+
 def test_flat_and_shifted_zonotopes_have_zero_inradius():
     D = np.array([[[1.0, 2.0, -1.0], [0.0, 0.0, 0.0]]])  # all on the x axis
     assert zonotope_inradii(D, np.zeros((1, 2)))[0] == 0.0

@@ -35,14 +35,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from itertools import combinations
 
 import numpy as np
 
 from cdpm.analysis._common import square_zero
 from cdpm.analysis.margin import state_samples
 from cdpm.numerics import (
-    REACH_BLOCK_ELEMENTS,
     REACH_GROWTH_MAX,
     REACH_MAX_FACET_WORK,
     REACH_NODES,
@@ -182,8 +180,9 @@ def _quadrature(A, B, Cw, mid, half, T: float, K: int):
         if not np.any(Gs[:, :, 0]):  # C B = 0 (mechanical systems): drop t = 0
             Gs = Gs[:, :, 1:]
         center = np.einsum("kpim,km->kp", Gs, mid)
-        D = (Gs * half[:, None, None, :]).reshape(k, Gs.shape[1], -1)
-        values.append(zonotope_inradii(D, center))
+        # generators input-major: each input's samples in time form a run
+        D = np.swapaxes(Gs * half[:, None, None, :], 2, 3).reshape(k, Gs.shape[1], -1)
+        values.append(zonotope_inradii(D, center, group=Gs.shape[2]))
     return values[0], np.abs(values[0] - values[1])
 
 
@@ -202,7 +201,7 @@ def simpson_weights(K: int, T: float) -> np.ndarray:
     return w
 
 
-def zonotope_inradii(D: np.ndarray, center: np.ndarray) -> np.ndarray:
+def zonotope_inradii(D: np.ndarray, center: np.ndarray, group: int = 1) -> np.ndarray:
     """Inradius about 0 of the zonotopes ``{c + D s : |s_i| <= 1}``.
 
     The least ``sum_l |n . d_l| - |n . c|`` over unit normals n of
@@ -212,9 +211,18 @@ def zonotope_inradii(D: np.ndarray, center: np.ndarray) -> np.ndarray:
     one whose inradius is below REACH_ZERO_RTOL times the sum of its
     generators' lengths (round-off).
 
+    The search is compiled (cdpm.analysis._zonotope_kernel); it skips a
+    candidate as soon as a partial sum shows it cannot be the least, which
+    leaves the result unchanged.
+
     Args:
         D: generators, shape (k, p, N).
         center: centres, shape (k, p).
+        group: a hint that consecutive runs of this many generators point
+            mostly the same way (one input's samples in time): their sums
+            give a cheap lower bound that rules out most candidates. Any
+            value gives the same result; 1 or a value not dividing N: no
+            bound.
 
     Returns:
         Shape (k,).
@@ -224,42 +232,15 @@ def zonotope_inradii(D: np.ndarray, center: np.ndarray) -> np.ndarray:
     if p == 1:
         r = np.abs(D[:, 0]).sum(axis=1) - np.abs(center[:, 0])
         return np.where(r > REACH_ZERO_RTOL * size, r, 0.0)
-    out = np.zeros(k)
-    if N < p - 1:
-        return out
-    subsets = np.array(list(combinations(range(N), p - 1)))  # (Q, p-1)
-    Q = subsets.shape[0]
-    block = max(1, int(REACH_BLOCK_ELEMENTS // max(1, Q * (N + p))))
-    for start in range(0, k, block):
-        d = D[start : start + block]
-        normals = _normals(d, subsets)  # (b, Q, p), unit or 0
-        spread = np.abs(normals @ d).sum(axis=2) - np.abs(
-            np.einsum("bqp,bp->bq", normals, center[start : start + block])
-        )
-        valid = np.any(normals != 0, axis=2)
-        spread = np.where(valid, spread, np.inf)
-        r = spread.min(axis=1)
-        out[start : start + block] = np.where(np.isposinf(r), 0.0, r)  # NaN: overflow
-    return np.where(out > REACH_ZERO_RTOL * size, out, 0.0)
+    if N < p - 1 or k == 0:
+        return np.zeros(k)
+    from cdpm.analysis._zonotope_kernel import facet_inradii  # numba: loaded on use
 
-
-def _normals(d: np.ndarray, subsets: np.ndarray) -> np.ndarray:
-    """Unit normals of the hyperplanes spanned by the generator subsets
-    (generalised cross products by cofactors), 0 where a subset is
-    dependent; shape (b, Q, p)."""
-    b, p, _ = d.shape
-    S = np.moveaxis(d[:, :, subsets], 2, 1)  # (b, Q, p, p-1)
-    if p == 2:
-        normals = np.stack([S[..., 1, 0], -S[..., 0, 0]], axis=-1)
-    elif p == 3:
-        normals = np.cross(S[..., 0], S[..., 1], axis=2)
-    else:
-        rows = np.arange(p)
-        normals = np.empty(S.shape[:2] + (p,))
-        for i in range(p):
-            normals[..., i] = (-1) ** i * np.linalg.det(S[:, :, rows != i, :])
-    size = np.linalg.norm(normals, axis=2)
-    scale = np.prod(np.linalg.norm(S, axis=2), axis=2)  # product of generator norms
-    ok = size > ZONOTOPE_NORMAL_RTOL * scale
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return np.where(ok[..., None], normals / size[..., None], 0.0)
+    r = facet_inradii(
+        np.ascontiguousarray(D, dtype=float),
+        np.ascontiguousarray(center, dtype=float),
+        ZONOTOPE_NORMAL_RTOL,
+        group if N % group == 0 else 1,
+    )
+    r = np.where(np.isposinf(r), 0.0, r)  # no valid candidate: generators do not span
+    return np.where(r > REACH_ZERO_RTOL * size, r, 0.0)  # NaN (overflow) and round-off: 0
