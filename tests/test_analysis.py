@@ -361,3 +361,35 @@ def test_lapack_helpers_agree_with_numpy():
         k = min(shape)
         assert np.linalg.matrix_rank(X[:, piv[:k]]) == np.linalg.matrix_rank(X)
     assert svdvals(np.zeros((3, 0))).size == 0
+
+
+def test_batch_rank_exit_matches_the_singular_value_ratio():
+    """The exits' rank test (Gram eigenvalues, the SVD near its threshold)
+    decides as the singular-value ratio against RANK_RATIO does: on
+    matrices whose ratio is within 2% of the threshold (two unit columns at
+    angle theta have the ratio tan(theta / 2)), clearly deficient and
+    clearly full ones, zero ones and ones with a negligible column."""
+    from cdpm.analysis.exits import _full_rank
+    from cdpm.numerics import KRYLOV_COLUMN_NEGLIGIBLE, RANK_RATIO
+
+    rng = np.random.default_rng(3)
+    for r in [2, 4, 12]:
+        k = 400
+        ratio = RANK_RATIO * np.exp(rng.uniform(-0.02, 0.02, k))
+        ratio[:40] *= 1e-3  # clearly deficient
+        ratio[40:80] *= 1e3  # clearly full
+        theta = 2 * np.arctan(ratio)
+        S = np.tile(np.eye(r), (k, 1, 1))
+        S[:, 0, 1], S[:, 1, 1] = np.cos(theta), np.sin(theta)
+        S = np.linalg.qr(rng.normal(size=(k, r, r)))[0] @ S  # rotated: same ratio
+        S *= rng.uniform(0.5, 2.0, size=(k, 1, r))  # column scales: normalised away
+        S[80:90] = 0.0
+        S[90:100, :, 0] *= 0.1 * KRYLOV_COLUMN_NEGLIGIBLE  # a negligible column
+        norms = np.linalg.norm(S, axis=1)
+        keep = norms > KRYLOV_COLUMN_NEGLIGIBLE * norms.max(axis=1, keepdims=True)
+        Sn = np.where(keep[:, None], S / np.where(keep, norms, 1.0)[:, None], 0.0)
+        sv = np.linalg.svd(Sn, compute_uv=False)
+        expected = sv[:, -1] > RANK_RATIO * sv[:, 0]
+        assert 50 < expected[100:].sum() < 250  # both sides of the threshold
+        assert expected[40:80].all() and not expected[:40].any() and not expected[80:100].any()
+        np.testing.assert_array_equal(_full_rank(S), expected)

@@ -44,7 +44,7 @@ from cdpm.analysis.exits import (
     times,
 )
 from cdpm.errors import CdpmError
-from cdpm.numerics import BRAMMER_DEFER, SPAN_TOL, WRENCH_DEFER_BAND
+from cdpm.numerics import BRAMMER_DEFER, RANK_RATIO, SPAN_TOL, WRENCH_DEFER_BAND
 from cdpm.verdicts import NO, NOT_ANALYSED, YES, verdict_code
 
 __all__ = [
@@ -76,16 +76,31 @@ class SystemVerdicts:
 
 def positively_spanning(vectors: np.ndarray, tol: float = SPAN_TOL) -> np.ndarray:
     """Wrench-closure-like test of many vector sets: do the columns of each
-    (d, m) matrix of ``vectors`` (k, d, m) positively span R^d? Exits for
-    d <= 2, the analyser's :func:`~cdpm.analysis.positively_spans` for the
-    rest; int8 codes (k,)."""
-    from cdpm.analysis.span import span_result
+    (d, m) matrix of ``vectors`` (k, d, m) positively span R^d?
 
-    S = np.moveaxis(vectors, 0, -1)
-    band = (tol - WRENCH_DEFER_BAND, tol + WRENCH_DEFER_BAND)
-    codes, todo = span_codes(S, band, tol)
+    d <= 2: the angular and sign exits (:func:`~cdpm.analysis.exits.span_codes`);
+    d >= 3: deep certificates, a strictly positive null vector or a strict
+    separator of the unit columns with every entry at least ``RANK_RATIO``
+    times its norm (:mod:`cdpm.analysis._span_batch`, compiled). The sets
+    they leave open (within the defer band of an exit, near the boundary,
+    nearly rank deficient, or whose cone holds a line) get the verdict of
+    the analyser's :func:`~cdpm.analysis.positively_spans`.
+
+    Returns:
+        int8 codes (k,): YES or NO.
+    """
+    from cdpm.analysis.span import span_core
+
+    if vectors.shape[1] <= 2:
+        band = (tol - WRENCH_DEFER_BAND, tol + WRENCH_DEFER_BAND)
+        codes, todo = span_codes(np.moveaxis(vectors, 0, -1), band, tol)
+    else:
+        from cdpm.analysis._span_batch import span_certificates  # numba: loaded on use
+
+        codes = span_certificates(vectors, RANK_RATIO, 1.0 / RANK_RATIO, tol)
+        todo = codes < 0
     for i in np.flatnonzero(todo):
-        codes[i] = verdict_code(span_result(vectors[i], tol).verdict)
+        codes[i] = YES if span_core(vectors[i], tol)[0] else NO
     return codes
 
 

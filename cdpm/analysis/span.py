@@ -305,12 +305,12 @@ def _span_general(U: np.ndarray, nz: np.ndarray, tol: float):
     piv, rdiag = qr_pivots(U)
     rank = p
     if rdiag.size < p or not rdiag[p - 1] > SPAN_RANK_RTOL * rdiag[0]:
-        # left singular vectors from the p x p Gram matrix: k may be large
-        evals, evecs = eigh(U @ U.T)
-        s = np.sqrt(np.clip(evals[::-1], 0.0, None))
-        rank = numerical_rank(s, SPAN_RANK_RTOL)
+        # the singular values of U itself: the square roots of the Gram
+        # matrix's eigenvalues resolve only about 1e-8 of the largest, which
+        # is coarser than SPAN_RANK_RTOL
+        rank = numerical_rank(svdvals(U), SPAN_RANK_RTOL)
         if rank < p:
-            v = evecs[:, 0]
+            v = eigh(U @ U.T)[1][:, 0]  # the least left singular vector
             return False, "rank", rank, None, None, v
     # one NNLS decides: with a basis b_1..b_p of columns, the cone is R^p
     # iff -sum b_i is in it; then the basis (weights >= 1) and the NNLS
@@ -320,7 +320,11 @@ def _span_general(U: np.ndarray, nz: np.ndarray, tol: float):
     # when there are few
     basis = np.arange(k) if k <= 2 * p else piv[:p]
     b = -U[:, basis].sum(axis=1)
-    mu, res = nnls(U, b, maxiter=50 * k + 100)
+    mu = nnls(U, b, maxiter=50 * k + 100)[0]
+    # the residual as computed here, not NNLS's own figure: with exactly
+    # dependent columns in its working set NNLS can return huge weights and
+    # report a residual of 0 that U mu - b does not have
+    res = float(np.linalg.norm(U @ mu - b))
     if res <= NNLS_RES_RTOL * max(1.0, float(np.linalg.norm(b))):
         w = mu.copy()
         w[basis] += 1.0
@@ -367,8 +371,17 @@ def _span_lp(U: np.ndarray, nz: np.ndarray, tol: float, rank: int):
     )
     if res.status == 0 and -res.fun > tol:
         return True, "lp", rank, nz, res.x[:k], None
-    # separator: the min-norm point of conv(U) (LDP via NNLS)
+    # separator: the min-norm point of conv(U) (LDP via NNLS); when 0 is in
+    # the hull (the cone holds a line without being R^p) the LP's duals y
+    # of U w = 0 at t* = 0 have U^T y <= 0: every column in a closed half-space
     v = min_norm_separator(U)
+    if v is None and res.status == 0:
+        y = -np.asarray(res.eqlin.marginals[:p], dtype=float)
+        for cand in (y, -y):
+            size = float(np.linalg.norm(cand))
+            if size > 0 and np.max(cand @ U) <= tol * size:
+                v = cand / size
+                break
     if v is None:
         v = np.zeros(p)
         v[0] = 1.0

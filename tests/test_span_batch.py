@@ -1,0 +1,194 @@
+"""The batched wrench-closure test (cdpm.analysis.batch.positively_spanning,
+compiled certificates in cdpm.analysis._span_batch): known answers, and the
+verdict of the per-pose analyser (span_result) on every set, for the cable
+wrench columns of real maps and for random and degenerate sets."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import cdpm
+from cdpm.analysis import Verdict
+from cdpm.analysis._span_batch import span_certificates
+from cdpm.analysis.batch import positively_spanning
+from cdpm.analysis.span import span_result
+from cdpm.equilibrium import statics
+from cdpm.maps._batch import configurations
+from cdpm.numerics import RANK_RATIO, SPAN_TOL
+from cdpm.verdicts import NO, YES, verdict_code
+
+MODELS = Path(__file__).resolve().parents[1] / "models"
+
+
+def analyser_codes(vectors: np.ndarray, tol: float = 1e-9) -> np.ndarray:
+    """The per-pose analyser's verdict codes of (k, d, m) vector sets."""
+    return np.array([verdict_code(span_result(S, tol).verdict) for S in vectors], dtype=np.int8)
+
+
+def certificates(vectors: np.ndarray, tol: float = SPAN_TOL) -> np.ndarray:
+    return span_certificates(np.asarray(vectors, dtype=float), RANK_RATIO, 1.0 / RANK_RATIO, tol)
+
+
+def test_known_answers_are_certified():
+    """A simplex (also with columns scaled over four decades) and +-e_i
+    positively span R^4: YES; columns in an open half-space, a basis and
+    [I, +1] do not: NO. Each is decided by a certificate, as the analyser."""
+    d = 4
+    simplex = np.hstack([np.eye(d), -np.ones((d, 1))])
+    cases = [
+        (simplex, YES),
+        (simplex * np.array([1e-2, 1.0, 1e2, 7.0, 0.5]), YES),
+        (np.hstack([np.eye(d), -np.eye(d)]), YES),
+        (np.abs(np.random.default_rng(0).normal(size=(d, 7))) + 0.1, NO),
+        (np.eye(d) + 0.1, NO),
+        (np.hstack([np.eye(d), np.ones((d, 1))]), NO),
+    ]
+    for S, code in cases:
+        assert certificates(S[None]).tolist() == [code]
+        assert positively_spanning(S[None]).tolist() == [code]
+        assert analyser_codes(S[None]).tolist() == [code]
+
+
+def test_boundary_and_degenerate_sets_are_left_to_the_analyser():
+    """A rank-deficient set and a simplex with a zero column get no
+    certificate (-1); the analyser decides them (NO, rank 2; YES, as it
+    drops the zero column). e1, +-e2, +-e3 (the cone is the half-space
+    x1 >= 0: it holds lines without being R^3) is NO by the NNLS residual
+    (m <= 2d), as the analyser says."""
+    half_space = np.array(
+        [[1.0, 0.0, 0.0, 0.0, 0.0], [0.0, 1.0, -1.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0, -1.0]]
+    )
+    deficient = np.array([[1.0, -1.0, 0.5, -2.0], [2.0, -2.0, 1.0, -4.0], [0.0, 1.0, -1.0, 0.0]])
+    zero = np.hstack([np.eye(3), -np.ones((3, 1)), np.zeros((3, 1))])
+    assert certificates(half_space[None]).tolist() == analyser_codes(half_space[None]).tolist()
+    assert analyser_codes(half_space[None]).tolist() == [NO]
+    for S, code in ((deficient, NO), (zero, YES)):
+        assert certificates(S[None]).tolist() == [-1]
+        assert positively_spanning(S[None]).tolist() == analyser_codes(S[None]).tolist()
+        assert analyser_codes(S[None]).tolist() == [code]
+
+
+def map_vectors(name: str, n: int, seed: int) -> np.ndarray:
+    """Cable wrench columns -L^T (n', nv, m) at n poses near the named ones
+    (within 0.3 rad or m), poses with a zero-length cable left out."""
+    robot = cdpm.load_robot(MODELS / name / f"{name}.yaml")
+    rng = np.random.default_rng(seed)
+    named = np.array([robot.to_natural(q) for q in robot.poses.values()])
+    X = named[rng.integers(len(named), size=n)] + rng.uniform(-0.3, 0.3, (n, robot.nv))
+    kin = robot.kinematics_batch(configurations(robot, X), dynamics=True)
+    LT, _ = statics(robot, kin)
+    return -LT[kin.segment_lengths.min(axis=1) >= 1e-9]
+
+
+@pytest.mark.parametrize(
+    ("name", "seed"), [("multilink_arm", 1), ("spatial_8cable", 2), ("double_pendulum_cables", 3)]
+)
+def test_map_sets_get_the_analysers_verdict(name, seed):
+    """Every pose of a real map: the batched codes are the analyser's, and
+    (6-DOF models) most sets are decided by a certificate."""
+    V = map_vectors(name, 1500, seed)
+    codes = positively_spanning(V)
+    expected = analyser_codes(V)
+    assert (codes == expected).all(), np.flatnonzero(codes != expected)[:10]
+    assert (expected == YES).sum() > 0.1 * len(V)
+    if V.shape[1] >= 3:
+        decided = certificates(V) >= 0
+        assert decided.mean() > 0.6
+        assert (certificates(V)[decided] == expected[decided]).all()
+
+
+def random_sets(rng: np.random.Generator, n: int) -> list[np.ndarray]:
+    """Random (d, m) sets, d in 3..6, m in d..2d+3, of assorted kinds:
+    Gaussian, rank deficient, in a half-space with columns on (or within
+    1e-14 .. 1e-5 of) its boundary, m = d, duplicate columns, opposite
+    pairs, a subspace spanned positively by a subset (exact or 1e-17
+    leakage), a zero or tiny column, columns scaled over 12 decades."""
+    sets = []
+    for _ in range(n):
+        d = int(rng.integers(3, 7))
+        m = int(rng.integers(d, 2 * d + 4))
+        kind = int(rng.integers(9))
+        S = rng.standard_normal((d, m))
+        if kind == 1:
+            r = int(rng.integers(1, d))
+            S = rng.standard_normal((d, r)) @ rng.standard_normal((r, m))
+        elif kind == 2:
+            S[0] = np.abs(S[0])
+            S[0, rng.random(m) < 0.5] = 0.0
+            tilt = rng.choice([0.0, 1e-14, -1e-14, 1e-9, -1e-9, 1e-7, -1e-7, 1e-5, -1e-5])
+            S[0] += tilt * rng.standard_normal(m)
+        elif kind == 3:
+            S = rng.standard_normal((d, d))
+        elif kind == 4:
+            S = np.hstack([S, S[:, rng.integers(m, size=2)]])
+        elif kind == 5:
+            S = np.hstack([S[:, : m // 2], -S[:, : m // 2] * rng.uniform(0.5, 2.0, m // 2)])
+        elif kind == 6:
+            S[: d - 2, -3:] = rng.choice([0.0, 1e-17]) * rng.standard_normal((d - 2, 3))
+        elif kind == 7:
+            S[:, 0] *= rng.choice([0.0, 1e-13, 1e-9, 1e-5])
+        elif kind == 8:
+            S = S * 10.0 ** rng.uniform(-6.0, 6.0, m)
+        sets.append(S)
+    return sets
+
+
+@pytest.mark.parametrize("tol", [1e-9, 1e-4])
+def test_random_and_degenerate_sets_get_the_analysers_verdict(tol):
+    """3000 seeded random and degenerate sets, grouped by shape: the batched
+    codes are the analyser's at the default and a large tolerance."""
+    groups: dict[tuple[int, int], list[np.ndarray]] = {}
+    for S in random_sets(np.random.default_rng(7), 3000):
+        groups.setdefault(S.shape, []).append(S)
+    yes = no = 0
+    for group in groups.values():
+        V = np.array(group)
+        codes = positively_spanning(V, tol)
+        expected = analyser_codes(V, tol)
+        assert (codes == expected).all(), (V.shape, np.flatnonzero(codes != expected)[:10])
+        yes += int((expected == YES).sum())
+        no += int((expected == NO).sum())
+    assert yes > 500 and no > 500
+
+
+def test_a_set_does_not_depend_on_its_batch():
+    """A set's code is the same alone and among others."""
+    V = map_vectors("spatial_8cable", 64, 5)
+    together = positively_spanning(V)
+    alone = np.array([positively_spanning(V[i : i + 1])[0] for i in range(len(V))])
+    assert (together == alone).all()
+    assert positively_spanning(V[:0]).shape == (0,)
+
+
+def test_a_cone_holding_a_line_is_not_read_as_spanning():
+    """A wrench set of multilink_arm (a map pose) whose distal cables
+    positively span a plane by themselves, with round-off (1e-17) where the
+    exact entries are 0: the cone holds a line but is not R^6. NNLS once
+    reported a residual of 0 here with weights near 1e15, and the analyser
+    said YES; an independent HiGHS LP (max s: S w = 0, w >= s, sum w = 1)
+    finds s = 0. Now the analyser, the batch and the LP all say NO."""
+    from scipy.optimize import linprog
+
+    S = np.load(Path(__file__).parent / "data" / "span_multilink_roundoff.npy")
+    U = S / np.linalg.norm(S, axis=0)
+    d, m = U.shape
+    a_eq = np.zeros((d + 1, m + 1))
+    a_eq[:d, :m], a_eq[d, :m] = U, 1.0
+    lp = linprog(
+        np.r_[np.zeros(m), -1.0],
+        A_ub=np.hstack([-np.eye(m), np.ones((m, 1))]),
+        b_ub=np.zeros(m),
+        A_eq=a_eq,
+        b_eq=np.r_[np.zeros(d), 1.0],
+        bounds=[(0, None)] * m + [(None, 1.0)],
+        method="highs",
+    )
+    assert lp.status == 0 and -lp.fun < 1e-9
+    assert span_result(S).verdict == Verdict.NO
+    assert positively_spanning(S[None]).tolist() == [NO]
+    # and the NO carries a separator that re-checks: every column in a closed half-space
+    result = span_result(S)
+    assert result.certificate.kind == "separator" and result.verify()
