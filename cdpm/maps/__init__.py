@@ -60,10 +60,16 @@ MAX_AXIS_POINTS = 10**7
 #: fill a shared many-core machine)
 DEFAULT_MAX_WORKERS = 16
 
-#: largest chunk when poses go through the analyser (under load: a few
-#: tenths of a millisecond per pose): writing a chunk costs about 20 ms
-#: whatever its size, and a chunk of this size about half a second
-PER_POSE_CHUNK_SIZE = 1024
+#: largest chunk when poses go through the analyser (under load: tens to
+#: hundreds of microseconds per pose): writing a chunk costs about 10 ms
+#: whatever its size (a file per variable), and a chunk of this size 0.1 to
+#: 2 s
+PER_POSE_CHUNK_SIZE = 4096
+
+#: smallest default chunk under load: a 2048-pose map is two chunks (one
+#: per process of two); smaller chunks would spend as long writing as
+#: computing on the cheaper models
+MIN_PER_POSE_CHUNK_SIZE = 1024
 
 #: chunk size of maps with the tension search (``tension="best"``: tens of
 #: LPs and candidate analyses per pose, 0.03 to 1 s a pose)
@@ -71,10 +77,12 @@ TENSION_SEARCH_CHUNK_SIZE = 64
 
 
 def _per_pose_chunk_size(n_poses: int) -> int:
-    """Chunk size under load: PER_POSE_CHUNK_SIZE, or smaller for maps of
-    fewer than 16 such chunks (a multiple of 64, at least 64), so that
-    progress and the spread over workers stay even."""
-    return int(min(PER_POSE_CHUNK_SIZE, max(64, 64 * -(-n_poses // (16 * 64)))))
+    """Chunk size under load: a thirty-second of the map (so that progress
+    and the spread over workers stay even: two processes end at most about
+    a chunk apart), rounded up to a multiple of 512 and kept within
+    MIN_PER_POSE_CHUNK_SIZE and PER_POSE_CHUNK_SIZE."""
+    share = 512 * -(-n_poses // (32 * 512))
+    return int(min(PER_POSE_CHUNK_SIZE, max(MIN_PER_POSE_CHUNK_SIZE, share)))
 
 
 def workspace_map(
@@ -134,8 +142,8 @@ def workspace_map(
             chunks not yet done are computed). None keeps the map in memory.
         overwrite: replace an existing ``store`` instead of resuming it.
         chunk_size: poses per chunk (default 16384; under load, when poses
-            go through the analyser, 1024, or less for maps of fewer than
-            16384 poses).
+            go through the analyser, a thirty-second of the map within 1024
+            and 4096).
         progress: True prints what runs where (see ``announce``) and a
             progress bar on stderr; a callable is called as
             ``progress(done_poses, total_poses, chunk_index)``.

@@ -39,6 +39,12 @@ if TYPE_CHECKING:  # pragma: no cover
 __all__ = ["RobotSource", "MapRunInfo", "run_chunks", "ProgressPrinter"]
 
 
+#: the robot of the spec file with this hash (spec and URDF), as it is: what
+#: :meth:`RobotSource.from_robot` compares a robot with (read only), kept so
+#: that maps of one model in turn parse its files once
+_SPEC_FILE_ROBOTS: dict[str, CableRobot] = {}
+
+
 @dataclass(frozen=True)
 class RobotSource:
     """How a worker rebuilds the robot: the spec path, its hash, the bytes
@@ -67,7 +73,12 @@ class RobotSource:
                 "files, so load the robot from files that exist"
             ) from exc
         source = cls(str(spec), robot.spec.sha256, files, str(spec.relative_to(root)))
-        overrides = robot_overrides(robot, source.load_spec_file())
+        reference = _SPEC_FILE_ROBOTS.get(source.sha256)
+        if reference is None:
+            reference = source.load_spec_file()
+            _SPEC_FILE_ROBOTS.clear()  # one is enough: maps of one model in turn
+            _SPEC_FILE_ROBOTS[source.sha256] = reference
+        overrides = robot_overrides(robot, reference)
         return cls(source.spec_path, source.sha256, files, source.spec_relpath, overrides)
 
     @property
@@ -419,7 +430,10 @@ def run_chunks(
             _run_processes(robot, plan, job, todo, finished, workers, writer, source, started)
 
 
-#: modules the fork server imports once, so that workers start warm
+#: modules the fork server imports once, so that workers start warm: with
+#: the compiled kernels, which their users import on first use (numba's
+#: import and each kernel module's dispatchers cost tenths of a second per
+#: process); a name that is not importable is skipped by the fork server
 _PRELOAD = [
     "cdpm.maps._evaluate",
     "cdpm.maps._store",
@@ -429,6 +443,10 @@ _PRELOAD = [
     "cdpm.linearisation",
     "pinocchio",
     "zarr",
+    "numba",
+    "cdpm.equilibrium._newton_kernel",
+    "cdpm.analysis._span_batch",
+    "cdpm.analysis._zonotope_kernel",
 ]
 
 
