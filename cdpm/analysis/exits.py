@@ -244,13 +244,15 @@ def free_controllable(A, B, mask):
     v^T B_free = 0, so Brammer's obstruction cannot exist."""
     k, n, _ = A.shape
     codes = np.full(k, NOT_ANALYSED, dtype=np.int8)
-    if k == 0:
+    free = np.flatnonzero(np.any(~mask & np.any(B != 0, axis=1), axis=1))
+    if free.size == 0:  # every input sign-constrained (or zero): no free input
         return codes
-    blocks, W = [], B * ~mask[:, None, :]
+    A, W = A[free], B[free] * ~mask[free, None, :]
+    blocks = []
     for _ in range(n):
         blocks.append(W)
         W = A @ W
-    codes[_full_rank(np.concatenate(blocks, axis=2))] = YES
+    codes[free[_full_rank(np.concatenate(blocks, axis=2))]] = YES
     return codes
 
 
