@@ -44,6 +44,15 @@ def caspr_models(environ: Mapping[str, str] | None = None) -> tuple[Path, str | 
     )
 
 
+@pytest.fixture(scope="session", autouse=True)
+def compiled_kernels():
+    """Compile (or load from the disk cache) the maps' kernels once, before
+    any test starts worker processes that would each compile them."""
+    from cdpm.compiled import load_kernels
+
+    load_kernels()
+
+
 @pytest.fixture(scope="session")
 def paper_robot():
     import cdpm

@@ -29,8 +29,9 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from cdpm.compiled import KERNEL_MODULES, load_kernels
 from cdpm.errors import CdpmError, InputError, MissingExtraError
-from cdpm.maps._evaluate import MapJob
+from cdpm.maps._evaluate import MapJob, zero_equilibrium
 from cdpm.numerics import PROGRESS_LOG_INTERVAL
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -426,6 +427,8 @@ def run_chunks(
             for index in todo:
                 finished(index, job.evaluate(robot, plan.natural(index)))
         else:
+            if not zero_equilibrium(robot, job.tension):
+                load_kernels()  # compiled once here, not in every worker at once
             writer = getattr(sink, "writer", None)
             _run_processes(robot, plan, job, todo, finished, workers, writer, source, started)
 
@@ -444,9 +447,7 @@ _PRELOAD = [
     "pinocchio",
     "zarr",
     "numba",
-    "cdpm.equilibrium._newton_kernel",
-    "cdpm.analysis._span_batch",
-    "cdpm.analysis._zonotope_kernel",
+    *KERNEL_MODULES,
 ]
 
 

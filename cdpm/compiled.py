@@ -1,0 +1,45 @@
+"""The compiled kernels of the maps (numba), and loading them ahead of use.
+
+Three per-pose loops are compiled with numba and cached on disk beside
+their modules (or in numba's user cache when the package folder is not
+writable): the least-norm equilibrium Newton
+(``cdpm.equilibrium._newton_kernel``), the wrench-closure certificates
+(``cdpm.analysis._span_batch``) and the reach margin's facet search
+(``cdpm.analysis._zonotope_kernel``). Their modules are imported on first
+use, so ``import cdpm`` does not load numba. The first use after an
+install compiles them (several seconds each); later processes load them
+from the cache in tenths of a second.
+
+:func:`load_kernels` does that first use on tiny inputs. Maps call it
+before starting worker processes, so that the workers load the cache
+instead of each compiling the same code, and the test suite calls it once
+at its start.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["KERNEL_MODULES", "load_kernels"]
+
+#: the modules holding compiled kernels (the worker fork server imports them)
+KERNEL_MODULES = (
+    "cdpm.equilibrium._newton_kernel",
+    "cdpm.analysis._span_batch",
+    "cdpm.analysis._zonotope_kernel",
+)
+
+
+def load_kernels() -> None:
+    """Compile every kernel (first use after an install) or load it from the
+    disk cache, through the public functions that call them, on inputs of
+    the types maps pass (float64, C order)."""
+    from cdpm.analysis.batch import positively_spanning
+    from cdpm.analysis.reach import zonotope_inradii
+    from cdpm.equilibrium.newton import min_norm_tensions
+
+    simplex = np.array([[[1.0, 0.0, 0.0, -1.0], [0.0, 1.0, 0.0, -1.0], [0.0, 0.0, 1.0, -1.0]]])
+    positively_spanning(simplex)  # (1, 3, 4): d >= 3 goes to the kernel
+    zonotope_inradii(simplex, np.zeros((1, 3)), group=2)
+    lt = np.array([[[1.0, -1.0]]])  # one joint, two opposed cables
+    min_norm_tensions(lt, np.array([[0.5]]), np.zeros(2), np.full(2, np.inf))
