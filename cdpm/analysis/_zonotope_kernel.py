@@ -169,6 +169,29 @@ def _upper_bound(runs, exact, c, slack):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
+def _circle_above(G, a, runs, c, bound):  # pragma: no cover - compiled
+    """True when every candidate normal orthogonal to generator a (the
+    facets containing it) has a spread of at least ``bound`` (>= 0).
+
+    With the runs' sums H_j in place of the generators the spread is a
+    bound from below; over the circle n . d_a = 0 it is the support
+    function of the zonogon of the H_j projected along d_a, less |n . c|,
+    whose least value, when it is >= 0 (the projected c is inside), is at
+    one of the zonogon's edge normals ``d_a x H_j``.
+    """
+    n = np.empty(3)
+    kinks = 0
+    for j in range(runs.shape[0]):
+        if _cross_unit(G, a, runs, j, n) == 0.0:
+            continue
+        kinks += 1
+        shift = abs(n[0] * c[0] + n[1] * c[1] + n[2] * c[2])
+        if _abs_sum(n, runs, bound + shift, 3) != np.inf:
+            return False  # this edge normal's bound is below ``bound``
+    return kinks > 0
+
+
+@njit(cache=True)
 def _inradius3(G, norms, runs, exact, c, normal_rtol, slack):  # pragma: no cover - compiled
     """The facet search in R^3 (pairs of generators), with the run bound
     and an upper bound from the runs' own facets when ``runs`` is not
@@ -179,6 +202,8 @@ def _inradius3(G, norms, runs, exact, c, normal_rtol, slack):  # pragma: no cove
     n = np.empty(3)
     best = np.inf
     for a in range(N):
+        if grouped and _circle_above(G, a, runs, c, min(best, ceiling) + slack):
+            continue  # no facet containing generator a can win
         least = normal_rtol * norms[a]
         for b in range(a + 1, N):
             length = _cross_unit(G, a, G, b, n)
