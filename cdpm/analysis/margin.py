@@ -32,9 +32,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.linalg import expm
 from scipy.spatial import ConvexHull, QhullError
 
+from cdpm.analysis._common import expm_batch
 from cdpm.analysis.span import cross_polytope_radius, min_norm_separator
 from cdpm.numerics import (
     GRID_POINTS,
@@ -215,7 +215,7 @@ def state_samples(A: np.ndarray, Bw: np.ndarray, T: np.ndarray, points: int) -> 
         X, shape (k, n, points * m), column ``k * m + j`` = x_j(t_k).
     """
     k, n, m = Bw.shape
-    E = expm(A * (T / (points - 1))[:, None, None])
+    E = expm_batch(A * (T / (points - 1))[:, None, None])
     X = np.empty((k, n, points * m))
     X[:, :, :m] = Bw
     done = m
