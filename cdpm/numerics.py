@@ -112,8 +112,9 @@ REACH_NODES = {1: 64, 2: 32, 3: 12}
 #: ... and for p >= 4
 REACH_NODES_HIGH = 4
 #: reach margin: the most work of one pose's facet search, C(N, p-1) facet
-#: candidates times (N + p) for N generators in p output dimensions (about
-#: 10 s); beyond it r_T is not computed (NaN, with a NaN error estimate)
+#: candidates times (N + p) for N generators in p output dimensions (the
+#: compiled search prunes most of it); beyond it r_T is not
+#: computed (NaN, with a NaN error estimate)
 REACH_MAX_FACET_WORK = 5e8
 #: a facet candidate whose normal is shorter than this times the product of
 #: its generators' lengths comes from dependent generators and is skipped

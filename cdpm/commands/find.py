@@ -111,7 +111,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=200,
         metavar="N",
         help="with --where poc: rank at most N of the POC poses found by their reach margin "
-        "(5-30 ms a pose under load; default 200)",
+        "(a fraction of a millisecond a pose with three outputs, more with six; default 200)",
     )
     parser.add_argument("--seed", type=int, default=0, metavar="S", help="random seed (default 0)")
     parser.add_argument("--json", action="store_true", help="print the result as JSON")
