@@ -578,6 +578,9 @@ class CableRobot:
     def cable_stiffness_batch(self, kin: BatchKinematics, tension: np.ndarray) -> np.ndarray:
         """:meth:`cable_stiffness` at many poses from their batch kinematics.
 
+        Compiled (:mod:`cdpm._stiffness_kernel`): one loop over the poses,
+        so a pose alone gives bit for bit its result inside any batch.
+
         Args:
             kin: the output of :meth:`kinematics_batch` at N poses, none with
                 a zero-length segment.
@@ -586,37 +589,19 @@ class CableRobot:
         Returns:
             The stiffness matrices, shape (N, nv, nv).
         """
-        support = self._dof_support()
-        a, b = self._segment_points[:, 0], self._segment_points[:, 1]
-        jac = kin.point_jacobians  # (N, P, 3, nv), masked
-        units = kin.segment_units  # (N, S, 3)
-        omega = kin.spatial_jacobian[:, 3:]  # (N, 3, nv) world angular Jacobian
-        weight = tension[:, self._segment_cable]  # (N, S): each segment's tension
-        jac_d = jac[:, b] - jac[:, a]  # (N, S, 3, nv)
-        # J_d^T (I - u u^T) J_d / l = (J_d^T J_d - (J_d^T u)(u^T J_d)) / l
-        u_jac = (units[:, :, None, :] @ jac_d)[:, :, 0]  # (N, S, nv)
-        gram = np.swapaxes(jac_d, -1, -2) @ jac_d - u_jac[..., :, None] * u_jac[..., None, :]
-        hess = _weighted_sum(weight / kin.segment_lengths, gram)
-        # u x w_k for every segment and tangent direction: (N, S, 3, nv)
-        u_cross_w = np.cross(units[:, :, :, None], omega[:, None], axis=2)
-        for ends, sign in ((b, 1.0), (a, -1.0)):
-            # first[j, k] = J_p[:, j] . (u x w_k); its transpose is
-            # J_p[:, k] . (u x w_j)
-            first = np.swapaxes(jac[:, ends], -1, -2) @ u_cross_w  # (N, S, nv, nv)
-            mask = self._point_mask[ends][None, :, :, None]
-            term = np.where(support, first, np.swapaxes(first, -1, -2) * mask)
-            hess += sign * _weighted_sum(weight, term)
-        return hess
+        from cdpm._stiffness_kernel import stiffness_batch  # numba: loaded on use
 
-
-def _weighted_sum(weight: np.ndarray, terms: np.ndarray) -> np.ndarray:
-    """sum_s weight[n, s] terms[n, s] of (N, S) weights and (N, S, a, b) terms,
-    shape (N, a, b); a loop over s, so every pose sums in the same order
-    whatever the batch size (a pose's result does not depend on its batch)."""
-    out = np.zeros((terms.shape[0],) + terms.shape[2:])
-    for s in range(terms.shape[1]):
-        out += weight[:, s, None, None] * terms[:, s]
-    return out
+        return stiffness_batch(
+            kin.point_jacobians,
+            kin.segment_units,
+            kin.segment_lengths,
+            kin.spatial_jacobian,
+            tension,
+            self._segment_points,
+            self._segment_cable,
+            self._dof_support(),
+            self._point_mask,
+        )
 
 
 def load_robot(path: str | os.PathLike) -> CableRobot:
