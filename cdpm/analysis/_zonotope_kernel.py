@@ -193,19 +193,27 @@ def _circle_above(G, a, runs, c, bound):  # pragma: no cover - compiled
 
 @njit(cache=True)
 def _inradius3(G, norms, runs, exact, c, normal_rtol, slack):  # pragma: no cover - compiled
-    """The facet search in R^3 (pairs of generators), with the run bound
-    and an upper bound from the runs' own facets when ``runs`` is not
-    ``exact``."""
+    """The facet search in R^3 (pairs of generators), with the run bound,
+    an upper bound from the runs' own facets and the circles it shuts when
+    ``runs`` is not ``exact``."""
     N = G.shape[0]
     grouped = runs.shape[0] < N
     ceiling = _upper_bound(runs, exact, c, slack) if grouped else np.inf
     n = np.empty(3)
     best = np.inf
+    # circles (the facets containing one generator) that cannot win: a
+    # candidate (a, b) lies on the circles of both a and b
+    shut = np.zeros(N, dtype=np.bool_)
+    if grouped:
+        for a in range(N):
+            shut[a] = _circle_above(G, a, runs, c, ceiling + slack)
     for a in range(N):
-        if grouped and _circle_above(G, a, runs, c, min(best, ceiling) + slack):
+        if shut[a] or (grouped and _circle_above(G, a, runs, c, best + slack)):
             continue  # no facet containing generator a can win
         least = normal_rtol * norms[a]
         for b in range(a + 1, N):
+            if shut[b]:
+                continue
             length = _cross_unit(G, a, G, b, n)
             if not length > least * norms[b]:
                 continue  # dependent generators
