@@ -1,19 +1,21 @@
 """The compiled kernels of the maps (numba), and loading them ahead of use.
 
-Three per-pose loops are compiled with numba and cached on disk beside
-their modules (or in numba's user cache when the package folder is not
+Five per-pose loops are compiled with numba and cached on disk beside their
+modules (or in numba's user cache when the package folder is not
 writable): the least-norm equilibrium Newton
-(``cdpm.equilibrium._newton_kernel``), the wrench-closure certificates
+(``cdpm.equilibrium._newton_kernel``), the cable stiffness
+(``cdpm._stiffness_kernel``), the Krylov rank tests of the controllability
+exits (``cdpm.analysis._rank_kernel``), the wrench-closure certificates
 (``cdpm.analysis._span_batch``) and the reach margin's facet search
 (``cdpm.analysis._zonotope_kernel``). Their modules are imported on first
 use, so ``import cdpm`` does not load numba. The first use after an
 install compiles them (several seconds each); later processes load them
 from the cache in tenths of a second.
 
-:func:`load_kernels` does that first use on tiny inputs. Maps call it
-before starting worker processes, so that the workers load the cache
-instead of each compiling the same code, and the test suite calls it once
-at its start.
+:func:`load_kernels` does that first use on tiny inputs. Maps under load
+call it before starting worker processes, so that the workers load the
+cache instead of each compiling the same code, and the test suite calls it
+once at its start.
 """
 
 from __future__ import annotations
@@ -27,14 +29,18 @@ KERNEL_MODULES = (
     "cdpm.equilibrium._newton_kernel",
     "cdpm.analysis._span_batch",
     "cdpm.analysis._zonotope_kernel",
+    "cdpm._stiffness_kernel",
+    "cdpm.analysis._rank_kernel",
 )
 
 
 def load_kernels() -> None:
     """Compile every kernel (first use after an install) or load it from the
-    disk cache, through the public functions that call them, on inputs of
-    the types maps pass (float64, C order)."""
+    disk cache, through the functions that call them, on inputs of the
+    types maps pass (float64, C order)."""
+    from cdpm._stiffness_kernel import stiffness_batch
     from cdpm.analysis.batch import positively_spanning
+    from cdpm.analysis.exits import free_controllable, output_controllable
     from cdpm.analysis.reach import zonotope_inradii
     from cdpm.equilibrium.newton import min_norm_tensions
 
@@ -43,3 +49,15 @@ def load_kernels() -> None:
     zonotope_inradii(simplex, np.zeros((1, 3)), group=2)
     lt = np.array([[[1.0, -1.0]]])  # one joint, two opposed cables
     min_norm_tensions(lt, np.array([[0.5]]), np.zeros(2), np.full(2, np.inf))
+    # a double integrator with one free input
+    A, B = np.array([[[0.0, 1.0], [0.0, 0.0]]]), np.array([[[0.0], [1.0]]])
+    free_controllable(A, B, np.zeros((1, 1), dtype=bool))
+    output_controllable(A, B, np.array([[[1.0, 0.0]]]))
+    stiffness_batch(  # one pose, one segment between two points
+        *(np.ones(shape) for shape in ((1, 2, 3, 1), (1, 1, 3), (1, 1), (1, 6, 1))),
+        np.ones((1, 1)),
+        np.array([[0, 1]]),
+        np.zeros(1, int),
+        np.ones((1, 1), bool),
+        np.ones((2, 1), bool),
+    )

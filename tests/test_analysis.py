@@ -423,3 +423,60 @@ def test_batched_matrix_exponential_matches_scipy():
         error = (np.abs(got - expected) / scale).max(axis=(1, 2))
         np.testing.assert_array_less(error, 1e-13 * (1.0 + norm[:, 0, 0]))
     assert expm_batch(np.zeros((0, 3, 3))).shape == (0, 3, 3)
+
+
+def test_compiled_rank_exits_decide_as_the_singular_value_ratio():
+    """free_controllable and output_controllable (the compiled Krylov rank
+    test, _full_rank where it is unsure) decide as _full_rank on the Krylov
+    matrices built with numpy: on Krylov matrices [S, 0, ...] (A = 0) whose
+    singular-value ratio is within 2% of RANK_RATIO, and on random systems,
+    controllable, uncontrollable (a mode untouched by the inputs) and with
+    sign-constrained, zero and negligible inputs."""
+    from cdpm.analysis.exits import _full_rank, free_controllable, output_controllable
+    from cdpm.numerics import RANK_RATIO
+    from cdpm.verdicts import YES
+
+    rng = np.random.default_rng(5)
+    for r in [2, 4, 12]:
+        k = 300
+        ratio = RANK_RATIO * np.exp(rng.uniform(-0.02, 0.02, k))
+        theta = 2 * np.arctan(ratio)
+        S = np.tile(np.eye(r), (k, 1, 1))
+        S[:, 0, 1], S[:, 1, 1] = np.cos(theta), np.sin(theta)
+        Q = np.linalg.qr(rng.normal(size=(k, r, r)))[0]
+        S = (Q @ S) * rng.uniform(0.5, 2.0, size=(k, 1, r))
+        expected = _full_rank(S)
+        assert 50 < expected.sum() < 250
+        A, mask = np.zeros((k, r, r)), np.zeros((k, r), dtype=bool)
+        np.testing.assert_array_equal(free_controllable(A, S, mask) == YES, expected)
+        C = np.linalg.qr(rng.normal(size=(k, r, r)))[0]  # rotates: the same ratio
+        np.testing.assert_array_equal(output_controllable(A, S, C) == YES, expected)
+
+    def krylov(A, W, C=None):
+        blocks = []
+        for _ in range(A.shape[1]):
+            blocks.append(W if C is None else C @ W)
+            W = A @ W
+        return np.concatenate(blocks, axis=2)
+
+    k, n, m, p = 400, 6, 3, 2
+    A = rng.normal(size=(k, n, n))
+    B = rng.normal(size=(k, n, m))
+    C = rng.normal(size=(k, p, n))
+    mask = rng.random((k, m)) < 0.4
+    B[::7, :, 0] = 0.0
+    B[1::7, :, 1] *= 1e-14
+    # a mode the inputs do not reach: A block triangular, B zero below
+    A[:100, n - 2 :, : n - 2] = 0.0
+    B[:100, n - 2 :] = 0.0
+    C[:50, :, : n - 2] = 0.0  # ... and outputs that see only it
+    free = np.any(~mask & np.any(B != 0, axis=1), axis=1)
+    yes = free_controllable(A, B, mask) == YES
+    expected = np.zeros(k, dtype=bool)
+    expected[free] = _full_rank(krylov(A[free], (B * ~mask[:, None])[free]))
+    np.testing.assert_array_equal(yes, expected)
+    assert 100 < yes.sum() < 300 and not yes[:100].any()
+    for W in (B, B * ~mask[:, None]):
+        out = output_controllable(A, W, C) == YES
+        np.testing.assert_array_equal(out, _full_rank(krylov(A, W, C)))
+        assert not out[:50].any() and out[50:].sum() > 200

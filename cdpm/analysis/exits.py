@@ -241,18 +241,23 @@ def _full_rank(S: np.ndarray) -> np.ndarray:
 def free_controllable(A, B, mask):
     """YES where the free (taut) inputs alone make (A, B) controllable beyond
     doubt, else NOT_ANALYSED. Then no real left eigenvector v of A has
-    v^T B_free = 0, so Brammer's obstruction cannot exist."""
+    v^T B_free = 0, so Brammer's obstruction cannot exist.
+
+    The rank test of the Krylov matrix [B_free, A B_free, ...] is compiled
+    (cdpm.analysis._rank_kernel); the few matrices it leaves undecided get
+    :func:`_full_rank`."""
     k, n, _ = A.shape
     codes = np.full(k, NOT_ANALYSED, dtype=np.int8)
     free = np.flatnonzero(np.any(~mask & np.any(B != 0, axis=1), axis=1))
     if free.size == 0:  # every input sign-constrained (or zero): no free input
         return codes
-    A, W = A[free], B[free] * ~mask[free, None, :]
-    blocks = []
-    for _ in range(n):
-        blocks.append(W)
-        W = A @ W
-    codes[free[_full_rank(np.concatenate(blocks, axis=2))]] = YES
+    from cdpm.analysis._rank_kernel import krylov_matrices, krylov_rank_codes  # numba
+
+    full = krylov_rank_codes(A, B, ~mask, None, free)
+    open_ = np.flatnonzero(full < 0)
+    if open_.size:
+        full[open_] = _full_rank(krylov_matrices(A, B, ~mask, None, free[open_]))
+    codes[free[full == 1]] = YES
     return codes
 
 
@@ -260,17 +265,23 @@ def output_controllable(A, B, C):
     """YES where rank [CB, CAB, ..., CA^{n-1}B] = p beyond doubt, else
     NOT_ANALYSED. With B restricted to the free inputs this is the
     analyser's mixed-cone exit: those inputs alone reach every output
-    direction, so POC holds."""
+    direction, so POC holds.
+
+    The rank test is compiled (cdpm.analysis._rank_kernel); the few
+    matrices it leaves undecided get :func:`_full_rank`."""
     k, p, n = C.shape
     codes = np.full(k, NOT_ANALYSED, dtype=np.int8)
     if p == 0 or k == 0:
         codes[:] = YES
         return codes
-    blocks, W = [], B
-    for _ in range(n):
-        blocks.append(C @ W)
-        W = A @ W
-    codes[_full_rank(np.concatenate(blocks, axis=2))] = YES  # (k, p, n m)
+    from cdpm.analysis._rank_kernel import krylov_matrices, krylov_rank_codes  # numba
+
+    every = np.ones((k, B.shape[2]), dtype=bool)
+    full = krylov_rank_codes(A, B, every, C, np.arange(k))
+    open_ = np.flatnonzero(full < 0)
+    if open_.size:
+        full[open_] = _full_rank(krylov_matrices(A, B, every, C, open_))
+    codes[full == 1] = YES
     return codes
 
 
