@@ -34,6 +34,8 @@ import math
 import numpy as np
 from numba import njit
 
+from cdpm._dense_kernels import back_substitute, solve_in_place
+
 __all__ = ["span_certificates"]
 
 #: codes of :func:`span_certificates`
@@ -41,37 +43,6 @@ OPEN, NO, YES = -1, 0, 1
 
 #: Wolfe iterations (added points) before a hull is left open
 _MAX_ITER = 64
-
-
-@njit(cache=True)
-def _solve(M, rhs, n):  # pragma: no cover - compiled
-    """Solve the leading n x n system of M (destroyed) for rhs (overwritten
-    with the solution) by Gaussian elimination with partial pivoting; False
-    when a pivot vanishes."""
-    for j in range(n):
-        piv = j
-        big = abs(M[j, j])
-        for i in range(j + 1, n):
-            if abs(M[i, j]) > big:
-                big, piv = abs(M[i, j]), i
-        if big == 0.0:
-            return False
-        if piv != j:
-            for c in range(n):
-                M[j, c], M[piv, c] = M[piv, c], M[j, c]
-            rhs[j], rhs[piv] = rhs[piv], rhs[j]
-        for i in range(j + 1, n):
-            f = M[i, j] / M[j, j]
-            if f != 0.0:
-                for c in range(j, n):
-                    M[i, c] -= f * M[j, c]
-                rhs[i] -= f * rhs[j]
-    for j in range(n - 1, -1, -1):
-        s = rhs[j]
-        for c in range(j + 1, n):
-            s -= M[j, c] * rhs[c]
-        rhs[j] = s / M[j, j]
-    return True
 
 
 @njit(cache=True)
@@ -141,7 +112,7 @@ def _deep_separator(P, depth, x):  # pragma: no cover - compiled
                 alpha[r] = 0.0
             M[q, q] = 0.0
             alpha[q] = 1.0
-            if not _solve(M, alpha, q + 1):
+            if not solve_in_place(M, alpha, q + 1):
                 return False
             inside = True
             for r in range(q):
@@ -209,11 +180,7 @@ def _least_squares(U, cols, q, b, z):  # pragma: no cover - compiled
         for i in range(j, d):
             y[i] -= f * M[i, j]
         M[j, j] = alpha
-    for j in range(q - 1, -1, -1):
-        s = y[j]
-        for c in range(j + 1, q):
-            s -= M[j, c] * z[c]
-        z[j] = s / M[j, j]
+    back_substitute(M, y, z, q)
     return True
 
 

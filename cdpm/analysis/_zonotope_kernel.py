@@ -25,6 +25,7 @@ import math
 import numpy as np
 from numba import njit
 
+from cdpm._dense_kernels import det_in_place
 from cdpm.numerics import ZONOTOPE_BOUND_RTOL
 
 EPS = float(np.finfo(np.float64).eps)
@@ -42,35 +43,10 @@ def _length(A, i):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def _det(M, r):  # pragma: no cover - compiled
-    """Determinant of the leading r x r block of M (destroyed), by
-    Gaussian elimination with partial pivoting."""
-    det = 1.0
-    for j in range(r):
-        piv = j
-        big = abs(M[j, j])
-        for i in range(j + 1, r):
-            if abs(M[i, j]) > big:
-                big, piv = abs(M[i, j]), i
-        if big == 0.0:
-            return 0.0
-        if piv != j:
-            for c in range(j, r):
-                M[j, c], M[piv, c] = M[piv, c], M[j, c]
-            det = -det
-        det *= M[j, j]
-        for i in range(j + 1, r):
-            f = M[i, j] / M[j, j]
-            for c in range(j + 1, r):
-                M[i, c] -= f * M[j, c]
-    return det
-
-
-@njit(cache=True)
-def _normal(G, subset, p, n, minor):  # pragma: no cover - compiled
+def _normal(G, subset, p, n, minor, scratch):  # pragma: no cover - compiled
     """Normal n (length p) of the hyperplane spanned by the generators
     ``G[subset]`` (rows of G, (N, p)): generalised cross product by
-    cofactors."""
+    cofactors (``minor`` (p-1, p-1) and ``scratch`` (p-1,) are work space)."""
     if p == 2:
         n[0], n[1] = G[subset[0], 1], -G[subset[0], 0]
     else:
@@ -83,7 +59,7 @@ def _normal(G, subset, p, n, minor):  # pragma: no cover - compiled
                 for c in range(r):
                     minor[row, c] = G[subset[c], q]
                 row += 1
-            n[i] = (-1.0) ** i * _det(minor, r)
+            n[i] = (-1.0) ** i * det_in_place(minor, r, scratch)
 
 
 @njit(cache=True)
@@ -289,11 +265,12 @@ def _search(G, norms, runs, exact, c, normal_rtol, ceiling, best_normal):  # pra
     r = p - 1
     n = np.empty(p)
     minor = np.empty((max(r, 1), max(r, 1)))
+    scratch = np.empty(max(r, 1))
     subset = np.arange(r)
     grouped = runs.shape[0] < N
     best = np.inf
     while True:
-        _normal(G, subset, p, n, minor)
+        _normal(G, subset, p, n, minor, scratch)
         length = 0.0
         for i in range(p):
             length += n[i] * n[i]

@@ -14,38 +14,17 @@ import math
 import numba
 import numpy as np
 
+from cdpm._dense_kernels import solve_in_place
+
 __all__ = ["solve_poses"]
 
 
 @numba.njit(cache=True)
 def _solve(a, x, n):
-    """Solve a y = x in place: x (n,), the right-hand side, becomes y; a (n, n)
-    becomes its LU factors. Gaussian elimination with partial pivoting, as
-    LAPACK's gesv; a zero pivot gives inf/nan entries (which the callers'
-    comparisons reject) where gesv would raise."""
-    for c in range(n):
-        p = c
-        best = abs(a[c, c])
-        for i in range(c + 1, n):
-            if abs(a[i, c]) > best:
-                best = abs(a[i, c])
-                p = i
-        if p != c:
-            for j in range(n):
-                a[c, j], a[p, j] = a[p, j], a[c, j]
-            x[c], x[p] = x[p], x[c]
-        pivot = a[c, c]
-        for i in range(c + 1, n):
-            factor = a[i, c] / pivot
-            if factor != 0.0:
-                for j in range(c + 1, n):
-                    a[i, j] -= factor * a[c, j]
-                x[i] -= factor * x[c]
-    for c in range(n - 1, -1, -1):
-        s = x[c]
-        for j in range(c + 1, n):
-            s -= a[c, j] * x[j]
-        x[c] = s / a[c, c]
+    """Solve a y = x in place (x (n,) becomes y; a is destroyed); an exactly
+    singular a gives NaN, which the callers' comparisons reject."""
+    if not solve_in_place(a, x, n):
+        x[:n] = np.nan
 
 
 @numba.njit(cache=True)
