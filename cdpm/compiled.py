@@ -20,9 +20,22 @@ once at its start.
 
 from __future__ import annotations
 
+import sys
+import threading
+from collections.abc import Callable
+
 import numpy as np
 
-__all__ = ["KERNEL_MODULES", "load_kernels"]
+__all__ = [
+    "KERNEL_MODULES",
+    "COMPILE_NOTICE_SECONDS",
+    "load_kernels",
+    "load_kernels_for",
+    "notice_on_stderr",
+]
+
+#: loading the kernels longer than this [s] means compiling: the user is told
+COMPILE_NOTICE_SECONDS = 3.0
 
 #: the modules holding compiled kernels (the worker fork server imports them)
 KERNEL_MODULES = (
@@ -34,11 +47,35 @@ KERNEL_MODULES = (
 )
 
 
-def load_kernels() -> None:
+def load_kernels(notice: Callable[[str], None] | None = None) -> None:
     """Compile every kernel (first use after an install) or load it from the
     disk cache, through the functions that call them, on inputs of the
-    types maps pass (float64, C order)."""
+    types maps pass (float64, C order).
+
+    Args:
+        notice: called once with a sentence for the user when this takes
+            longer than COMPILE_NOTICE_SECONDS (it is compiling), from a
+            timer thread; None: say nothing.
+    """
+    timer = None
+    if notice is not None:
+        timer = threading.Timer(
+            COMPILE_NOTICE_SECONDS,
+            notice,
+            ("compiling cdpm's numba kernels: once after installing, about half a minute",),
+        )
+        timer.daemon = True
+        timer.start()
+    try:
+        _load_kernels()
+    finally:
+        if timer is not None:
+            timer.cancel()
+
+
+def _load_kernels() -> None:
     from cdpm._stiffness_kernel import stiffness_batch
+    from cdpm.analysis._rank_kernel import krylov_matrices
     from cdpm.analysis.batch import positively_spanning
     from cdpm.analysis.exits import free_controllable, output_controllable
     from cdpm.analysis.reach import zonotope_inradii
@@ -53,6 +90,8 @@ def load_kernels() -> None:
     A, B = np.array([[[0.0, 1.0], [0.0, 0.0]]]), np.array([[[0.0], [1.0]]])
     free_controllable(A, B, np.zeros((1, 1), dtype=bool))
     output_controllable(A, B, np.array([[[1.0, 0.0]]]))
+    # the exits' exact fallback rebuilds the Krylov matrices of undecided systems
+    krylov_matrices(A, B, np.ones((1, 1), dtype=bool), None, np.zeros(1, dtype=int))
     stiffness_batch(  # one pose, one segment between two points
         *(np.ones(shape) for shape in ((1, 2, 3, 1), (1, 1, 3), (1, 1), (1, 6, 1))),
         np.ones((1, 1)),
@@ -61,3 +100,24 @@ def load_kernels() -> None:
         np.ones((1, 1), bool),
         np.ones((2, 1), bool),
     )
+
+
+def load_kernels_for(robot, tension=None, notice: Callable[[str], None] | None = None) -> None:
+    """:func:`load_kernels`, when work at the poses of ``robot`` with this
+    tension setting goes through the kernels (not the zero-load path, which
+    needs none); a tension setting that is not valid does nothing (the
+    caller reports it)."""
+    from cdpm.errors import CdpmError
+    from cdpm.maps._evaluate import resolve_tension, zero_equilibrium
+
+    try:
+        setting = resolve_tension(robot, tension)
+    except CdpmError:
+        return
+    if not zero_equilibrium(robot, setting):
+        load_kernels(notice)
+
+
+def notice_on_stderr(text: str) -> None:
+    """Print a notice for the user on standard error."""
+    print(text, file=sys.stderr, flush=True)

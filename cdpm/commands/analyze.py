@@ -143,6 +143,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from cdpm.compiled import load_kernels_for, notice_on_stderr
     from cdpm.report import analyze_pose
     from cdpm.robot import load_robot
 
@@ -158,6 +159,7 @@ def run(args: argparse.Namespace) -> int:
             f"... with the best tension printed, and --format {fmt}"
         )
     radius, points = neighbourhood_from_args(robot, args)
+    load_kernels_for(robot, None if search else tension, notice_on_stderr)
     report = cli_equilibrium(
         analyze_pose,
         robot,

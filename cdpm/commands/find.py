@@ -111,7 +111,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=200,
         metavar="N",
         help="with --where poc: rank at most N of the POC poses found by their reach margin "
-        "(a fraction of a millisecond a pose with three outputs, more with six; default 200)",
+        "(a fraction of a millisecond a pose with three outputs, about 0.2 s with six; "
+        "default 200)",
     )
     parser.add_argument("--seed", type=int, default=0, metavar="S", help="random seed (default 0)")
     parser.add_argument("--json", action="store_true", help="print the result as JSON")
@@ -425,6 +426,7 @@ def find_poses(robot: CableRobot, box: SearchBox, args: argparse.Namespace, tens
 
 
 def run(args: argparse.Namespace) -> int:
+    from cdpm.compiled import load_kernels_for, notice_on_stderr
     from cdpm.errors import InputError
 
     for option, value, least in (("--count", args.count, 1), ("--tries", args.tries, 1)):
@@ -443,6 +445,7 @@ def run(args: argparse.Namespace) -> int:
     robot, spec_robot, tension = robot_from_args(args)
     box = search_box(robot, args)
     reach = reach_from_args(robot, args)
+    load_kernels_for(robot, tension, notice_on_stderr)
     result = find_poses(robot, box, args, tension, reach)
     rows, counts, tries = result["rows"], result["counts"], args.tries
     what = "positive output controllable (YES)" if args.where == "poc" else "statically feasible"

@@ -29,7 +29,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from cdpm.compiled import KERNEL_MODULES, load_kernels
+from cdpm.compiled import KERNEL_MODULES, load_kernels, notice_on_stderr
 from cdpm.errors import CdpmError, InputError, MissingExtraError
 from cdpm.maps._evaluate import MapJob, zero_equilibrium
 from cdpm.numerics import PROGRESS_LOG_INTERVAL
@@ -420,6 +420,10 @@ def run_chunks(
         return
     source = source or RobotSource.from_robot(robot)
     with single_threaded_blas():
+        if scheduler is None and not zero_equilibrium(robot, job.tension):
+            # compiled (first run after an install) or loaded here, once, and
+            # not counted in the progress rate or in every worker at once
+            load_kernels(notice_on_stderr if progress is not None else None)
         if scheduler is not None:
             _run_dask(plan, job, todo, finished, scheduler, source, started)
         elif workers <= 1 or len(todo) == 1:
@@ -427,8 +431,6 @@ def run_chunks(
             for index in todo:
                 finished(index, job.evaluate(robot, plan.natural(index)))
         else:
-            if not zero_equilibrium(robot, job.tension):
-                load_kernels()  # compiled once here, not in every worker at once
             writer = getattr(sink, "writer", None)
             _run_processes(robot, plan, job, todo, finished, workers, writer, source, started)
 
