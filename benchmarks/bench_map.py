@@ -499,9 +499,13 @@ def main(argv=None) -> int:
     )
     args = parser.parse_args(argv)
     import cdpm
-    from cdpm.compiled import load_kernels
 
-    load_kernels(notice=print)  # compiling is a cost of the install, not of a pose
+    try:
+        from cdpm.compiled import load_kernels
+    except ImportError:  # a cdpm from before the compiled kernels (PYTHONPATH)
+        pass
+    else:
+        load_kernels(notice=print)  # compiling is a cost of the install, not of a pose
     start = time.perf_counter()
     print(
         f"cdpm map benchmark ({'quick' if args.quick else 'full'}"
