@@ -52,8 +52,24 @@ def residuals(LT: np.ndarray, load: np.ndarray, f: np.ndarray) -> np.ndarray:
 
 
 def holds(LT: np.ndarray, load: np.ndarray, f: np.ndarray) -> np.ndarray:
-    """Do tensions f (k, m) hold the poses (statics within tolerance)?"""
-    return residuals(LT, load, f) <= statics_tolerance(LT, load, f)
+    """Do tensions f (k, m) hold the poses (statics within tolerance)?
+
+    The residual against :func:`statics_tolerance`; the spectral norms in
+    it are computed only for the poses that bounds cannot decide: the
+    tolerance is at least STATICS_RTOL max(1, |load|) and at most that with
+    the Frobenius norm of L^T in place of the spectral one.
+    """
+    res = residuals(LT, load, f)
+    low = STATICS_RTOL * np.maximum(1.0, np.linalg.norm(load, axis=1))
+    with np.errstate(invalid="ignore", over="ignore"):
+        frobenius = np.sqrt((LT * LT).sum(axis=(1, 2))) * np.linalg.norm(f, axis=1)
+        high = np.maximum(low, STATICS_RTOL * np.where(np.isfinite(frobenius), frobenius, 0.0))
+    out = res <= low
+    unsure = np.flatnonzero(~out & (res <= high))
+    if unsure.size:
+        i = unsure
+        out[i] = res[i] <= statics_tolerance(LT[i], load[i], f[i])
+    return out
 
 
 def classify(f: np.ndarray, fmin: np.ndarray, fmax: np.ndarray):
