@@ -206,11 +206,11 @@ def best_tension(
     horizon: Any = None,
     tension_budget: Any = None,
     tension_cap: Any = None,
-    seed: int = 0,
-    directions: int = 8,
-    random_points: int = 16,
-    refine_rounds: int = 3,
-    refine_samples: int = 8,
+    seed: int = TensionSearch.seed,
+    directions: int = TensionSearch.directions,
+    random_points: int = TensionSearch.random_points,
+    refine_rounds: int = TensionSearch.refine_rounds,
+    refine_samples: int = TensionSearch.refine_samples,
     tol: float = SPAN_TOL,
 ) -> BestTension:
     """Whether some feasible equilibrium tension makes the pose q POC, and

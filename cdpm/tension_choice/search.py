@@ -102,11 +102,11 @@ class TensionSearch:
 def tension_search(
     objective: Any = "poc",
     *,
-    directions: Any = 8,
-    random_points: Any = 16,
-    refine_rounds: Any = 3,
-    refine_samples: Any = 8,
-    seed: Any = 0,
+    directions: Any = TensionSearch.directions,
+    random_points: Any = TensionSearch.random_points,
+    refine_rounds: Any = TensionSearch.refine_rounds,
+    refine_samples: Any = TensionSearch.refine_samples,
+    seed: Any = TensionSearch.seed,
     tension_cap: Any = None,
 ) -> TensionSearch:
     """A validated :class:`TensionSearch`.
@@ -197,11 +197,11 @@ def best_tension_batch(
     horizon: Any = None,
     tension_budget: Any = None,
     tension_cap: Any = None,
-    seed: int = 0,
-    directions: int = 8,
-    random_points: int = 16,
-    refine_rounds: int = 3,
-    refine_samples: int = 8,
+    seed: int = TensionSearch.seed,
+    directions: int = TensionSearch.directions,
+    random_points: int = TensionSearch.random_points,
+    refine_rounds: int = TensionSearch.refine_rounds,
+    refine_samples: int = TensionSearch.refine_samples,
     tol: float = SPAN_TOL,
 ) -> BestTensionBatch:
     """The tension search at N poses (module docstring).
