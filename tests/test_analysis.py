@@ -364,7 +364,7 @@ def test_lapack_helpers_agree_with_numpy():
 
 
 def test_batch_rank_exit_matches_the_singular_value_ratio():
-    """The exits' rank test (Gram eigenvalues, the SVD near its threshold)
+    """The exits' exact rank test (the SVD of the column-normalised matrix)
     decides as the singular-value ratio against RANK_RATIO does: on
     matrices whose ratio is within 2% of the threshold (two unit columns at
     angle theta have the ratio tan(theta / 2)), clearly deficient and

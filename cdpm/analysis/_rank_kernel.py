@@ -19,7 +19,7 @@ sign of the smallest eigenvalue of the shifted matrix):
 - full rank when ``G - (t hi + band) I`` factorises (t = RANK_RATIO^2),
   deficient when ``G - (t lo - band) I`` does not, with
   ``band = 4 (r^2 + r) eps hi`` the round-off allowance of the Gram matrix
-  and its eigenvalues that the exact test in ``_full_rank`` uses.
+  and its eigenvalues.
 
 The systems it cannot decide so (the smallest eigenvalue within about the
 band of the threshold, or lambda_max not bracketed within BRACKET_RTOL) are

@@ -215,27 +215,17 @@ def span_codes(S: np.ndarray, defer: tuple[float, float], tol: float = SPAN_TOL)
 def _full_rank(S: np.ndarray) -> np.ndarray:
     """Rows of each (r, c) matrix of S (k, r, c) independent beyond doubt:
     columns scaled to unit length (negligible ones dropped), singular-value
-    ratio above RANK_RATIO."""
+    ratio above RANK_RATIO. The definition of the exits' rank test: the
+    compiled test (cdpm.analysis._rank_kernel) decides by it where
+    round-off cannot change the answer and sends the rest here."""
     norms = np.sqrt(np.einsum("krc,krc->kc", S, S))
     keep = norms > KRYLOV_COLUMN_NEGLIGIBLE * norms.max(axis=1, keepdims=True)
     S = np.where(keep[:, None, :], S / np.where(keep, norms, 1.0)[:, None, :], 0.0)
     r = S.shape[1]
     if r == 0 or S.shape[2] < r:
         return np.zeros(S.shape[0], dtype=bool) if r else np.ones(S.shape[0], dtype=bool)
-    # squared singular values: the eigenvalues of the r x r Gram matrix
-    # (cheap when the columns are many); its round-off, relative to the
-    # largest, is within ``band``, and the few matrices whose ratio lies
-    # within it of the threshold get the SVD
-    lam = np.linalg.eigvalsh(S @ np.swapaxes(S, 1, 2))
-    top = lam[:, -1]
-    band = 4 * (r * r + r) * np.finfo(float).eps * top
-    gap = lam[:, 0] - RANK_RATIO**2 * top
-    full = (gap > band) & (top > 0)
-    unsure = np.flatnonzero((np.abs(gap) <= band) & (top > 0))
-    if unsure.size:
-        sv = np.linalg.svd(S[unsure], compute_uv=False)
-        full[unsure] = sv[:, -1] > RANK_RATIO * sv[:, 0]
-    return full
+    sv = np.linalg.svd(S, compute_uv=False)
+    return sv[:, -1] > RANK_RATIO * sv[:, 0]
 
 
 def free_controllable(A, B, mask):
