@@ -176,18 +176,23 @@ class PosePanel:
                     "kind": kind,
                     "definition": definition,
                 }
-                for name, value, unit, kind, definition in zip(
-                    state.output_names,
-                    state.output,
-                    self.output_units,
-                    state.output_kinds,
-                    state.output_definitions,
-                    strict=True,
-                )
+                for name, value, unit, kind, definition in self._output_rows()
             ],
             "marker_color": rgb_hex(state.verdict_rgb),
             "seconds": dict(self.seconds),
         }
+
+    def _output_rows(self):
+        """(name, value, unit, kind, definition) of each output."""
+        state = self.state
+        return zip(
+            state.output_names,
+            state.output,
+            self.output_units,
+            state.output_kinds,
+            state.output_definitions,
+            strict=True,
+        )
 
     def __str__(self) -> str:
         lines = []
@@ -210,17 +215,7 @@ class PosePanel:
         coords = ", ".join(
             f"{n} = {v:.4f}" for n, v in zip(state.coordinate_names, state.natural, strict=True)
         )
-        outputs = ", ".join(
-            output_line(*row)
-            for row in zip(
-                state.output_names,
-                state.output,
-                self.output_units,
-                state.output_kinds,
-                state.output_definitions,
-                strict=True,
-            )
-        )
+        outputs = ", ".join(output_line(*row) for row in self._output_rows())
         lines += [f"pose: {coords}  ({q_arguments(state.natural)})"]
         lines += [f"outputs: {outputs or '(none)'}"]
         for i, (name, cable_state) in enumerate(
