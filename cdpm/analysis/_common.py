@@ -419,7 +419,7 @@ def expm_batch(A: np.ndarray) -> np.ndarray:
         return np.ceil(np.log2(np.maximum(size, _THETA13) / _THETA13)).astype(int)
 
     def powers(X, s):
-        """X 2^-s and its squares, fourth and sixth powers."""
+        """X 2^-s and its square, fourth and sixth powers."""
         X = X * np.ldexp(1.0, -s)[:, None, None]
         X2 = X @ X
         X4 = X2 @ X2
@@ -428,11 +428,18 @@ def expm_batch(A: np.ndarray) -> np.ndarray:
     b, eye, given = _PADE13, np.eye(n), A
     with np.errstate(over="ignore", invalid="ignore"):
         A2 = A @ A
-        alpha = np.maximum(norm1(A2 @ A) ** (1 / 3), norm1(A2 @ A2) ** 0.25)
+        A4 = A2 @ A2
+        alpha = np.maximum(norm1(A2 @ A) ** (1 / 3), norm1(A4) ** 0.25)
     finite = np.isfinite(alpha)
     # powers that overflow: the 1-norm itself sets the scaling (Higham 2005)
     s = np.where(finite, doublings(np.where(finite, alpha, 0.0)), doublings(norm1(A)))
-    A, A2, A4, A6 = powers(A, s)
+    # scaling by 2^-s is exact: the powers already computed are reused
+    scale = np.ldexp(1.0, -s)[:, None, None]
+    A, A2, A4 = A * scale, A2 * scale**2, A4 * scale**4
+    lost = np.flatnonzero(~finite)
+    if lost.size:
+        A[lost], A2[lost], A4[lost], _ = powers(given[lost], s[lost])
+    A6 = A4 @ A2
     U = A @ (
         A6 @ (b[13] * A6 + b[11] * A4 + b[9] * A2) + b[7] * A6 + b[5] * A4 + b[3] * A2 + b[1] * eye
     )
