@@ -28,6 +28,11 @@ def spectral_norms(LT: np.ndarray) -> np.ndarray:
     return np.linalg.svd(LT, compute_uv=False)[:, 0]
 
 
+def _load_scale(load: np.ndarray) -> np.ndarray:
+    """max(1, |load|) per pose: the tolerance's scale without the tensions."""
+    return np.maximum(1.0, np.linalg.norm(load, axis=1))
+
+
 def statics_tolerance(LT: np.ndarray, load: np.ndarray, f: np.ndarray) -> np.ndarray:
     """STATICS_RTOL max(1 N, |load|, |L^T|_2 |f|) per pose [N or N m].
 
@@ -36,7 +41,7 @@ def statics_tolerance(LT: np.ndarray, load: np.ndarray, f: np.ndarray) -> np.nda
         load: the generalised force to balance, -G - w_ext, shape (k, nv).
         f: tensions [N], shape (k, m); non-finite rows count only |load|.
     """
-    scale = np.maximum(1.0, np.linalg.norm(load, axis=1))
+    scale = _load_scale(load)
     f_norm = np.linalg.norm(f, axis=1)
     finite = np.isfinite(f_norm) & (f_norm > 0)
     if finite.any():
@@ -60,7 +65,7 @@ def holds(LT: np.ndarray, load: np.ndarray, f: np.ndarray) -> np.ndarray:
     the Frobenius norm of L^T in place of the spectral one.
     """
     res = residuals(LT, load, f)
-    low = STATICS_RTOL * np.maximum(1.0, np.linalg.norm(load, axis=1))
+    low = STATICS_RTOL * _load_scale(load)
     with np.errstate(invalid="ignore", over="ignore"):
         frobenius = np.sqrt((LT * LT).sum(axis=(1, 2))) * np.linalg.norm(f, axis=1)
         high = np.maximum(low, STATICS_RTOL * np.where(np.isfinite(frobenius), frobenius, 0.0))
