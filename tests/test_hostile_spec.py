@@ -186,3 +186,26 @@ def test_every_cdpm_error_message_is_capped():
     assert len(str(exc)) <= MAX_MESSAGE_CHARS
     assert str(exc).endswith("more characters)")
     assert len(exc.args[0]) == 10_000  # the full text is kept
+
+
+def test_libyaml_and_pyyaml_read_specs_alike():
+    """Specs are read with libyaml when PyYAML has it: the same data and the
+    same repeated-key lines as PyYAML's own parser on every shipped spec and
+    on a text with a repeated key; a broken text's error is PyYAML's own,
+    which shows the offending line."""
+    import yaml
+
+    from cdpm.yaml_loading import _load_yaml, load_yaml
+
+    texts = [p.read_text() for p in sorted(MODEL.parent.glob("*/*.yaml"))]
+    texts.append(_base() + "gravity: [0, 0, -9.81]\n")
+    assert len(texts) >= 7
+    for text in texts:
+        assert _load_yaml(text, fast=True) == _load_yaml(text, fast=False) == load_yaml(text)
+    assert "key 'gravity' is given twice" in load_yaml(texts[-1])[1][0]
+    with pytest.raises(yaml.YAMLError) as fast_error:
+        load_yaml("cables: [\n  - {name: c1\n")
+    with pytest.raises(yaml.YAMLError) as pure_error:
+        _load_yaml("cables: [\n  - {name: c1\n", fast=False)
+    assert str(fast_error.value) == str(pure_error.value)
+    assert "line 2, column 3:\n      - {name: c1\n      ^" in str(fast_error.value)
