@@ -527,6 +527,25 @@ def test_random_samples(paper_robot):
 # storage, resumption, parallel runs
 
 
+@pytest.mark.parametrize("sampled", [False, True])
+def test_a_stored_map_reads_back_identical_to_the_map_in_memory(paper_robot, tmp_path, sampled):
+    """The store's skeleton is written through zarr directly (not through
+    xarray): read back, a map is the in-memory map, attributes, coordinates
+    (the sampled axes as non-dimension coordinates) and regions included."""
+    import xarray as xr
+
+    if sampled:
+        axes, kw = {"q1": (-3, 3), "q2": (0, 1)}, {"samples": 200, "seed": 2}
+    else:
+        axes, kw = {"q1": np.linspace(-3, 3, 9), "q2": np.linspace(0, 1, 7)}, {}
+    memory = workspace_map(paper_robot, axes, workers=1, **kw)
+    stored = workspace_map(paper_robot, axes, workers=1, store=tmp_path / "m.zarr", **kw)
+    for ds in (stored, open_map(tmp_path / "m.zarr")):
+        xr.testing.assert_identical(ds.load(), memory)
+    if sampled:
+        assert set(stored.coords) - set(stored.dims) == {"q1", "q2"}
+
+
 def test_store_roundtrip_and_settings_mismatch(paper_robot, paper_map, tmp_path):
     store = tmp_path / "m.zarr"
     ds = workspace_map(paper_robot, PAPER_AXES, workers=1, store=store, chunk_size=300)

@@ -262,34 +262,73 @@ class ZarrSink:
             raise StoreSettingsError(self.path, diff)
 
     def _create(self) -> None:
-        import xarray as xr
         from zarr.core.sync import sync
 
-        skeleton = xr.Dataset(
-            coords=_coords(self.robot, self.plan), attrs=_attrs(self.robot, self.plan)
-        )
         with warnings.catch_warnings():
             # zarr v3: string coordinates and consolidated metadata are not
             # in the v3 spec yet; xarray and zarr-python read both fine
             warnings.simplefilter("ignore", UserWarning)
             warnings.simplefilter("ignore", FutureWarning)
-            skeleton.to_zarr(str(self.path), mode="w", consolidated=False, zarr_format=3)
-            sync(self._create_arrays())
+            sync(self._create_skeleton())
         meta = self.path / _META
         (meta / "done").mkdir(parents=True, exist_ok=True)
         _touch(meta / "created")
 
-    async def _create_arrays(self) -> None:
-        """Create every data variable's array at once (one metadata file
-        each), then consolidate the store's metadata."""
+    async def _create_skeleton(self) -> None:
+        """Build the store's skeleton in memory (:meth:`_create_arrays`),
+        then write its files to disk all at once.
+
+        Zarr creates an array in a local store through several file-system
+        round trips one after another (checks, parents, metadata), about
+        1 ms an array; in memory they cost little, and the two dozen files
+        then go out concurrently: a map store is made in about half the
+        time (20 ms instead of 40 on a two-output map)."""
         import asyncio
 
-        from zarr.api.asynchronous import consolidate_metadata, open_group
+        from zarr.api.asynchronous import consolidate_metadata
+        from zarr.storage import LocalStore, MemoryStore
+
+        memory = MemoryStore()
+        await self._create_arrays(memory)
+        await consolidate_metadata(memory)
+        keys = [key async for key in memory.list()]
+        files = await asyncio.gather(*(memory.get(key) for key in keys))
+        local = LocalStore(str(self.path))
+        await asyncio.gather(*(local.set(k, f) for k, f in zip(keys, files, strict=True)))
+
+    async def _create_arrays(self, store) -> None:
+        """Create, in the zarr ``store``, the group with the map's
+        attributes, every coordinate (with its values) and every data
+        variable's array, all at once.
+
+        The layout is the one ``xarray.Dataset.to_zarr`` writes: a
+        coordinate is an array named after its dimension, or, for the axes
+        of a sampled map, an array along ``sample`` listed in the group's
+        ``coordinates`` attribute."""
+        import asyncio
+
+        from zarr.api.asynchronous import create_group
 
         plan = self.plan
-        group = await open_group(str(self.path), mode="r+")
+        coords = _coords(self.robot, plan)
+        attrs = _attrs(self.robot, plan)
+        others = [name for name, (dim, *_) in coords.items() if dim != name]
+        if others:
+            attrs["coordinates"] = " ".join(others)
+        group = await create_group(store=store, attributes=attrs, zarr_format=3, overwrite=True)
         creating = []
-        for name, (extra, dtype, fill, attrs) in self.specs.items():
+        for name, (dim, values, *rest) in coords.items():
+            values = np.asarray(values)
+            creating.append(
+                group.create_array(
+                    name,
+                    data=values,
+                    fill_value=np.nan if values.dtype.kind == "f" else None,
+                    dimension_names=[dim],
+                    attributes=rest[0] if rest else {},
+                )
+            )
+        for name, (extra, dtype, fill, var_attrs) in self.specs.items():
             extra_shape = tuple(_extra_size(self.robot, d) for d in extra)
             creating.append(
                 group.create_array(
@@ -299,14 +338,13 @@ class ZarrSink:
                     dtype=dtype,
                     fill_value=fill,
                     dimension_names=list(plan.dims + extra),
-                    attributes=attrs,
+                    attributes=var_attrs,
                     # chunk files side by side (c.3.0), not nested folders
                     # (c/3/0): a chunk of a grid map then creates no folder
                     chunk_key_encoding={"name": "default", "separator": "."},
                 )
             )
         await asyncio.gather(*creating)
-        await consolidate_metadata(str(self.path))
 
     def done(self) -> set[int]:
         """Indices of the chunks whose data is complete in the store."""
@@ -378,7 +416,8 @@ class ChunkWriter:
             from zarr.api.asynchronous import open_group
 
             group = await open_group(self.path, mode="r+")
-            self._arrays = {name: await group.getitem(name) for name in self.names}
+            arrays = await asyncio.gather(*(group.getitem(name) for name in self.names))
+            self._arrays = dict(zip(self.names, arrays, strict=True))
         await asyncio.gather(
             *(self._arrays[name].setitem(region, value) for name, value in values.items())
         )
