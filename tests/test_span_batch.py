@@ -192,3 +192,36 @@ def test_a_cone_holding_a_line_is_not_read_as_spanning():
     # and the NO carries a separator that re-checks: every column in a closed half-space
     result = span_result(S)
     assert result.certificate.kind == "separator" and result.verify()
+
+
+def test_planar_gaps_equal_sorting_each_set():
+    """The batched largest angular gap (exits) equals the gap of each set's
+    kept directions sorted one by one, on sets with zero columns, repeated
+    and opposite directions, angles of -pi and pi, and single directions."""
+    import math
+
+    from cdpm.analysis.exits import ZERO_RTOL, _max_angular_gap
+
+    rng = np.random.default_rng(11)
+    for m in (1, 2, 3, 5, 8):
+        S = rng.normal(size=(2, m, 4000))
+        S[:, 0, ::7] = 0.0
+        S[:, :, ::9] = np.round(S[:, :, ::9])  # axis directions, -0.0: -pi and pi
+        S[:, :, 1::9] = 0.0
+        S[:, :, 2::9] = S[:, :1, 2::9]  # one direction, repeated
+        if m > 1:
+            S[:, 1, ::5] = S[:, 0, ::5]
+            S[:, 1, 1::5] = -S[:, 0, 1::5]
+        gap, _ = _max_angular_gap(S)
+        for k in range(S.shape[2]):
+            norms = np.hypot(S[0, :, k], S[1, :, k])
+            keep = norms > ZERO_RTOL * norms.max()
+            theta = np.sort(np.arctan2(S[1, keep, k], S[0, keep, k]))
+            steps = (
+                [*np.diff(theta), math.fmod(theta[0] - theta[-1], 2 * math.pi)]
+                if keep.any()
+                else []
+            )
+            steps = [s + 2 * math.pi if s < 0 else s for s in steps]
+            expected = max(steps, default=0.0) or 2 * math.pi
+            assert gap[k] == expected, (m, k, S[:, :, k], gap[k], expected)

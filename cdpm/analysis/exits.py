@@ -79,31 +79,32 @@ def times(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def _max_angular_gap(S: np.ndarray):
     """Largest angular gap between the nonzero columns of S (2, m, k), as the
-    analyser's angular test computes it (sorted angles), and a mask of
-    systems with a column near its zero threshold.
+    analyser's angular test computes it, and a mask of systems with a column
+    near its zero threshold.
 
-    The gap after each direction is the smallest positive angle to another
-    one (2 pi for itself or an exact duplicate); their maximum equals the
-    largest gap between sorted angles, without sorting m angles per system.
+    Each system's angles are sorted (the dropped columns last, as +inf): the
+    gaps are the steps between neighbours and the step from the last back
+    to the first, modulo 2 pi (0 when they are one direction, as -pi and
+    pi); a single direction, or copies of one, leaves a gap of 2 pi.
     """
     norms = np.sqrt(S[0] ** 2 + S[1] ** 2)  # (m, k)
-    m = norms.shape[0]
+    m, k = norms.shape
     big = norms.max(axis=0)
     zero = ZERO_RTOL * big
     keep = norms > zero
     near = np.any(np.abs(norms - zero) <= THRESHOLD_DEFER_FRACTION * zero, axis=0)
-    theta = np.arctan2(S[1], S[0])
+    theta = np.where(keep, np.arctan2(S[1], S[0]), np.inf)
+    theta.sort(axis=0)
+    count = keep.sum(axis=0)
     two_pi = 2 * math.pi
-    gap = np.full(norms.shape[1], -np.inf)
-    for i in range(m):
-        after = np.full(norms.shape[1], two_pi)
-        for j in range(m):
-            if j != i:
-                d = np.mod(theta[j] - theta[i], two_pi)
-                d = np.where(keep[j] & (d > 0), d, two_pi)
-                np.minimum(after, d, out=after)
-        gap = np.where(keep[i], np.maximum(gap, after), gap)
-    gap[~keep.any(axis=0)] = two_pi
+    last = np.take_along_axis(theta, np.maximum(count - 1, 0)[None], axis=0)[0]
+    with np.errstate(invalid="ignore"):  # inf - inf: systems without columns
+        gap = np.mod(theta[0] - last, two_pi)  # the step back to the first
+        if m > 1:
+            steps = np.diff(theta, axis=0)  # (m - 1, k); inf, nan past the kept
+            between = np.arange(m - 1)[:, None] < (count - 1)[None]
+            np.maximum(gap, np.where(between, steps, -np.inf).max(axis=0), out=gap)
+    gap[(count == 0) | (gap == 0)] = two_pi
     return gap, near
 
 
