@@ -746,3 +746,21 @@ def test_robot_source_rebuilds_from_shipped_bytes(paper_robot, tmp_path):
     shutil.rmtree(folder)  # a remote worker does not see the driver's files
     rebuilt = source.load()
     assert rebuilt.spec.sha256 == paper_robot.spec.sha256
+
+
+@pytest.mark.parametrize("spec", [PAPER_SPEC, VERTICAL_SPEC])
+def test_poses_evaluated_in_blocks_equal_one_batch(spec, monkeypatch):
+    """evaluate_poses takes many poses in blocks (EVALUATE_BLOCK): the
+    results are those of one batch, bit for bit, whatever the block."""
+    import cdpm.maps._evaluate as evaluate
+
+    robot = cdpm.load_robot(spec)
+    natural = np.random.default_rng(4).uniform(-3.1, 3.1, (23, robot.nv))
+    whole = cdpm.maps.evaluate_poses(robot, natural)
+    monkeypatch.setattr(evaluate, "EVALUATE_BLOCK", 5)
+    blocks = cdpm.maps.evaluate_poses(robot, natural)
+    assert whole.keys() == blocks.keys()
+    for name, value in whole.items():
+        assert value.shape[0] == 23 and value.dtype == blocks[name].dtype, name
+        np.testing.assert_array_equal(blocks[name], value, err_msg=name)
+    assert (whole["poc"] == 1).any() and np.isfinite(whole["reach_margin"]).any()
