@@ -270,7 +270,8 @@ def workspace_map(
     if not isinstance(workers, int) or workers < 1:
         raise InputError(f"workers must be a positive integer, got {workers!r}")
     if scheduler is None and workers > 1:
-        prestart_workers()  # their start-up overlaps the store's creation
+        # their start-up overlaps the store's creation
+        prestart_workers(kernels=not zero_equilibrium(robot, setting))
     # one run per store: a second run on a busy store refuses before touching it
     owner = nullcontext() if store is None else store_lock(store)
     with owner:

@@ -427,8 +427,9 @@ def run_chunks(
         started(executor="none")
         return
     source = source or RobotSource.from_robot(robot)
+    kernels = not zero_equilibrium(robot, job.tension)
     with single_threaded_blas():
-        if scheduler is None and not zero_equilibrium(robot, job.tension):
+        if scheduler is None and kernels:
             # compiled (first run after an install) or loaded here, once, and
             # not counted in the progress rate or in every worker at once
             load_kernels(notice_on_stderr if progress is not None else None)
@@ -440,13 +441,13 @@ def run_chunks(
                 finished(index, job.evaluate(robot, plan.natural(index)))
         else:
             writer = getattr(sink, "writer", None)
-            _run_processes(robot, plan, job, todo, finished, workers, writer, source, started)
+            _run_processes(
+                robot, plan, job, todo, finished, workers, writer, source, started, kernels
+            )
 
 
-#: modules the fork server imports once, so that workers start warm: with
-#: the compiled kernels, which their users import on first use (numba's
-#: import and each kernel module's dispatchers cost tenths of a second per
-#: process); a name that is not importable is skipped by the fork server
+#: modules the fork server imports once, so that workers start warm; a name
+#: that is not importable is skipped by the fork server
 _PRELOAD = [
     "cdpm.maps._evaluate",
     "cdpm.maps._store",
@@ -456,16 +457,25 @@ _PRELOAD = [
     "cdpm.linearisation",
     "pinocchio",
     "zarr",
-    "numba",
-    *KERNEL_MODULES,
+    "cdpm.maps._runner",
 ]
 
+#: and, for maps under load, the compiled kernels, which their users import
+#: on first use (numba's import and each kernel module's dispatchers cost
+#: tenths of a second per process); zero-load maps use none of them, and
+#: importing them would delay the fork server, so the first workers, by
+#: about half a second
+_PRELOAD_KERNELS = ["numba", *KERNEL_MODULES]
 
-def _context():
+
+def _context(kernels: bool = True):
+    """The multiprocessing context of local workers: the fork server where
+    the platform has one (preloading the kernels too with ``kernels``; the
+    first map of a process decides, as the server starts once), else spawn."""
     methods = multiprocessing.get_all_start_methods()
     if "forkserver" in methods:
         ctx = multiprocessing.get_context("forkserver")
-        ctx.set_forkserver_preload(_PRELOAD + ["cdpm.maps._runner"])
+        ctx.set_forkserver_preload(_PRELOAD + (_PRELOAD_KERNELS if kernels else []))
         return ctx
     return multiprocessing.get_context("spawn")
 
@@ -488,15 +498,25 @@ def _start_fork_server(ctx) -> threading.Thread | None:
     return thread
 
 
-def prestart_workers() -> None:
+def prestart_workers(kernels: bool = True) -> None:
     """Start what local worker processes are forked from (the fork server
-    importing Pinocchio, zarr and cdpm) in the background now, so that it
-    is ready when the first chunks are handed out."""
-    _start_fork_server(_context())
+    importing Pinocchio, zarr and cdpm, and with ``kernels`` the compiled
+    kernels) in the background now, so that it is ready when the first
+    chunks are handed out."""
+    _start_fork_server(_context(kernels))
 
 
 def _run_processes(
-    robot: CableRobot, plan, job, todo, finished, workers: int, writer, source, started
+    robot: CableRobot,
+    plan,
+    job,
+    todo,
+    finished,
+    workers: int,
+    writer,
+    source,
+    started,
+    kernels: bool = True,
 ) -> None:
     """Chunks on ``workers - 1`` local worker processes plus this process.
 
@@ -504,7 +524,8 @@ def _run_processes(
     chunk indices; with a ``writer`` (a store on this file system) workers
     write their chunks themselves. This process computes a chunk whenever
     none of the workers' chunks is ready, so the workers' start-up overlaps
-    useful work and small maps gain from workers too.
+    useful work and small maps gain from workers too. ``kernels``: the
+    map's poses need the compiled kernels (a map under load).
     """
     from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
     from concurrent.futures.process import BrokenProcessPool
@@ -512,7 +533,7 @@ def _run_processes(
     pending = list(reversed(todo))
     n_proc = min(workers - 1, len(todo) - 1)
     started(executor="local", processes=n_proc + 1)
-    ctx = _context()
+    ctx = _context(kernels)
     executor = ProcessPoolExecutor(
         max_workers=n_proc,
         mp_context=ctx,
@@ -559,7 +580,9 @@ def _run_processes(
 
 
 def _scheduler_lost_errors() -> tuple[type[BaseException], ...]:
-    """The exceptions a future's result raises when its scheduler is gone."""
+    """The exceptions a future's result raises when its scheduler is gone
+    (looked up when a map runs on Dask: importing dask.distributed costs a
+    third of a second, which local maps and their workers do not pay)."""
     import asyncio
     import concurrent.futures
 
@@ -576,9 +599,6 @@ def _scheduler_lost_errors() -> tuple[type[BaseException], ...]:
     except ImportError:  # pragma: no cover - dask absent: _run_dask says so
         pass
     return tuple(errors)
-
-
-_SCHEDULER_LOST = _scheduler_lost_errors()
 
 
 def _run_dask(plan, job, todo, finished, scheduler, source, started) -> None:
@@ -600,6 +620,7 @@ def _run_dask(plan, job, todo, finished, scheduler, source, started) -> None:
             ) from exc
     else:
         client = scheduler
+    lost = _scheduler_lost_errors()
     try:
         threads = client.nthreads()
         n_workers = max(1, sum(threads.values()))
@@ -624,7 +645,7 @@ def _run_dask(plan, job, todo, finished, scheduler, source, started) -> None:
         for future in queue:
             try:
                 result = future.result()
-            except _SCHEDULER_LOST as exc:
+            except lost as exc:
                 from cdpm.maps._scheduler import lost_scheduler_error
 
                 address = scheduler if own else str(client.scheduler.address)
