@@ -37,6 +37,7 @@ __all__ = [
     "open_map",
     "variable_specs",
     "store_path_problem",
+    "write_variable",
 ]
 
 _META = ".cdpm"
@@ -472,3 +473,49 @@ def open_map(path):
             f"while creating it); run the same `cdpm map SPEC ... --out {p}` again to remake it"
         )
     return ds
+
+
+def write_variable(path: Path, values) -> None:
+    """Write the named ``xarray.DataArray`` ``values`` (dims as ``poc``'s)
+    as the store's array of that name (fill value 0), chunked like ``poc``, replacing
+    any, then consolidate the store's metadata: one call into zarr's event
+    loop (the POC regions of a finished map, ``poc_region``).
+
+    Raises:
+        InputError: ``path`` is not a map store.
+    """
+    from zarr.core.sync import sync
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        warnings.simplefilter("ignore", FutureWarning)
+        sync(_write_variable(path, values))
+
+
+async def _write_variable(path: Path, values) -> None:
+    from zarr.api.asynchronous import consolidate_metadata, open_group
+
+    try:
+        group = await open_group(str(path), mode="r+")
+    except (FileNotFoundError, ValueError, KeyError, TypeError, OSError) as exc:
+        raise InputError(
+            f"cannot write {values.name} into map store {path} ({type(exc).__name__}: "
+            f"{exc}); give the store the map was written to"
+        ) from exc
+    if not await group.contains("poc"):
+        raise InputError(f"{path} is not a cdpm map store (no 'poc' array)")
+    poc = await group.getitem("poc")
+    # overwrite: replaces the values of an earlier run, and the array a run
+    # killed mid-write leaves without metadata
+    array = await group.create_array(
+        values.name,
+        shape=values.shape,
+        chunks=poc.chunks,
+        dtype=values.dtype,
+        fill_value=0,
+        dimension_names=list(values.dims),
+        attributes=dict(values.attrs),
+        overwrite=True,
+    )
+    await array.setitem(..., values.values)
+    await consolidate_metadata(str(path))

@@ -15,7 +15,6 @@ from __future__ import annotations
 import json
 import math
 import os
-import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -487,49 +486,10 @@ def attach_regions(ds, store: str | os.PathLike | None = None):
     labels = label_regions(ds)
     out = ds.drop_vars(REGION_VARIABLE, errors="ignore").assign({REGION_VARIABLE: labels})
     if store is not None:
-        _write_labels(Path(store).expanduser(), labels)
+        from cdpm.maps._store import write_variable
+
+        write_variable(Path(store).expanduser(), labels)
     return out
-
-
-def _write_labels(path: Path, labels) -> None:
-    from zarr.core.sync import sync
-
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", UserWarning)
-        warnings.simplefilter("ignore", FutureWarning)
-        sync(_store_labels(path, labels))
-
-
-async def _store_labels(path: Path, labels) -> None:
-    """Write ``labels`` as the store's ``poc_region`` array (chunked like
-    ``poc``), replacing any, then consolidate the store's metadata: one
-    call into zarr's event loop."""
-    from zarr.api.asynchronous import consolidate_metadata, open_group
-
-    try:
-        group = await open_group(str(path), mode="r+")
-    except (FileNotFoundError, ValueError, KeyError, TypeError, OSError) as exc:
-        raise InputError(
-            f"cannot write the POC regions into map store {path} ({type(exc).__name__}: "
-            f"{exc}); give the store the map was written to"
-        ) from exc
-    if not await group.contains("poc"):
-        raise InputError(f"{path} is not a cdpm map store (no 'poc' array)")
-    poc = await group.getitem("poc")
-    # overwrite: replaces the labels of an earlier run, and the array a run
-    # killed mid-write leaves without metadata
-    array = await group.create_array(
-        REGION_VARIABLE,
-        shape=labels.shape,
-        chunks=poc.chunks,
-        dtype="int32",
-        fill_value=0,
-        dimension_names=list(labels.dims),
-        attributes=dict(labels.attrs),
-        overwrite=True,
-    )
-    await array.setitem(..., labels.values)
-    await consolidate_metadata(str(path))
 
 
 # -------------------------------------------------------------- locating
