@@ -412,18 +412,20 @@ class CableRobot:
         local = self._point_local.T[:, :, None]  # (3, P, 1)
         pos = pl_t[9:, pj] + rot[0:3] * local[0] + rot[3:6] * local[1] + rot[6:9] * local[2]
         # velocity of a point p fixed on a body, from the spatial (world)
-        # Jacobian [v; w]: v + w x p, restricted to the joints that move it
-        # (points fixed in the world have none)
+        # Jacobian [v; w]: v + w x p, restricted to the joints that move it;
+        # points fixed in the world have none (rows of +0.0)
         v, w = jac_t[:3, None], jac_t[3:, None]  # (3, 1, nv, N)
-        p = pos[:, moving, None, :]  # (3, P_moving, 1, N)
-        pjac_m = np.empty((3, moving.size, nv, n))
-        np.subtract(w[1] * p[2], w[2] * p[1], out=pjac_m[0])
-        np.subtract(w[2] * p[0], w[0] * p[2], out=pjac_m[1])
-        np.subtract(w[0] * p[1], w[1] * p[0], out=pjac_m[2])
-        pjac_m += v
-        pjac_m *= self._point_mask[moving][None, :, :, None]
-        pjac = np.zeros((3, pos.shape[1], nv, n))  # (3, P, nv, N)
-        pjac[:, moving] = pjac_m
+        p = pos[:, :, None, :]  # (3, P, 1, N)
+        pjac = np.empty((3, pos.shape[1], nv, n))  # (3, P, nv, N)
+        term = np.empty(pjac.shape[1:])
+        for i, j, k in ((0, 1, 2), (1, 2, 0), (2, 0, 1)):  # (w x p)_i = w_j p_k - w_k p_j
+            np.multiply(w[j], p[k], out=pjac[i])
+            np.multiply(w[k], p[j], out=term)
+            pjac[i] -= term
+        pjac += v
+        pjac *= self._point_mask[None, :, :, None]
+        if moving.size < pos.shape[1]:
+            pjac[:, self._point_joint == 0] = 0.0
 
         a, b = self._segment_points[:, 0], self._segment_points[:, 1]
         diff = pos[:, b] - pos[:, a]  # (3, S, N)
@@ -431,10 +433,11 @@ class CableRobot:
         with np.errstate(invalid="ignore", divide="ignore"):
             units = diff / seg_len
         jd = pjac[:, b]  # (3, S, nv, N)
-        a_moves = pj[a] != 0
-        if a_moves.any():
-            jd[:, a_moves] -= pjac[:, a[a_moves]]
-        seg_rows = units[0, :, None] * jd[0] + units[1, :, None] * jd[1] + units[2, :, None] * jd[2]
+        jd -= pjac[:, a]  # x - (+0.0) is x exactly
+        seg_rows = units[0, :, None] * jd[0]
+        for i in (1, 2):
+            jd[i] *= units[i, :, None]
+            seg_rows += jd[i]
         to_cable = self._segment_to_cable  # (m, S) 0/1
         if to_cable.shape[0] == to_cable.shape[1]:  # one segment per cable
             lengths, rows_l = seg_len, seg_rows
