@@ -50,13 +50,45 @@ __all__ = [
 ]
 
 #: most poses :func:`evaluate_poses` takes through the pipeline at once; more
-#: go in blocks of this size. The zero-load pipeline's per-pose work is a
-#: few microseconds of element-wise arithmetic on temporaries of tens of
-#: bytes per pose: for a 16384-pose chunk those are megabytes, which the C
-#: allocator maps fresh from the system and returns, page by page, each
-#: time (about 1 us a pose on the planar model, a quarter of its cost).
-#: Chunks under load hold at most 4096 poses anyway.
+#: go in blocks of this size. The pipeline's arrays grow with the batch: a
+#: whole 16384-pose chunk of a 6-DOF model takes hundreds of MB of them,
+#: which run slower than a block's (multilink_arm with the margin: about
+#: 185 against 130 us a pose) besides holding the memory. Chunks under load
+#: hold at most 4096 poses anyway.
 EVALUATE_BLOCK = 4096
+
+#: glibc's malloc thresholds while poses are evaluated [bytes]: blocks up to
+#: HEAP_BLOCK_MAX come from its heap, and freed memory beyond
+#: KEPT_FREE_MEMORY is returned to the system. They are the values glibc's
+#: own adjustment grows to; left to it, they stay near the largest freed
+#: array (a few MB), so the heap of a block's temporaries is returned and
+#: faulted in again for every block (about 0.8 us a pose on the planar
+#: model, and more on a busy host)
+HEAP_BLOCK_MAX = 32 * 2**20
+KEPT_FREE_MEMORY = 64 * 2**20
+
+_MALLOC_SET: list[bool] = []
+
+
+def reuse_freed_memory() -> None:
+    """Set glibc's malloc thresholds to HEAP_BLOCK_MAX and KEPT_FREE_MEMORY,
+    once per process (a process-wide setting); nothing where the C library
+    is not glibc (macOS, musl), whose allocators behave otherwise."""
+    if _MALLOC_SET:
+        return
+    _MALLOC_SET.append(True)
+    import ctypes
+    import platform
+
+    if platform.system() != "Linux" or platform.libc_ver()[0] != "glibc":
+        return
+    try:
+        mallopt = ctypes.CDLL(None).mallopt
+    except (OSError, AttributeError):  # pragma: no cover - no glibc symbols
+        return
+    m_trim_threshold, m_mmap_threshold = -1, -3  # glibc's <malloc.h>
+    mallopt(m_mmap_threshold, HEAP_BLOCK_MAX)
+    mallopt(m_trim_threshold, KEPT_FREE_MEMORY)
 
 
 def resolve_tension(robot: CableRobot, tension: Any) -> str | list[float]:
@@ -220,6 +252,7 @@ def evaluate_poses(
         with leading dimension N.
     """
     natural = check_poses(robot, natural)
+    reuse_freed_memory()
     if natural.shape[0] > EVALUATE_BLOCK:
         kwargs = dict(margin=margin, tol=tol, reach=reach, tension_search=tension_search)
         parts = [
