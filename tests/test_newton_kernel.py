@@ -47,7 +47,10 @@ SPREAD = {4: 3.0, 6: 1.0, 8: 1.0, 10: 1.0}
 @pytest.mark.parametrize(("nv", "m"), [(2, 4), (3, 6), (6, 8), (6, 10)])
 def test_decided_poses_agree_with_the_qp(nv, m):
     """Random problems, many infeasible: a solved pose has the QP's optimum
-    (bounds met, statics to round-off); an infeasible one has no QP solution."""
+    (bounds met, statics to round-off); an infeasible one has no QP solution.
+    Any iterate's Farkas proof decides a pose (the iterations stop there), so
+    at most a fifth of the poses are left to the per-pose QP (a proof only
+    at the last iterate left three fifths undecided at nv = 6, m = 8)."""
     rng = np.random.default_rng(nv * 100 + m)
     k = 300
     LT = rng.normal(size=(k, nv, m))
@@ -58,7 +61,7 @@ def test_decided_poses_agree_with_the_qp(nv, m):
     f, solved, infeasible = min_norm_tensions(LT, load, lower, upper)
     assert not (solved & infeasible).any()
     assert solved.sum() >= 0.09 * k and infeasible.sum() >= 0.09 * k
-    assert (solved | infeasible).sum() >= 0.3 * k
+    assert (solved | infeasible).sum() >= 0.8 * k
     assert np.all(f[solved] >= lower) and np.all(f[solved] <= upper)
     for i in np.flatnonzero(solved | infeasible):
         x, _ = min_norm_in_bounds(LT[i], load[i], lower, upper)

@@ -125,6 +125,27 @@ def _farkas_gap(LT, load, lower, upper, cand, sign):
 
 
 @numba.njit(cache=True)
+def _solved(largest, statics_rtol, scale, trace, f):
+    """The statics residual ``largest`` is below statics_rtol of the
+    statics' scale, max(scale, |L| |f|) (|L|^2 = trace)."""
+    f_sq = 0.0
+    for j in range(f.shape[0]):
+        f_sq += f[j] * f[j]
+    return largest <= statics_rtol * max(scale, math.sqrt(trace) * math.sqrt(f_sq))
+
+
+@numba.njit(cache=True)
+def _farkas(LT, load, lower, upper, lam, r, threshold):
+    """Farkas: a unit v with v.load > max over the box of v.L^T f (by more
+    than ``threshold``) proves that no tension holds the pose; candidates:
+    the direction the multipliers run off to, and the statics residual's."""
+    return (
+        _farkas_gap(LT, load, lower, upper, lam, 1.0) > threshold
+        or _farkas_gap(LT, load, lower, upper, r, -1.0) > threshold
+    )
+
+
+@numba.njit(cache=True)
 def solve_poses(
     LT,
     load,
@@ -191,6 +212,7 @@ def solve_poses(
         # z = L lam, f = clip(z) and r = L^T f - load follow lam throughout
         _tensions(A, lam, lower, upper, z, f)
         largest = _residual(A, f, b, r)
+        proven = False
         for _ in range(iterations):
             if not largest > stop_rtol * scale:
                 break
@@ -218,9 +240,16 @@ def solve_poses(
                     largest = _residual(A, f, b, r)
                     break
                 t *= 0.5
+            # an unsolved iterate that proves no tension holds the pose (the
+            # Farkas test below): further steps only run the multipliers off
+            if not _solved(largest, statics_rtol, scale, trace, f) and (
+                _farkas(A, b, lower, upper, lam, r, farkas_rtol * scale)
+            ):
+                proven = True
+                break
         # polish: a full Newton step on the final active set (the line search
         # cannot see the last round-off-sized gains of the dual)
-        for _ in range(2):
+        for _ in range(0 if proven else 2):
             _newton_matrix(A, z, lower, upper, False, ridge, free, hess)
             step[:] = r
             _solve(hess, step, nv)
@@ -234,17 +263,10 @@ def solve_poses(
                 f[:] = ft
                 r[:] = rp
                 largest = polished
-        f_sq = 0.0
         for j in range(m):
             f_out[i, j] = f[j]
-            f_sq += f[j] * f[j]
-        f_scale = max(scale, math.sqrt(trace) * math.sqrt(f_sq))
-        solved = largest <= statics_rtol * f_scale
+        solved = _solved(largest, statics_rtol, scale, trace, f)
         solved_out[i] = solved
-        # Farkas: a unit v with v.load > max over the box of v.L^T f proves
-        # that no tension holds the pose; candidates: the direction the
-        # multipliers run off to, and the statics residual's
         infeasible_out[i] = not solved and (
-            _farkas_gap(A, b, lower, upper, lam, 1.0) > farkas_rtol * scale
-            or _farkas_gap(A, b, lower, upper, r, -1.0) > farkas_rtol * scale
+            proven or _farkas(A, b, lower, upper, lam, r, farkas_rtol * scale)
         )
