@@ -292,3 +292,30 @@ def test_tiny_horizons_give_tiny_positive_margins():
     assert error == 0.0
     # the folded arm: output Jacobian of round-off size, r_T reads 0
     assert cdpm.analyze_pose(robot, [0.0, np.pi]).reach_margin[0] == 0.0
+
+
+def test_spectral_abscissae_of_undamped_systems_from_half_the_eigenproblem():
+    """The growth check's largest real part of an eigenvalue: undamped
+    mechanical A = [[0, I], [F, 0]] from the eigenvalues of F (+-sqrt),
+    others from A's; equal to A's eigenvalues to round-off of the
+    frequency scale, on symmetric, unsymmetric, stable and unstable F."""
+    from cdpm.analysis._common import spectral_abscissae
+
+    rng = np.random.default_rng(12)
+    n, k = 6, 900
+    K = rng.normal(size=(k, n, n)) * rng.uniform(0.1, 1e4, (k, 1, 1))
+    K[::3] += np.swapaxes(K[::3], 1, 2)  # symmetric: real frequencies or real growth
+    K[1::3] = K[1::3] @ np.swapaxes(K[1::3], 1, 2)  # positive definite: oscillatory, abscissa 0
+    A = np.zeros((k, 2 * n, 2 * n))
+    A[:, :n, n:] = np.eye(n)
+    A[:, n:, :n] = -K
+    A[2::9, n:, n:] = -np.eye(n)  # damped: the full eigenproblem
+    expected = np.linalg.eigvals(A).real.max(axis=1)
+    scale = np.sqrt(np.abs(np.linalg.eigvals(K)).max(axis=1)) + 1.0
+    got = spectral_abscissae(A)
+    assert np.all(np.abs(got - expected) <= 1e-12 * scale)
+    assert (got[1::3] <= 1e-9 * scale[1::3]).all() and (got[::3] > 1.0).any()
+    odd = rng.normal(size=(4, 5, 5))
+    np.testing.assert_array_equal(spectral_abscissae(odd), np.linalg.eigvals(odd).real.max(axis=1))
+    assert spectral_abscissae(np.zeros((0, 4, 4))).shape == (0,)
+    assert spectral_abscissae(np.zeros((2, 0, 0))).tolist() == [-np.inf, -np.inf]

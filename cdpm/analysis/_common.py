@@ -455,3 +455,37 @@ def expm_batch(A: np.ndarray) -> np.ndarray:
     if lost.size:
         R[lost] = sla.expm(given[lost])
     return R
+
+
+def spectral_abscissae(A: np.ndarray) -> np.ndarray:
+    """The largest real part of an eigenvalue of each A (k, n, n), shape (k,).
+
+    A system whose A is that of an undamped mechanical system,
+    ``[[0, I], [F, 0]]`` (checked exactly, per system; F = -M^-1 K), has the
+    eigenvalues ``+-sqrt(mu)`` for the eigenvalues mu of F (``lambda^2 x =
+    F x``): its abscissa is the largest real part of their principal square
+    roots, from an eigenvalue problem of half the size (about a third of the
+    work). The others take the eigenvalues of A.
+    """
+    k, n = A.shape[0], A.shape[-1]
+    out = np.empty(k)
+    if k == 0:
+        return out
+    if n == 0:
+        out[:] = -np.inf
+        return out
+    half = n // 2
+    undamped = np.zeros(k, dtype=bool)
+    if n % 2 == 0:
+        top = A[:, :half]
+        undamped = (
+            ~np.any(top[:, :, :half], axis=(1, 2))
+            & np.all(top[:, :, half:] == np.eye(half), axis=(1, 2))
+            & ~np.any(A[:, half:, half:], axis=(1, 2))
+        )
+    if undamped.any():
+        mu = np.linalg.eigvals(A[undamped][:, half:, :half])
+        out[undamped] = np.sqrt(mu.astype(complex)).real.max(axis=1)
+    if not undamped.all():
+        out[~undamped] = np.linalg.eigvals(A[~undamped]).real.max(axis=1)
+    return out

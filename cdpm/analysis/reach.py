@@ -38,7 +38,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cdpm.analysis._common import square_zero
+from cdpm.analysis._common import spectral_abscissae, square_zero
 from cdpm.analysis.margin import state_samples
 from cdpm.numerics import (
     REACH_GROWTH_MAX,
@@ -134,7 +134,7 @@ def _reach_margins(A, B, C, lower, upper, horizon, weight) -> ReachMargins:
         # growing modes: beyond e^{Re(lambda) T} = REACH_GROWTH_MAX every
         # sample lines up with the fastest mode and the zonotope's width
         # across it drowns in round-off: not resolvable in floating point
-        growth = np.linalg.eigvals(A[rest]).real.max(axis=1) * T
+        growth = spectral_abscissae(A[rest]) * T
         lost = rest[growth > math.log(REACH_GROWTH_MAX)]
         value[lost], error[lost] = np.nan, np.inf
         rest = rest[growth <= math.log(REACH_GROWTH_MAX)]
