@@ -371,6 +371,34 @@ def test_progress_is_plain_lines_when_stderr_is_not_a_terminal():
     assert text.count("\n") == 2
 
 
+@pytest.mark.parametrize("tty", [False, True])
+def test_an_interrupted_map_logs_where_it_stopped(tty, monkeypatch):
+    """Ctrl-C during a map with progress=True: the bar's last line is the
+    state when it stopped (in a log, not the last line of up to
+    PROGRESS_LOG_INTERVAL seconds before), ended by a newline."""
+    import io
+
+    import cdpm.maps._runner as runner
+
+    log = io.StringIO()
+    log.isatty = lambda: tty
+    monkeypatch.setattr(runner.sys, "stderr", log)
+    real_finished = []
+
+    def run_chunks(robot, plan, job, todo, sink, workers, scheduler, progress, *rest):
+        for done in (4, 8, 12):  # 4 poses a chunk; the 2nd and 3rd within the interval
+            progress(done, 36, done // 4 - 1)
+            real_finished.append(done)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(runner, "run_chunks", run_chunks)
+    with pytest.raises(KeyboardInterrupt):
+        cdpm.workspace_map(PAPER_SPEC, {"q1": np.linspace(0, 1, 36)}, workers=1, progress=True)
+    lines = log.getvalue().replace("\r", "\n").splitlines()
+    assert real_finished == [4, 8, 12]
+    assert "12/36 poses" in lines[-1] and log.getvalue().endswith("\n")
+
+
 def test_view_notes_a_map_made_with_other_equilibrium_settings(tmp_path):
     from cdpm.commands.view import map_settings_note
 

@@ -292,7 +292,12 @@ def workspace_map(
             reach,
             None if search is None else (search, reach_settings(robot, horizon, tension_budget)),
         )
-        run_chunks(robot, plan, job, todo, sink, workers, scheduler, progress, announce, source)
+        try:
+            run_chunks(robot, plan, job, todo, sink, workers, scheduler, progress, announce, source)
+        except KeyboardInterrupt:
+            if isinstance(progress, ProgressPrinter):
+                progress.stopped()
+            raise
         return attach_regions(sink.dataset(), store)
 
 

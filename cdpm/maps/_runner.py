@@ -262,6 +262,17 @@ class ProgressPrinter:
             self.last = now
             self._draw(now)
 
+    def stopped(self) -> None:
+        """End an interrupted run's bar where it stands: its state then, as
+        a line of its own (a log's last line would otherwise be up to
+        PROGRESS_LOG_INTERVAL seconds old)."""
+        if self.done >= self.total:
+            return
+        self._draw(time.perf_counter())
+        if self.tty:
+            self.stream.write("\n")
+            self.stream.flush()
+
     def _draw(self, now: float) -> None:
         elapsed = max(now - self.start, 1e-9)
         rate = self.done / elapsed
