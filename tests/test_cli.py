@@ -167,8 +167,9 @@ def test_map_interrupted_ends_the_progress_line_and_resumes(tmp_path, capsys, mo
 
     def interrupted_after_one_chunk(robot, axes, **kwargs):
         def progress(done, total, index):
-            sys.stderr.write(f"\rmap {done}/{total} poses")  # a bar without its newline
+            sys.stderr.write(f"\rmap {done}/{total} poses")  # a bar redrawn in place
             if index >= 0:
+                sys.stderr.write("\n")  # as the real bar ends its line when interrupted
                 raise KeyboardInterrupt
 
         return real(robot, axes, **{**kwargs, "progress": progress})
@@ -179,7 +180,7 @@ def test_map_interrupted_ends_the_progress_line_and_resumes(tmp_path, capsys, mo
     monkeypatch.setattr(cdpm.maps, "workspace_map", interrupted_after_one_chunk)
     assert main(argv) == 130
     err = capsys.readouterr().err
-    assert "map 4/12 poses\ncdpm map: interrupted; " in err
+    assert "map 4/12 poses\ncdpm map: interrupted; " in err and "\n\n" not in err
     assert f"the finished chunks are kept in {store}: run the same command again" in err
     # the same command again computes only the 8 poses of the two chunks left
     totals = []

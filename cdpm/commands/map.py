@@ -422,9 +422,8 @@ def _check_outputs(args: argparse.Namespace) -> None:
 
 
 def _interrupted(args: argparse.Namespace) -> int:
-    """End the progress line and say how to go on."""
-    if not args.quiet:
-        sys.stderr.write("\n")  # the progress bar redraws one line without ending it
+    """Say how to go on (the progress bar ends its own line when the map is
+    interrupted: cdpm.maps._runner.ProgressPrinter.stopped)."""
     if args.out:
         hint = (
             f"the finished chunks are kept in {args.out}: run the same command again to "
