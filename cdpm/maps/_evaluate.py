@@ -253,17 +253,14 @@ def evaluate_poses(
     """
     natural = check_poses(robot, natural)
     reuse_freed_memory()
-    if natural.shape[0] > EVALUATE_BLOCK:
-        kwargs = dict(margin=margin, tol=tol, reach=reach, tension_search=tension_search)
-        parts = [
-            evaluate_poses(robot, natural[i : i + EVALUATE_BLOCK], tension, **kwargs)
-            for i in range(0, natural.shape[0], EVALUATE_BLOCK)
-        ]
-        return {name: np.concatenate([p[name] for p in parts]) for name in parts[0]}
-    batch = evaluate_batch(
-        robot, natural, tension, margin=margin, tol=tol, reach=reach, tension_search=tension_search
-    )
-    return {name: c.compute(batch) for name, c in CRITERIA.items()}
+    kwargs = dict(margin=margin, tol=tol, reach=reach, tension_search=tension_search)
+    parts = []
+    for i in range(0, max(natural.shape[0], 1), EVALUATE_BLOCK):  # one block when empty
+        batch = evaluate_batch(robot, natural[i : i + EVALUATE_BLOCK], tension, **kwargs)
+        parts.append({name: c.compute(batch) for name, c in CRITERIA.items()})
+    if len(parts) == 1:
+        return parts[0]
+    return {name: np.concatenate([p[name] for p in parts]) for name in parts[0]}
 
 
 def evaluate_batch(
