@@ -319,7 +319,7 @@ class CableRobot:
         placements, as one (njoints, 12) array (each row the column-major
         rotation then the translation) when ``data.oMi`` is laid out that
         way in memory (checked), else one (rotation, translation) pair per
-        joint; plus the indices of the tracked points not fixed in the world."""
+        joint; plus the indices of the tracked points fixed in the world."""
         views = getattr(self, "_batch_views_cache", None)
         if views is not None:
             return views
@@ -352,18 +352,18 @@ class CableRobot:
                 placements = flat
         if placements is None:
             placements = [(data.oMi[j].rotation, data.oMi[j].translation) for j in range(nj)]
-        moving = np.flatnonzero(self._point_joint != 0)  # points not fixed in the world
+        fixed = np.flatnonzero(self._point_joint == 0)  # points fixed in the world
         # one-DOF models: eigenpy hands out J as (6,) and M as (1,) views
         jac, mass = data.J, data.M
         jac = jac if jac.ndim == 2 else jac.reshape(6, self.nv)
         mass = mass if mass.ndim == 2 else mass.reshape(self.nv, self.nv)
-        views = (data, jac, mass, placements, moving)
+        views = (data, jac, mass, placements, fixed)
         self._batch_views_cache = views
         return views
 
     def _kinematics_batch(self, qs: np.ndarray, dynamics: bool = False) -> BatchKinematics:
         pin, model = self._pin, self.model
-        data, J, M, placements, moving = self._batch_views()
+        data, J, M, placements, fixed = self._batch_views()
         n, nv, nj = qs.shape[0], self.nv, model.njoints
         jac = np.empty((n, 6, nv))
         pl = np.empty((n, nj, 12))
@@ -424,8 +424,8 @@ class CableRobot:
             pjac[i] -= term
         pjac += v
         pjac *= self._point_mask[None, :, :, None]
-        if moving.size < pos.shape[1]:
-            pjac[:, self._point_joint == 0] = 0.0
+        if fixed.size:
+            pjac[:, fixed] = 0.0
 
         a, b = self._segment_points[:, 0], self._segment_points[:, 1]
         diff = pos[:, b] - pos[:, a]  # (3, S, N)
