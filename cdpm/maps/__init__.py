@@ -234,11 +234,9 @@ def workspace_map(
     setting = resolve_tension(robot, tension)
     if chunk_size is None and search is not None:
         chunk_size = TENSION_SEARCH_CHUNK_SIZE
+    loaded = not zero_equilibrium(robot, setting)  # poses go through the analyser
     if chunk_size is None:
-        if zero_equilibrium(robot, setting):
-            chunk_size = DEFAULT_CHUNK_SIZE
-        else:
-            chunk_size = _per_pose_chunk_size(_n_poses(axes))
+        chunk_size = _per_pose_chunk_size(_n_poses(axes)) if loaded else DEFAULT_CHUNK_SIZE
     tol = check_tol(tol)
     reach = reach_settings(robot, horizon, tension_budget) if margin else None
     source = RobotSource.from_robot(robot)  # with the robot's departures from its spec
@@ -271,7 +269,7 @@ def workspace_map(
         raise InputError(f"workers must be a positive integer, got {workers!r}")
     if scheduler is None and workers > 1:
         # their start-up overlaps the store's creation
-        prestart_workers(kernels=not zero_equilibrium(robot, setting))
+        prestart_workers(kernels=loaded)
     # one run per store: a second run on a busy store refuses before touching it
     owner = nullcontext() if store is None else store_lock(store)
     with owner:
