@@ -4,12 +4,14 @@ API, degenerate poses, storage and resumption, local and Dask execution."""
 from __future__ import annotations
 
 import dataclasses
+import json
 import os
 import shutil
 import signal
 import subprocess
 import sys
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -533,6 +535,7 @@ def test_a_stored_map_reads_back_identical_to_the_map_in_memory(paper_robot, tmp
     xarray): read back, a map is the in-memory map, attributes, coordinates
     (the sampled axes as non-dimension coordinates) and regions included."""
     import xarray as xr
+    import zarr
 
     if sampled:
         axes, kw = {"q1": (-3, 3), "q2": (0, 1)}, {"samples": 200, "seed": 2}
@@ -544,6 +547,17 @@ def test_a_stored_map_reads_back_identical_to_the_map_in_memory(paper_robot, tmp
         xr.testing.assert_identical(ds.load(), memory)
     if sampled:
         assert set(stored.coords) - set(stored.dims) == {"q1", "q2"}
+    # the regions' array is added to the consolidated metadata in place:
+    # the root document is the one zarr's own consolidation writes
+    root = tmp_path / "m.zarr" / "zarr.json"
+    written = json.loads(root.read_text())
+    assert "poc_region" in written["consolidated_metadata"]["metadata"]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # consolidated metadata: not in the v3 spec yet
+        zarr.consolidate_metadata(str(tmp_path / "m.zarr"))
+    assert json.loads(root.read_text()) == written
+    # every file went through a temporary file renamed over it
+    assert not [p for p in (tmp_path / "m.zarr").rglob("*") if p.name.endswith(".partial")]
 
 
 def test_store_roundtrip_and_settings_mismatch(paper_robot, paper_map, tmp_path):

@@ -1,0 +1,69 @@
+"""The zarr store every map store is read and written through.
+
+zarr's ``LocalStore`` hands each whole-file read and write to a thread of
+its own (``asyncio.to_thread``). A map store's files are small (a
+metadata document of a few kB, a chunk of at most a few MB), so the hop to
+and from the thread costs more than the file operation: a map writes two
+dozen files per chunk and reads as many when it is opened. This store does
+whole-file reads and writes directly in zarr's event loop; everything else
+(listing, deleting, byte-range reads, exclusive creation) is zarr's own.
+
+Imported only where zarr is (maps to a store, ``open_map``).
+"""
+
+from __future__ import annotations
+
+import os
+
+from zarr.core.buffer import Buffer, BufferPrototype, default_buffer_prototype
+from zarr.storage import LocalStore
+
+__all__ = ["MapFileStore"]
+
+
+class MapFileStore(LocalStore):
+    """``zarr.storage.LocalStore`` with whole-file reads and writes done in
+    the calling event loop instead of a worker thread each.
+
+    A write goes to ``<file>.<pid>.partial`` and is renamed over the file,
+    as ``LocalStore`` does: a reader never sees a half-written file, and
+    processes writing different files of one store (map workers, each its
+    own chunks) never share a temporary file.
+
+    Args:
+        root: the store directory.
+        read_only: refuse writes.
+    """
+
+    async def get(
+        self,
+        key: str,
+        prototype: BufferPrototype | None = None,
+        byte_range=None,
+    ) -> Buffer | None:
+        if byte_range is not None:
+            return await super().get(key, prototype, byte_range)
+        if not self._is_open:
+            await self._open()
+        try:
+            data = (self.root / key).read_bytes()
+        except (FileNotFoundError, IsADirectoryError, NotADirectoryError):
+            return None
+        return (prototype or default_buffer_prototype()).buffer.from_bytes(data)
+
+    async def set(self, key: str, value: Buffer) -> None:
+        if not self._is_open:
+            await self._open()
+        self._check_writable()
+        if not isinstance(value, Buffer):
+            raise TypeError(f"MapFileStore.set(): value must be a zarr Buffer, got {type(value)}")
+        path = self.root / key
+        path.parent.mkdir(parents=True, exist_ok=True)
+        partial = path.with_name(f"{path.name}.{os.getpid()}.partial")
+        try:
+            with open(partial, "wb") as fh:
+                fh.write(value.as_buffer_like())
+            os.replace(partial, path)
+        except BaseException:
+            partial.unlink(missing_ok=True)
+            raise
