@@ -353,7 +353,7 @@ def per_pose_section(args, targets: list) -> dict[tuple[str, bool], float]:
     """Section 1; returns (model, margin) -> our cost [s/pose]."""
     import cdpm
     from cdpm.errors import CdpmError
-    from cdpm.maps._runner import single_threaded_blas
+    from cdpm.maps._evaluate import single_threaded_blas
 
     n_paper = 4096 if args.quick else 16384
     n_loaded = 2048 if args.quick else 16384  # the speed issue measured 16384

@@ -564,9 +564,8 @@ def poc_neighbourhood(
             tension budget or q.
     """
     from cdpm.equilibrium import EquilibriumWarning
-    from cdpm.maps._evaluate import check_tol, zero_equilibrium
+    from cdpm.maps._evaluate import check_tol, single_threaded_blas, zero_equilibrium
     from cdpm.maps._plan import coordinate_units
-    from cdpm.maps._runner import single_threaded_blas
     from cdpm.paths import suspect_edges
     from cdpm.reach import reach_settings, reach_unit
     from cdpm.robot import CableRobot, load_robot

@@ -691,6 +691,53 @@ def test_worker_processes_give_the_same_map(paper_robot, paper_map, tmp_path):
     _same(ds, paper_map)
 
 
+def test_this_process_computes_while_its_worker_processes_start(paper_map, monkeypatch):
+    """A local worker starts only once the fork server has imported its
+    modules (about a second): the map's own process computes chunks
+    meanwhile instead of waiting in its first submit. Here a pool of
+    threads stands for the processes, and its first submit waits until
+    the map's process has finished two chunks: waiting in it would time out."""
+    import concurrent.futures
+    import threading
+
+    from cdpm.maps import _runner
+
+    released = threading.Event()
+    order: list[str] = []
+
+    class SlowToStart(concurrent.futures.ThreadPoolExecutor):
+        def __init__(self, max_workers, mp_context=None, initializer=None, initargs=()):
+            super().__init__(max_workers)
+            self.first = True
+            self.source, self.plan, self.job = initargs[:3]
+
+        def submit(self, fn, *args):
+            if self.first:
+                self.first = False
+                if not released.wait(timeout=10):
+                    raise TimeoutError("the map's process waited for its workers to start")
+            if fn is _runner._worker_ready:
+                return super().submit(fn)
+            robot = _runner._state(self.source)
+            index = args[0]
+            order.append("worker")
+            return super().submit(
+                lambda: (index, self.job.evaluate(robot, self.plan.natural(index)))
+            )
+
+    def progress(done, total, index):
+        if index >= 0:
+            order.append("here" if len(order) == order.count("here") else "done")
+        if order.count("here") >= 2:
+            released.set()
+
+    monkeypatch.setattr(concurrent.futures, "ProcessPoolExecutor", SlowToStart)
+    monkeypatch.setattr(_runner, "_start_fork_server", lambda ctx: None)  # none here
+    ds = workspace_map(PAPER_SPEC, PAPER_AXES, workers=2, chunk_size=148, progress=progress)
+    _same(ds, paper_map)
+    assert order[:2] == ["here", "here"] and "worker" in order
+
+
 _UNGUARDED_SCRIPT = """
 import sys, numpy as np, cdpm
 axes = {"q1": np.linspace(-3.1, 3.1, 40), "q2": np.linspace(-3.1, 3.1, 40)}

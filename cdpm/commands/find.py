@@ -310,7 +310,7 @@ def draw_poses(box: SearchBox, tries: int, seed: int) -> np.ndarray:
 def _evaluate(robot: CableRobot, natural: np.ndarray, tension, margin: bool, reach) -> dict:
     """The map variables at ``natural`` (N, nv), in batches."""
     from cdpm.maps import evaluate_poses
-    from cdpm.maps._runner import single_threaded_blas
+    from cdpm.maps._evaluate import single_threaded_blas
 
     if natural.shape[0] == 0:
         return {}

@@ -91,6 +91,33 @@ def reuse_freed_memory() -> None:
     mallopt(m_trim_threshold, KEPT_FREE_MEMORY)
 
 
+def single_threaded_blas():
+    """A context limiting BLAS to one thread (threadpoolctl, when installed).
+
+    Maps run a great many tiny linear-algebra calls, which a multithreaded
+    BLAS only slows down (its threads spin between calls, and worker
+    processes already use the cores). SciPy's own BLAS is loaded first so
+    that the limit covers it too. The libraries are looked up once per
+    process (a few milliseconds: every loaded library is inspected).
+    """
+    import contextlib
+
+    global _BLAS_CONTROLLER
+    if _BLAS_CONTROLLER is None:
+        import scipy.linalg  # noqa: F401 - load SciPy's BLAS before limiting it
+
+        try:
+            from threadpoolctl import ThreadpoolController
+        except ImportError:  # pragma: no cover - optional (the maps extra has it)
+            return contextlib.nullcontext()
+        _BLAS_CONTROLLER = ThreadpoolController()
+    return _BLAS_CONTROLLER.limit(limits=1, user_api="blas")
+
+
+#: threadpoolctl's view of this process's BLAS libraries, once looked up
+_BLAS_CONTROLLER = None
+
+
 def resolve_tension(robot: CableRobot, tension: Any) -> str | list[float]:
     """The equilibrium tension setting as plain data for provenance.
 

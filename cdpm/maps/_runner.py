@@ -17,6 +17,7 @@ remote worker need not see the driver's files); both check the spec hash.
 
 from __future__ import annotations
 
+import importlib
 import json
 import multiprocessing
 import os
@@ -31,7 +32,7 @@ from typing import TYPE_CHECKING
 
 from cdpm.compiled import KERNEL_MODULES, load_kernels, notice_on_stderr
 from cdpm.errors import CdpmError, InputError, MissingExtraError
-from cdpm.maps._evaluate import MapJob, zero_equilibrium
+from cdpm.maps._evaluate import MapJob, single_threaded_blas, zero_equilibrium
 from cdpm.numerics import PROGRESS_LOG_INTERVAL
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -142,33 +143,6 @@ def compute_chunk(source: RobotSource, job: MapJob, index: int, natural) -> tupl
 
 #: what a local worker process computes: set once by :func:`_init_process`
 _WORKER: dict = {}
-
-
-def single_threaded_blas():
-    """A context limiting BLAS to one thread (threadpoolctl, when installed).
-
-    Maps run a great many tiny linear-algebra calls, which a multithreaded
-    BLAS only slows down (its threads spin between calls, and worker
-    processes already use the cores). SciPy's own BLAS is loaded first so
-    that the limit covers it too. The libraries are looked up once per
-    process (a few milliseconds: every loaded library is inspected).
-    """
-    import contextlib
-
-    global _BLAS_CONTROLLER
-    if _BLAS_CONTROLLER is None:
-        import scipy.linalg  # noqa: F401 - load SciPy's BLAS before limiting it
-
-        try:
-            from threadpoolctl import ThreadpoolController
-        except ImportError:  # pragma: no cover - optional (the maps extra has it)
-            return contextlib.nullcontext()
-        _BLAS_CONTROLLER = ThreadpoolController()
-    return _BLAS_CONTROLLER.limit(limits=1, user_api="blas")
-
-
-#: threadpoolctl's view of this process's BLAS libraries, once looked up
-_BLAS_CONTROLLER = None
 
 
 def _init_process(
@@ -444,6 +418,12 @@ def run_chunks(
             # compiled (first run after an install) or loaded here, once, and
             # not counted in the progress rate or in every worker at once
             load_kernels(notice_on_stderr if progress is not None else None)
+        if scheduler is None:
+            # what a chunk's evaluation imports on first use (the analysers
+            # and scipy: a quarter of a second) is imported before the first
+            # chunk, as the workers' fork server does: set-up, not a chunk
+            for name in _PRELOAD:
+                importlib.import_module(name)
         if scheduler is not None:
             _run_dask(plan, job, todo, finished, scheduler, source, started)
         elif workers <= 1 or len(todo) == 1:
@@ -517,6 +497,33 @@ def prestart_workers(kernels: bool = True) -> None:
     _start_fork_server(_context(kernels))
 
 
+def _worker_ready() -> None:
+    """A task that does nothing: one per worker process starts it."""
+
+
+def _start_worker_processes(executor, n: int, ready: list) -> threading.Thread:
+    """Start the ``n`` processes of the ProcessPoolExecutor ``executor``
+    from a background thread, which ends once they are started; returns the
+    thread. ``executor.submit`` waits until the fork server, once it has
+    imported its modules (about a second), forks a worker: this process
+    computes chunks meanwhile instead of waiting in its first submit.
+    ``ready`` gets a future per worker, done once it has started (or with
+    the error that stopped it)."""
+    from concurrent.futures import Future
+
+    def start() -> None:
+        try:
+            for _ in range(n):
+                ready.append(executor.submit(_worker_ready))
+        except Exception as exc:  # a broken pool: the map raises it
+            ready.append(Future())
+            ready[-1].set_exception(exc)
+
+    thread = threading.Thread(target=start, name="cdpm-start-workers", daemon=True)
+    thread.start()
+    return thread
+
+
 def _run_processes(
     robot: CableRobot,
     plan,
@@ -551,14 +558,12 @@ def _run_processes(
         initializer=_init_process,
         initargs=(source, plan, job, writer, os.getpid()),
     )
-    # the fork server imports its modules before it forks a worker: start it
-    # in the background (the first submit would wait for it) and compute
-    # chunks here meanwhile
-    starting = _start_fork_server(ctx)
+    ready: list = []
+    starting = _start_worker_processes(executor, n_proc, ready)
     running = set()
     try:
         while pending or running:
-            if starting is None or not starting.is_alive():
+            if not starting.is_alive():
                 while pending and len(running) < 2 * n_proc:
                     running.add(executor.submit(_process_chunk, pending.pop()))
             done, running = wait(running, timeout=0, return_when=FIRST_COMPLETED)
@@ -571,9 +576,13 @@ def _run_processes(
                 done, running = wait(running, return_when=FIRST_COMPLETED)
             for future in done:
                 finished(*future.result())
+        starting.join()
+        for future in ready:  # a worker that could not start fails the map, however small
+            future.result()
     except BaseException as exc:
         for future in running:
             future.cancel()
+        starting.join()  # every process it starts is then listed, and stopped
         # stop the workers now rather than after their current chunk
         for process in list(getattr(executor, "_processes", {}).values()):
             process.terminate()
