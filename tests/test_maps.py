@@ -545,6 +545,7 @@ def test_a_stored_map_reads_back_identical_to_the_map_in_memory(paper_robot, tmp
     stored = workspace_map(paper_robot, axes, workers=1, store=tmp_path / "m.zarr", **kw)
     for ds in (stored, open_map(tmp_path / "m.zarr")):
         xr.testing.assert_identical(ds.load(), memory)
+        assert ds.encoding["source"] == os.path.abspath(tmp_path / "m.zarr")
     if sampled:
         assert set(stored.coords) - set(stored.dims) == {"q1", "q2"}
     # the regions' array is added to the consolidated metadata in place:

@@ -495,6 +495,9 @@ def open_map(path):
             # a store without consolidated metadata reads as well, only slower
             warnings.filterwarnings("ignore", "Failed to open Zarr", RuntimeWarning)
             ds = xr.open_zarr(_file_store(p, read_only=True), chunks=None)
+        # as xarray records a store opened by its path (opened through a
+        # store object, it records nothing)
+        ds.encoding["source"] = os.path.abspath(p)
     except (ValueError, KeyError, TypeError, OSError) as exc:
         # zarr's and json's errors on a damaged store or on a zarr array (not a group)
         reason = (str(exc).splitlines() or [""])[0]
