@@ -208,6 +208,12 @@ NNLS_RES_RTOL = 1e-10
 #: a positive combination holds only when the smallest singular value of its
 #: unit columns exceeds this (and 10 times its relative residual)
 COMBINATION_SV_MIN = 1e-12
+#: ... and when its smallest share w_i |s_i| / sum_k w_k |s_k| exceeds this
+#: times its relative residual over that singular value: the least-norm
+#: correction cancelling the residual changes no share by more than residual /
+#: singular value, so an exact combination with positive weights exists (a
+#: column taking part at round-off level proves nothing)
+COMBINATION_SHARE_MARGIN = 2.0
 #: least-distance programming: a residual component below this puts 0 in the hull
 LDP_ZERO_ATOL = 1e-14
 #: hulls and polar LPs drop vectors shorter than this times the longest

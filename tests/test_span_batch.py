@@ -194,6 +194,40 @@ def test_a_cone_holding_a_line_is_not_read_as_spanning():
     assert result.certificate.kind == "separator" and result.verify()
 
 
+def test_a_combination_with_a_round_off_share_proves_nothing():
+    """(1, 0), (-1, 0), (0, 1) span a half-plane cone, not R^2, yet the
+    weights (1, 1, 1e-17) combine them to a residual of 1e-17 with a
+    well-conditioned basis: only the third column's share, below what the
+    residual's correction may change, shows the certificate proves nothing.
+    The same check accepts a combination where every column takes part."""
+    from cdpm.analysis.span import check_positive_combination
+
+    half = np.array([[1.0, -1.0, 0.0], [0.0, 0.0, 1.0]])
+    assert not check_positive_combination(half, np.array([1.0, 1.0, 1e-17]), 1e-9)
+    full = np.array([[1.0, -1.0, 0.0, 0.0], [0.0, 0.0, 1.0, -1.0]])
+    assert check_positive_combination(full, np.ones(4), 1e-9)
+    assert span_result(half).verdict == Verdict.NO
+
+
+def test_planar_span_steps_past_every_opposite_direction():
+    """Planar directions of which two lie within round-off of the opposite
+    of the first (angles pi and pi + 2.4e-14 from it, as sampled responses
+    of two_link_vertical once did): the certificate's three directions must
+    not include two opposite ones, whose third weight would be at round-off
+    (a share of 1e-14) and fail a re-check on recomputed vectors."""
+    rel = np.array([0.0, 2.5e-14, 1.5, np.pi, np.pi + 2.4e-14, 3.7, 5.0])
+    angles = -3.0 + rel
+    S = np.vstack([np.cos(angles), np.sin(angles)]) * np.array([1, 2, 0.5, 3, 1, 0.7, 1.3])
+    result = span_result(S)
+    assert result.verdict == Verdict.YES and result.verify()
+    cert = result.certificate
+    shares = cert.weights * np.linalg.norm(S[:, cert.indices], axis=0)
+    assert (shares / shares.sum()).min() > 1e-3
+    # the certificate survives vectors recomputed with a relative error of 1e-12
+    noisy = S * (1 + 1e-12 * np.random.default_rng(0).standard_normal(S.shape))
+    assert result.certificate.verify(noisy)
+
+
 def test_planar_gaps_equal_sorting_each_set():
     """The batched largest angular gap (exits) equals the gap of each set's
     kept directions sorted one by one, on sets with zero columns, repeated

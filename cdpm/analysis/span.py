@@ -42,6 +42,7 @@ from cdpm.analysis._common import (
     to_plain,
 )
 from cdpm.numerics import (
+    COMBINATION_SHARE_MARGIN,
     COMBINATION_SV_MIN,
     HULL_ZERO_RTOL,
     LDP_ZERO_ATOL,
@@ -104,8 +105,11 @@ class SpanCertificate:
 
 def check_positive_combination(S: np.ndarray, w: np.ndarray, tol: float) -> bool:
     """True when w > 0, S w = 0 (relative to tol) and rank S = rows of S,
-    with the smallest singular value of the normalised S above the residual
-    (so the positive combination survives the residual's perturbation)."""
+    with the smallest singular value of the normalised S above the residual,
+    and every column's share w_i |s_i| / sum w |s| above
+    COMBINATION_SHARE_MARGIN times the residual over that singular value: an
+    exact combination with positive weights is then within the residual's
+    correction, so S positively spans the space."""
     p = S.shape[0]
     w = np.asarray(w, dtype=float)
     if w.ndim != 1 or w.size != S.shape[1] or np.any(~(w > 0)):
@@ -118,7 +122,10 @@ def check_positive_combination(S: np.ndarray, w: np.ndarray, tol: float) -> bool
     if residual > tol:
         return False
     s = np.linalg.svd(S / norms, compute_uv=False)
-    return bool(s.size >= p and s[p - 1] > max(10 * residual, COMBINATION_SV_MIN))
+    if s.size < p or not s[p - 1] > max(10 * residual, COMBINATION_SV_MIN):
+        return False
+    shares = w * norms / scale
+    return bool(shares.min() > COMBINATION_SHARE_MARGIN * residual / s[p - 1])
 
 
 @dataclass(frozen=True)
@@ -282,8 +289,9 @@ def _span_angular(U: np.ndarray, nz: np.ndarray, tol: float):
     a = 0
     b = int(np.flatnonzero(rel < np.pi - tol)[-1])
     c = b + 1
-    if c < rel.size and rel[c] <= np.pi + tol:
-        # an (almost) opposite direction: step past it
+    while c < rel.size and rel[c] <= np.pi + tol:
+        # (almost) opposite directions: step past them all (the triple would
+        # hold two opposite columns, and the third a weight at round-off)
         c += 1
     if c >= rel.size or not (rel[c] - rel[b] < np.pi and 2 * np.pi - rel[c] < np.pi):
         return _span_general(U, nz, tol)
