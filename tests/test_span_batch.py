@@ -228,6 +228,18 @@ def test_planar_span_steps_past_every_opposite_direction():
     assert result.certificate.verify(noisy)
 
 
+def test_printed_span_weights_are_scaled_to_a_largest_of_one():
+    """Weights on raw columns (wrenches of hundreds of newtons against a
+    few) print as numbers up to hundreds; any positive multiple is the same
+    certificate, so the report shows them with the largest 1."""
+    S = np.array([[1.0, -3.0, 0.0, 0.0], [0.0, 0.0, 250.0, -0.5]])
+    result = span_result(S)
+    text = str(result).split("(largest 1) [")[1].split("]")[0]
+    shown = [float(x) for x in text.split(",")]
+    assert max(shown) == 1.0 and min(shown) > 0
+    assert result.verify()
+
+
 def test_planar_gaps_equal_sorting_each_set():
     """The batched largest angular gap (exits) equals the gap of each set's
     kept directions sorted one by one, on sets with zero columns, repeated

@@ -202,7 +202,12 @@ class SpanResult:
     def __str__(self) -> str:
         c = self.certificate
         if c.kind == "positive-span":
-            cert = f"columns {fmt_array(c.indices)} with weights {fmt_array(c.weights)}"
+            # any positive multiple is a certificate: shown with the largest 1
+            w = np.asarray(c.weights, dtype=float)
+            cert = (
+                f"columns {fmt_array(c.indices)} with weights (largest 1) "
+                f"{fmt_array(w / w.max() if w.size else w)}"
+            )
         else:
             cert = f"separator v = {fmt_array(c.separator)}"
         return (
