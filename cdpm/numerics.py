@@ -214,6 +214,10 @@ COMBINATION_SV_MIN = 1e-12
 #: singular value, so an exact combination with positive weights exists (a
 #: column taking part at round-off level proves nothing)
 COMBINATION_SHARE_MARGIN = 2.0
+#: a positive-span certificate's column whose weight is at most this times
+#: the largest takes part at round-off (NNLS leaves such weights): it is
+#: dropped, and the other weights corrected to cancel the residual
+ROUNDOFF_SHARE_RTOL = 1e-9
 #: least-distance programming: a residual component below this puts 0 in the hull
 LDP_ZERO_ATOL = 1e-14
 #: hulls and polar LPs drop vectors shorter than this times the longest

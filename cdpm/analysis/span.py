@@ -49,6 +49,7 @@ from cdpm.numerics import (
     NNLS_RES_RTOL,
     POLAR_LP_PRIMAL_TOL,
     RECHECK_TOL,
+    ROUNDOFF_SHARE_RTOL,
     SPAN_RANK_RTOL,
     SPAN_TOL,
     ZERO_RTOL,
@@ -240,8 +241,11 @@ def span_core(S: np.ndarray, tol: float = SPAN_TOL, zero_rtol: float = ZERO_RTOL
 
     Returns:
         (yes, method, rank, indices, weights, separator): for YES ``indices``
-        and strictly positive ``weights`` with ``S[:, indices] @ weights = 0``;
-        for NO a unit ``separator`` v with ``v @ S <= tol * |s_i|``.
+        and strictly positive ``weights`` on the normalised columns
+        (``S[:, indices] / |s_i|``) combining them to 0, which pass
+        :func:`check_positive_combination` whenever a certificate of the set
+        can (:func:`_proven`); for NO a unit ``separator`` v with
+        ``v @ S <= tol * |s_i|``.
     """
     p, k = S.shape
     if p == 0:
@@ -256,9 +260,39 @@ def span_core(S: np.ndarray, tol: float = SPAN_TOL, zero_rtol: float = ZERO_RTOL
     if p == 1:
         return _span_sign(S[0], nz, tol)
     U = S[:, nz] / norms[nz]
-    if p == 2:
-        return _span_angular(U, nz, tol)
-    return _span_general(U, nz, tol)
+    out = _span_angular(U, nz, tol) if p == 2 else _span_general(U, nz, tol)
+    if not out[0]:
+        return out
+    found = _proven(S, norms, out[3], out[4], tol)
+    if found is None and out[1] != "lp":
+        lp = _span_lp(U, nz, tol, out[2])
+        found = _proven(S, norms, lp[3], lp[4], tol) if lp[0] else None
+    if found is None:  # pragma: no cover - no certificate re-checks: the search's own
+        return out
+    return (*out[:3], *found, None)
+
+
+def _proven(S, norms, idx, w, tol):
+    """The YES certificate (indices, weights on the normalised columns)
+    made to pass :func:`check_positive_combination`, or None.
+
+    As found, when it passes and no column takes part at round-off (a
+    weight at most ROUNDOFF_SHARE_RTOL of the largest: NNLS leaves some near
+    1e-16, whose check passes or fails with the rounding of the residual).
+    Otherwise such columns are dropped and the others' weights corrected by
+    the least-norm change that cancels the residual; that passes when every
+    corrected weight stays clearly positive."""
+    idx = np.asarray(idx)
+    w = np.asarray(w, dtype=float)
+    V = S[:, idx] / norms[idx]
+    keep = w > ROUNDOFF_SHARE_RTOL * w.max()
+    if keep.all() and check_positive_combination(V, w, tol):
+        return idx, w
+    V, w = V[:, keep], w[keep]
+    w = w - np.linalg.lstsq(V, V @ w, rcond=None)[0]
+    if check_positive_combination(V, w, tol):
+        return idx[keep], w
+    return None
 
 
 def _span_sign(s: np.ndarray, nz: np.ndarray, tol: float):
