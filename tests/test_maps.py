@@ -561,6 +561,36 @@ def test_a_stored_map_reads_back_identical_to_the_map_in_memory(paper_robot, tmp
     assert not [p for p in (tmp_path / "m.zarr").rglob("*") if p.name.endswith(".partial")]
 
 
+def test_regions_write_creates_nothing_on_a_wrong_path_and_consolidates_again(
+    paper_robot, tmp_path
+):
+    """Writing the POC regions into a path that holds no store fails with
+    the fix and leaves no folder behind; into a store with an array that its
+    consolidated metadata does not list (added by hand), the metadata is
+    consolidated again from the files, so open_map sees both."""
+    import warnings
+
+    import zarr
+
+    from cdpm.maps.regions import attach_regions
+
+    axes = {"q1": np.linspace(-3, 3, 9), "q2": np.linspace(0, 1, 7)}
+    store = tmp_path / "m.zarr"
+    ds = workspace_map(paper_robot, axes, workers=1, store=store)
+    typo = tmp_path / "typo.zarr"
+    with pytest.raises(InputError, match="give the store the map was written to"):
+        attach_regions(ds, typo)
+    assert not typo.exists()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # zarr: consolidated metadata not in the v3 spec
+        group = zarr.open_group(str(store), mode="r+", use_consolidated=False)
+        group.create_array("extra", shape=(3,), dtype="f8", dimension_names=["extra_dim"])
+    attach_regions(ds, store)
+    listed = json.loads((store / "zarr.json").read_text())["consolidated_metadata"]["metadata"]
+    assert {"extra", "poc_region", "poc"} <= set(listed)
+    assert "extra" in open_map(store).data_vars
+
+
 def test_store_roundtrip_and_settings_mismatch(paper_robot, paper_map, tmp_path):
     store = tmp_path / "m.zarr"
     ds = workspace_map(paper_robot, PAPER_AXES, workers=1, store=store, chunk_size=300)

@@ -533,6 +533,8 @@ async def _write_variable(path: Path, values) -> None:
 
     store = _file_store(path)
     try:
+        if not (path / "zarr.json").is_file():  # opening would create the folder
+            raise FileNotFoundError(f"no zarr group at {path}")
         group = await open_group(store, mode="r+")
     except (FileNotFoundError, ValueError, KeyError, TypeError, OSError) as exc:
         raise InputError(
@@ -556,7 +558,9 @@ async def _write_variable(path: Path, values) -> None:
     )
     await array.setitem(..., values.values)
     consolidated = group.metadata.consolidated_metadata
-    if consolidated is None:  # a store whose metadata was never consolidated
+    members = {p.name for p in path.iterdir() if (p / "zarr.json").is_file()}
+    if consolidated is None or set(consolidated.metadata) | {values.name} != members:
+        # metadata never consolidated, or arrays added or removed since
         await consolidate_metadata(store)
         return
     # add the array to the consolidated metadata read when the group was
