@@ -160,6 +160,11 @@ def _init_process(
         _WORKER.update(robot=_state(source), plan=plan, job=job, writer=writer)
 
 
+#: longest an interrupted map waits for its worker processes to finish
+#: starting (the fork server's imports take about a second) before it stops
+#: those started [s]
+WORKER_START_SECONDS = 30.0
+
 #: how often a worker checks that the process that started it is alive [s]
 DRIVER_CHECK_SECONDS = 0.5
 
@@ -422,7 +427,7 @@ def run_chunks(
             # what a chunk's evaluation imports on first use (the analysers
             # and scipy: a quarter of a second) is imported before the first
             # chunk, as the workers' fork server does: set-up, not a chunk
-            for name in _PRELOAD:
+            for name in _EVALUATION_MODULES:
                 importlib.import_module(name)
         if scheduler is not None:
             _run_dask(plan, job, todo, finished, scheduler, source, started)
@@ -437,15 +442,20 @@ def run_chunks(
             )
 
 
+#: what evaluating a chunk imports on first use (the analysers and SciPy)
+_EVALUATION_MODULES = [
+    "cdpm.analysis",
+    "cdpm.analysis.batch",
+    "cdpm.equilibrium",
+    "cdpm.linearisation",
+]
+
 #: modules the fork server imports once, so that workers start warm; a name
 #: that is not importable is skipped by the fork server
 _PRELOAD = [
     "cdpm.maps._evaluate",
     "cdpm.maps._store",
-    "cdpm.analysis",
-    "cdpm.analysis.batch",
-    "cdpm.equilibrium",
-    "cdpm.linearisation",
+    *_EVALUATION_MODULES,
     "pinocchio",
     "zarr",
     "cdpm.maps._runner",
@@ -582,7 +592,9 @@ def _run_processes(
     except BaseException as exc:
         for future in running:
             future.cancel()
-        starting.join()  # every process it starts is then listed, and stopped
+        # every process it starts is then listed, and stopped; a fork server
+        # that never answers is not waited for
+        starting.join(timeout=WORKER_START_SECONDS)
         # stop the workers now rather than after their current chunk
         for process in list(getattr(executor, "_processes", {}).values()):
             process.terminate()
