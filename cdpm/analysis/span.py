@@ -376,10 +376,9 @@ def _span_general(U: np.ndarray, nz: np.ndarray, tol: float):
         w = mu.copy()
         w[basis] += 1.0
         idx = np.flatnonzero(w > 0)
-        sv = svdvals(U[:, idx])
-        if sv.size >= p and sv[p - 1] > SPAN_RANK_RTOL * sv[0]:
-            return True, "nnls", p, nz[idx], w[idx], None
-        return _span_lp(U, nz, tol, rank)  # pragma: no cover - the basis has rank p
+        # rank p: the basis is in it; span_core re-checks the certificate
+        # (rank included) and falls back to the LP when it does not hold
+        return True, "nnls", p, nz[idx], w[idx], None
     # KKT: U^T (U mu - b) >= 0, so v = -(U mu - b) separates
     r = U @ mu - b
     v = -r / np.linalg.norm(r)
