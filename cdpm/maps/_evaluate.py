@@ -21,6 +21,7 @@ Degenerate poses never raise: they get a ``status`` code and the verdicts
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -67,16 +68,12 @@ EVALUATE_BLOCK = 4096
 HEAP_BLOCK_MAX = 32 * 2**20
 KEPT_FREE_MEMORY = 64 * 2**20
 
-_MALLOC_SET: list[bool] = []
 
-
+@functools.cache
 def reuse_freed_memory() -> None:
     """Set glibc's malloc thresholds to HEAP_BLOCK_MAX and KEPT_FREE_MEMORY,
     once per process (a process-wide setting); nothing where the C library
     is not glibc (macOS, musl), whose allocators behave otherwise."""
-    if _MALLOC_SET:
-        return
-    _MALLOC_SET.append(True)
     import ctypes
     import platform
 
@@ -102,20 +99,23 @@ def single_threaded_blas():
     """
     import contextlib
 
-    global _BLAS_CONTROLLER
-    if _BLAS_CONTROLLER is None:
-        import scipy.linalg  # noqa: F401 - load SciPy's BLAS before limiting it
-
-        try:
-            from threadpoolctl import ThreadpoolController
-        except ImportError:  # pragma: no cover - optional (the maps extra has it)
-            return contextlib.nullcontext()
-        _BLAS_CONTROLLER = ThreadpoolController()
-    return _BLAS_CONTROLLER.limit(limits=1, user_api="blas")
+    controller = _blas_controller()
+    if controller is None:  # pragma: no cover - optional (the maps extra has it)
+        return contextlib.nullcontext()
+    return controller.limit(limits=1, user_api="blas")
 
 
-#: threadpoolctl's view of this process's BLAS libraries, once looked up
-_BLAS_CONTROLLER = None
+@functools.cache
+def _blas_controller():
+    """threadpoolctl's view of this process's BLAS libraries, looked up
+    once (None without threadpoolctl)."""
+    import scipy.linalg  # noqa: F401 - load SciPy's BLAS before limiting it
+
+    try:
+        from threadpoolctl import ThreadpoolController
+    except ImportError:  # pragma: no cover - optional (the maps extra has it)
+        return None
+    return ThreadpoolController()
 
 
 def resolve_tension(robot: CableRobot, tension: Any) -> str | list[float]:
