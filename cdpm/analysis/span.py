@@ -8,7 +8,9 @@ Decision paths (reported in ``SpanResult.method``):
 
 - ``"sign"`` (p = 1): a positive and a negative entry;
 - ``"angular"`` (p = 2): the largest angular gap between consecutive
-  directions is below pi;
+  directions is below pi; the certificate is three directions whose cross
+  products are the weights (those through the first direction, else the
+  three that pass the re-check by the widest margin);
 - ``"nnls"`` (p >= 3): rank p and ``-S 1`` in cone(S), one non-negative
   least-squares solve (``-S 1 = S mu``, mu >= 0 gives w = 1 + mu > 0; the
   NNLS residual otherwise gives a separating vector);
@@ -67,7 +69,9 @@ class SpanCertificate:
         indices: for YES, the columns used, shape (q,).
         weights: for YES, strictly positive weights w with
             ``vectors[:, indices] @ w = 0``, shape (q,).
-        separator: for NO, a unit vector v with ``v @ s_i <= 0`` for all i, (p,).
+        separator: for NO, a unit vector v with ``v @ s_i <= 0`` for every
+            column not shorter than ``ZERO_RTOL`` times the longest (shorter
+            ones count as zero, as in the decision), (p,).
     """
 
     kind: str
@@ -90,7 +94,10 @@ class SpanCertificate:
             if nv == 0:
                 return False
             norms = np.linalg.norm(S, axis=0)
-            return bool(np.all(v @ S <= tol * nv * norms + 1e-300))
+            if norms.size == 0:
+                return True
+            counted = norms > ZERO_RTOL * norms.max()
+            return bool(np.all((v @ S <= tol * nv * norms + 1e-300)[counted]))
         return False
 
     def as_dict(self) -> dict:
@@ -207,7 +214,7 @@ class SpanResult:
             w = np.asarray(c.weights, dtype=float)
             cert = (
                 f"columns {fmt_array(c.indices)} with weights (largest 1) "
-                f"{fmt_array(w / w.max() if w.size else w)}"
+                f"{fmt_array(w / w.max() if w.size else w, suppress_small=False)}"
             )
         else:
             cert = f"separator v = {fmt_array(c.separator)}"
@@ -264,6 +271,11 @@ def span_core(S: np.ndarray, tol: float = SPAN_TOL, zero_rtol: float = ZERO_RTOL
     if not out[0]:
         return out
     found = _proven(S, norms, out[3], out[4], tol)
+    if found is None and p == 2:
+        deep = _deepest_triple(U, nz)
+        found = None if deep is None else _proven(S, norms, deep[3], deep[4], tol)
+        if found is not None:
+            out = deep
     if found is None and out[1] != "lp":
         lp = _span_lp(U, nz, tol, out[2])
         found = _proven(S, norms, lp[3], lp[4], tol) if lp[0] else None
@@ -333,15 +345,53 @@ def _span_angular(U: np.ndarray, nz: np.ndarray, tol: float):
         # hold two opposite columns, and the third a weight at round-off)
         c += 1
     if c >= rel.size or not (rel[c] - rel[b] < np.pi and 2 * np.pi - rel[c] < np.pi):
-        return _span_general(U, nz, tol)
+        return _deepest_triple(U, nz) or _span_general(U, nz, tol)
     i, j, m = order[a], order[b], order[c]
     sa, sb, sc = U[:, i], U[:, j], U[:, m]
     w = np.array([_cross(sb, sc), _cross(sc, sa), _cross(sa, sb)])
     if np.any(w <= 0):
-        return _span_general(U, nz, tol)
+        return _deepest_triple(U, nz) or _span_general(U, nz, tol)
     idx = nz[[i, j, m]]
     # weights refer to the raw columns: divide by their norms
     return True, "angular", 2, idx, w, None
+
+
+def _deepest_triple(U: np.ndarray, nz: np.ndarray):
+    """The YES certificate of planar unit columns U (2, k) whose every
+    largest angular gap is below pi, from the three columns that pass
+    :func:`check_positive_combination` by the widest margin (the smallest
+    share times the smallest singular value), or None when no three have
+    positive weights.
+
+    For each column a: b the furthest counter-clockwise from it by less
+    than pi, c the nearest by more than pi; consecutive around the circle
+    apart from columns opposite a, so c - b is one gap below pi and the
+    cross products b x c, c x a, a x b are positive weights. The first
+    column's triple can hold weights of about the tolerance, all of them
+    (directions within the tolerance of a half-plane, a second pair within
+    it of opposite), which round-off then decides; another column's triple
+    has weights of order one but for that of the near-opposite pair.
+    O(k^2); only when the first triple proves nothing."""
+    theta = np.arctan2(U[1], U[0])
+    rel = np.mod(theta[None, :] - theta[:, None], 2 * np.pi)  # [a, j]: j from a
+    b = np.where((rel > 0) & (rel < np.pi), rel, -np.inf).argmax(axis=1)
+    c = np.where(rel > np.pi, rel, np.inf).argmin(axis=1)
+    a = np.arange(theta.size)
+    sa, sb, sc = U[:, a], U[:, b], U[:, c]
+    w = np.stack([_cross(sb, sc), _cross(sc, sa), _cross(sa, sb)])  # (3, k)
+    # det of the Gram matrix of three planar columns: the sum of the squared
+    # cross products (Cauchy-Binet), exact where the smaller eigenvalue
+    # computed directly cancels; its trace is 3
+    det = (w * w).sum(axis=0)
+    big = 0.5 * (3.0 + np.sqrt(np.maximum(9.0 - 4.0 * det, 0.0)))
+    positive = w.min(axis=0) > 0
+    depth = np.where(positive, w.min(axis=0) / np.where(positive, w.sum(axis=0), 1.0), -1.0)
+    depth = depth * np.sqrt(det / big)
+    best = int(np.argmax(depth))
+    if not depth[best] > 0:
+        return None
+    idx = nz[[a[best], b[best], c[best]]]
+    return True, "angular", 2, idx, w[:, best], None
 
 
 def _span_general(U: np.ndarray, nz: np.ndarray, tol: float):
