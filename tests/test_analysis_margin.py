@@ -12,6 +12,7 @@ from scipy.spatial import ConvexHull
 
 import cdpm
 from cdpm.analysis import Verdict, positive_output_controllability
+from cdpm.analysis._span_hull import min_norm_separator
 from cdpm.analysis.margin import (
     margin_horizon,
     margin_horizons,
@@ -19,7 +20,6 @@ from cdpm.analysis.margin import (
     signed_inradius,
 )
 from cdpm.analysis.poc import poc_margins
-from cdpm.analysis.span import min_norm_separator
 from tests.conftest import MODELS
 from tests.test_analysis_properties import random_system
 

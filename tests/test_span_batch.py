@@ -257,6 +257,97 @@ def test_a_separator_ignores_columns_counted_as_zero():
     assert not result.certificate.verify(np.array([[-2.11, -1.73, 1e-6], [0.0, 0.0, 0.0]]))
 
 
+def test_a_yes_is_checked_as_its_certificate_holds_it():
+    """Directions at 2e-9, pi - 1.2e-16, -pi + 1.7e-9 and 0: the first
+    three directions' combination passes the check on unit columns, by
+    rounding, and failed it on the raw columns, as ``verify`` checks it;
+    both forms are now required, so another triple is certified."""
+    S = np.array(
+        [
+            [6.995431930052305, -6.739757415519562, -7.604797786151814, 4.67886213170187],
+            [1.3990863860104612e-08, 8.253822345945669e-16, -1.261735861810469e-08, 0.0],
+        ]
+    )
+    result = span_result(S)
+    assert result.verdict == Verdict.YES and result.verify()
+
+
+def test_an_lp_separator_is_a_vector():
+    """A NO decided by the LP with 0 outside the hull carries the min-norm
+    separator itself (it carried the pair (separator, distance), which its
+    re-check and its report could not read)."""
+    S = np.array(
+        [
+            [1.2001281743116416, -1.067637858285935, 0.22911396936791537, -0.1503612181171908],
+            [-0.1657484543971446, 0.2584965730824791, -1.4543190842451945, -2.1429467214693876],
+            [-3.8895788e-07, -2.756455910985725e-08, 2.5969585743923485e-07, -1.33014471648e-06],
+        ]
+    )
+    result = span_result(S)
+    assert result.verdict == Verdict.NO and result.method == "lp"
+    assert np.shape(result.certificate.separator) == (3,) and result.verify()
+    assert "separator v = [" in str(result)
+
+
+def test_a_flat_set_gets_its_separator_from_whitened_vectors():
+    """Four vectors of R^3 whose third components are about 1e-6: the
+    LP, whose tolerances are absolute, leans NO and its duals give no
+    separator (it fell back to (1, 0, 0), which separates nothing). The same
+    decision on the vectors mapped to orthonormal rows gives one, mapped
+    back, that re-checks."""
+    S = np.array(
+        [
+            [0.7640711315702329, 0.022184438944755146, 0.9495765013847958, -0.11060097939062204],
+            [0.450189489425583, 0.8224678316922109, -1.0691004262651642, -2.479738326095894],
+            [1.072310554047963e-06, -4.233260573318176e-07, -1.919270166343649e-06, 1.1339604e-06],
+        ]
+    )
+    result = span_result(S)
+    assert result.verdict == Verdict.NO and result.verify()
+    assert positively_spanning(S[None]).tolist() == [NO]
+
+
+def test_a_set_whose_certificate_does_not_recheck_is_marginal():
+    """A vector, nearly its opposite (1e-9 apart) and two more in R^3:
+    within the tolerance of a set that does not positively span. The
+    decision leans YES, but no certificate re-checks (a weight of 7e-10
+    beside 1), so the verdict is MARGINAL, in the per-pose result and in the
+    batched codes alike."""
+    from cdpm.verdicts import MARGINAL
+
+    S = np.array(
+        [
+            [0.2495500365265393, 0.26306382896038194, 0.3438786681269149, -0.34480455273764865],
+            [-1.3503362372910528, 0.9884655507143882, 1.0794038933968524, 1.8657664329900074],
+            [0.7940250764183495, 0.14265137117677423, -2.110889608745078, -1.0971084773465563],
+        ]
+    )
+    result = span_result(S)
+    assert result.verdict == Verdict.MARGINAL and not result.verify()
+    assert not result and "leant YES" in result.reason
+    assert positively_spanning(S[None]).tolist() == [MARGINAL]
+
+
+@pytest.mark.parametrize("scale", [1e-300, 1e-200, 1e-170, 1e170, 1e300])
+def test_span_decisions_are_scale_invariant(scale):
+    """Vectors of 1e-300 or 1e300 (whose squares under- or overflow) get
+    the verdict, a certificate that re-checks and the margin times the scale
+    of the same vectors of order one, without a numpy warning (+-x, +-y at
+    1e-200 read as all zero, NO)."""
+    import warnings
+
+    rng = np.random.default_rng(3)
+    sets = [np.array([[1.0, -1, 0, 0], [0, 0, 1, -1]]), np.array([[1.0, -1, 0.5], [0, 0.1, 1]])]
+    sets += [rng.normal(size=(3, 7)), rng.normal(size=(4, 9))]
+    for S in sets:
+        plain = span_result(S)
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            scaled = span_result(S * scale)
+            assert scaled.verdict == plain.verdict and scaled.verify()
+            assert scaled.margin == pytest.approx(plain.margin * scale, rel=1e-9)
+
+
 def test_near_boundary_planar_certificates_recheck():
     """Crafted planar sets near the boundary (directions within 1e-16 to
     1e-3 rad of a first one, of its opposite or of a right angle from it,

@@ -495,3 +495,15 @@ def spectral_abscissae(A: np.ndarray) -> np.ndarray:
     if not undamped.all():
         out[~undamped] = np.linalg.eigvals(A[~undamped]).real.max(axis=1)
     return out
+
+
+def in_norm_range(S: np.ndarray) -> tuple[np.ndarray, float]:
+    """``(S * c, c)`` with ``c`` a power of two that brings the largest
+    entry of the array ``S`` near 1 when it is so small or so large that squaring
+    it (in a column norm) under- or overflows; otherwise ``(S, 1.0)``.
+    A power of two scales exactly, so directions and ratios are unchanged."""
+    big = float(np.max(np.abs(S))) if S.size else 0.0
+    if big == 0.0 or 1e-100 < big < 1e100 or not math.isfinite(big):
+        return S, 1.0
+    c = math.ldexp(1.0, -math.frexp(big)[1])
+    return S * c, c

@@ -13,7 +13,8 @@ import numpy as np
 from cdpm.analysis import _modes
 from cdpm.analysis._common import Verdict, scaled_system
 from cdpm.analysis._reduced import Reduced, marginal
-from cdpm.analysis.span import min_norm_separator, span_core
+from cdpm.analysis._span_hull import min_norm_separator
+from cdpm.analysis.span import span_core
 from cdpm.numerics import LOG_DYNAMIC_RANGE, MODAL_LOG_GROWTH, SPAN_TOL, SPREAD_MIN, ZERO_RTOL
 
 

@@ -87,9 +87,10 @@ def positively_spanning(vectors: np.ndarray, tol: float = SPAN_TOL) -> np.ndarra
     the analyser's :func:`~cdpm.analysis.positively_spans`.
 
     Returns:
-        int8 codes (k,): YES or NO.
+        int8 codes (k,): YES, NO, or MARGINAL where the analyser's
+        certificate does not re-check.
     """
-    from cdpm.analysis.span import span_core
+    from cdpm.analysis.span import span_result
 
     if vectors.shape[1] <= 2:
         band = (tol - WRENCH_DEFER_BAND, tol + WRENCH_DEFER_BAND)
@@ -100,7 +101,7 @@ def positively_spanning(vectors: np.ndarray, tol: float = SPAN_TOL) -> np.ndarra
         codes = span_certificates(vectors, RANK_RATIO, 1.0 / RANK_RATIO, tol)
         todo = codes < 0
     for i in np.flatnonzero(todo):
-        codes[i] = YES if span_core(vectors[i], tol)[0] else NO
+        codes[i] = verdict_code(span_result(vectors[i], tol).verdict)
     return codes
 
 

@@ -19,7 +19,7 @@ Everything here is a continuous function of (A, B, C, s, W):
 - the signed inradius of the sampled hull is computed exactly for p <= 3
   (planar hulls by a quickhull over many clouds at once, spatial hulls by
   Qhull) and bracketed by
-  2p small LPs for p >= 4 (:func:`cdpm.analysis.span.cross_polytope_radius`).
+  2p small LPs for p >= 4 (:func:`cdpm.analysis._span_hull.cross_polytope_radius`).
 
 The sampled hull lies inside ``H_T`` (its points are curve points), so the
 sampled value is a lower bound of mu_T; ``H_T`` lies within ``lip h / 2``
@@ -35,7 +35,7 @@ import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 
 from cdpm.analysis._common import expm_batch
-from cdpm.analysis.span import cross_polytope_radius, min_norm_separator
+from cdpm.analysis._span_hull import cross_polytope_radius, min_norm_separator
 from cdpm.numerics import (
     GRID_POINTS,
     GRID_POINTS_HIGH,

@@ -17,6 +17,13 @@ Decision paths (reported in ``SpanResult.method``):
 - ``"lp"``: a HiGHS LP, only when the NNLS answer does not re-check;
 - ``"rank"``: rank < p (a vector orthogonal to all of S separates).
 
+Every certificate is re-checked as :meth:`SpanCertificate.verify` checks
+it. When the LP's does not re-check, the same decision on the columns
+mapped to orthonormal rows (an invertible map, under which positive
+spanning and its certificates are invariant) supplies one; when none
+does, :func:`span_result` reports MARGINAL: the set is within the
+solvers' tolerances of the boundary.
+
 Columns are normalised before deciding, and columns shorter than 1e-11 times
 the longest are treated as zero, so the verdict is invariant to positive
 scaling of each vector and ``tol`` is an angle-like tolerance.
@@ -25,12 +32,10 @@ scaling of each vector and ``tol`` is an angle-like tolerance.
 from __future__ import annotations
 
 import functools
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.optimize import linprog, nnls
-from scipy.spatial import ConvexHull, QhullError
 
 from cdpm.analysis._common import (
     Verdict,
@@ -38,18 +43,17 @@ from cdpm.analysis._common import (
     eigh,
     fmt_array,
     html_table,
+    in_norm_range,
     numerical_rank,
     qr_pivots,
     svdvals,
     to_plain,
 )
+from cdpm.analysis._span_hull import min_norm_separator, span_margin_bracket
 from cdpm.numerics import (
     COMBINATION_SHARE_MARGIN,
     COMBINATION_SV_MIN,
-    HULL_ZERO_RTOL,
-    LDP_ZERO_ATOL,
     NNLS_RES_RTOL,
-    POLAR_LP_PRIMAL_TOL,
     RECHECK_TOL,
     ROUNDOFF_SHARE_RTOL,
     SPAN_RANK_RTOL,
@@ -82,6 +86,9 @@ class SpanCertificate:
     def verify(self, vectors, tol: float = RECHECK_TOL) -> bool:
         """Re-check against ``vectors`` (p, k) by direct linear algebra."""
         S = np.asarray(vectors, dtype=float)
+        if not np.all(np.isfinite(S)):
+            return False
+        S = in_norm_range(S)[0]
         p = S.shape[0]
         if self.kind == "positive-span":
             if p == 0:
@@ -122,6 +129,9 @@ def check_positive_combination(S: np.ndarray, w: np.ndarray, tol: float) -> bool
     w = np.asarray(w, dtype=float)
     if w.ndim != 1 or w.size != S.shape[1] or np.any(~(w > 0)):
         return False
+    # both scale out of every test: brought into range where squares would
+    # under- or overflow
+    S, w = in_norm_range(S)[0], in_norm_range(w)[0]
     norms = np.linalg.norm(S, axis=0)
     if np.any(norms == 0):
         return False
@@ -142,7 +152,11 @@ class SpanResult:
 
     Attributes:
         verdict: ``Verdict.YES`` or ``Verdict.NO`` (boundary cases within
-            ``tol`` are NO: the conic hull is then a closed half-space or less).
+            ``tol`` are NO: the conic hull is then a closed half-space or
+            less); ``Verdict.MARGINAL`` when the decision's certificate does
+            not re-check (vectors within the solvers' own tolerances of the
+            boundary: nothing is proven, and ``certificate`` holds the
+            candidate that failed).
         p: dimension of the space.
         rank: numerical rank of the (normalised) vectors.
         method: which path decided (see module docstring).
@@ -181,6 +195,12 @@ class SpanResult:
 
     @property
     def reason(self) -> str:
+        if self.verdict is Verdict.MARGINAL:
+            leaning = "YES" if self.certificate.kind == "positive-span" else "NO"
+            return (
+                f"the decision leant {leaning}, but its certificate does not re-check: the "
+                "vectors are within the solvers' tolerances of the boundary (a closed half-space)"
+            )
         if self.verdict is Verdict.YES:
             return (
                 f"{len(self.certificate.indices)} of the {self.vectors.shape[1]} vectors "
@@ -257,6 +277,7 @@ def span_core(S: np.ndarray, tol: float = SPAN_TOL, zero_rtol: float = ZERO_RTOL
     p, k = S.shape
     if p == 0:
         return True, "trivial", 0, np.zeros(0, int), np.zeros(0), None
+    S = in_norm_range(S)[0]
     norms = np.linalg.norm(S, axis=0) if p > 1 else np.abs(S[0])
     big = norms.max() if k else 0.0
     nz = np.flatnonzero(norms > zero_rtol * big) if big > 0 else np.zeros(0, int)
@@ -269,19 +290,57 @@ def span_core(S: np.ndarray, tol: float = SPAN_TOL, zero_rtol: float = ZERO_RTOL
     U = S[:, nz] / norms[nz]
     out = _span_angular(U, nz, tol) if p == 2 else _span_general(U, nz, tol)
     if not out[0]:
-        return out
+        # only the LP's separators are not checked where they are found
+        if out[1] != "lp" or np.max(out[5] @ U) <= RECHECK_TOL:
+            return out
+        v = _whitened(U, nz, tol, False)
+        return out if v is None else (*out[:5], v)
     found = _proven(S, norms, out[3], out[4], tol)
     if found is None and p == 2:
         deep = _deepest_triple(U, nz)
-        found = None if deep is None else _proven(S, norms, deep[3], deep[4], tol)
+        same = deep is not None and np.array_equal(deep[3], out[3])
+        found = None if deep is None or same else _proven(S, norms, deep[3], deep[4], tol)
         if found is not None:
             out = deep
     if found is None and out[1] != "lp":
         lp = _span_lp(U, nz, tol, out[2])
         found = _proven(S, norms, lp[3], lp[4], tol) if lp[0] else None
-    if found is None:  # pragma: no cover - no certificate re-checks: the search's own
+    if found is None and out[2] == p:
+        cert = _whitened(U, nz, tol, True)
+        found = None if cert is None else _proven(S, norms, *cert, tol)
+    if found is None:  # no certificate re-checks (span_result reads it as MARGINAL)
         return out
     return (*out[:3], *found, None)
+
+
+def _whitened(U: np.ndarray, nz: np.ndarray, tol: float, yes: bool):
+    """A certificate of the answer ``yes`` for the unit columns U (p, k),
+    found on the whitened columns T U (T = S^-1 W^T from the SVD
+    U = W S Z^T: rows orthonormal), or None.
+
+    Positive spanning is invariant under an invertible linear map, and
+    so are its certificates: weights w with T U w = 0 have U w = 0, and
+    v' with v' . T u_i <= 0 gives v = T^T v' with v . u_i <= 0. A set
+    flat in one direction (a component of 1e-6 in every column) has rows
+    of very different size, which the LP's absolute tolerances do not
+    resolve; whitened, its rows are alike. Returns, for YES, (indices,
+    weights on the unit columns ``U[:, indices]``), for NO a unit v with
+    ``v @ U <= RECHECK_TOL`` (what the certificate's re-check allows)."""
+    W, sv, _ = np.linalg.svd(U, full_matrices=False)
+    if sv.size < U.shape[0] or not sv[-1] > 0:
+        return None
+    T = W.T / sv[:, None]
+    V = T @ U
+    size = np.linalg.norm(V, axis=0)
+    got = _span_general(V / size, np.arange(U.shape[1]), tol)
+    if got[0] != yes:
+        return None
+    if yes:
+        # sum w_i T u_i / |T u_i| = 0
+        return nz[got[3]], got[4] / size[got[3]]
+    v = T.T @ got[5]
+    v = v / np.linalg.norm(v)
+    return v if np.max(v @ U) <= RECHECK_TOL else None
 
 
 def _proven(S, norms, idx, w, tol):
@@ -298,13 +357,24 @@ def _proven(S, norms, idx, w, tol):
     w = np.asarray(w, dtype=float)
     V = S[:, idx] / norms[idx]
     keep = w > ROUNDOFF_SHARE_RTOL * w.max()
-    if keep.all() and check_positive_combination(V, w, tol):
+    if keep.all() and _certifies(S, norms, idx, V, w, tol):
         return idx, w
-    V, w = V[:, keep], w[keep]
+    idx, V, w = idx[keep], V[:, keep], w[keep]
     w = w - np.linalg.lstsq(V, V @ w, rcond=None)[0]
-    if check_positive_combination(V, w, tol):
-        return idx[keep], w
+    if _certifies(S, norms, idx, V, w, tol):
+        return idx, w
     return None
+
+
+def _certifies(S, norms, idx, V, w, tol) -> bool:
+    """Weights ``w`` on the unit columns ``V = S[:, idx] / norms[idx]``
+    pass :func:`check_positive_combination` there (at ``tol``) and as the
+    certificate of :func:`span_result` holds them, on the raw columns (at
+    RECHECK_TOL, as :meth:`SpanCertificate.verify` checks): the two differ
+    by rounding, which decides a combination at the edge of the check."""
+    return check_positive_combination(V, w, tol) and check_positive_combination(
+        S[:, idx], w / norms[idx], RECHECK_TOL
+    )
 
 
 def _span_sign(s: np.ndarray, nz: np.ndarray, tol: float):
@@ -470,7 +540,8 @@ def _span_lp(U: np.ndarray, nz: np.ndarray, tol: float, rank: int):
     # separator: the min-norm point of conv(U) (LDP via NNLS); when 0 is in
     # the hull (the cone holds a line without being R^p) the LP's duals y
     # of U w = 0 at t* = 0 have U^T y <= 0: every column in a closed half-space
-    v = min_norm_separator(U)
+    found = min_norm_separator(U)
+    v = None if found is None else found[0]
     if v is None and res.status == 0:
         y = -np.asarray(res.eqlin.marginals[:p], dtype=float)
         for cand in (y, -y):
@@ -482,158 +553,6 @@ def _span_lp(U: np.ndarray, nz: np.ndarray, tol: float, rank: int):
         v = np.zeros(p)
         v[0] = 1.0
     return False, "lp", rank, None, None, v
-
-
-def min_norm_separator(S: np.ndarray):
-    """Unit v maximising min_i (-v^T s_i), i.e. -(the min-norm point of
-    conv S) normalised (least-distance programming by NNLS, Lawson-Hanson
-    ch. 23). Returns (v, dist) with dist = distance from 0 to conv S, or
-    None if 0 is in conv S."""
-    p, k = S.shape
-    E = np.vstack([S, np.ones((1, k))])
-    f = np.zeros(p + 1)
-    f[p] = 1.0
-    u, _ = nnls(E, f, maxiter=50 * k + 100)
-    r = E @ u - f
-    if abs(r[p]) < LDP_ZERO_ATOL or np.linalg.norm(r[:p]) < LDP_ZERO_ATOL:
-        return None
-    x = -r[:p] / r[p]
-    nx = float(np.linalg.norm(x))
-    return -x / nx, 1.0 / nx
-
-
-def span_margin(S: np.ndarray, yes: bool) -> float:
-    """The margin index of :class:`SpanResult` (lower end of the bracket)."""
-    return span_margin_bracket(S, yes)[0]
-
-
-def span_margin_bracket(
-    S: np.ndarray, yes: bool, S_sym: np.ndarray | None = None
-) -> tuple[float, float]:
-    """(lower, upper) bounds of ``mu = min_{|v|=1} max_i v^T s_i``.
-
-    ``S_sym`` (p, k2), optional: vectors that count with both signs (free
-    inputs), given once; the LPs then use two-sided constraints instead of
-    duplicated opposite ones (which make the active-set solver cycle).
-
-    NO: ``-dist(0, conv S)`` exactly (one NNLS). YES with p <= 3: exactly
-    mu, the smallest facet offset of conv(S) (a convex hull in the plane or
-    in space costs O(k log k)). YES with p >= 4: ``(r1 / sqrt(p), hi)`` with
-    ``r1`` the cross-polytope radius (:func:`cross_polytope_radius`) and
-    ``hi <= r1`` the best support value ``max_i v^T s_i / |v|`` among the LP
-    solutions (a hull in R^p has up to k^(p/2) facets: never built).
-    """
-    p = S.shape[0]
-    if S_sym is None:
-        S_sym = np.zeros((p, 0))
-    full = np.hstack([S, S_sym, -S_sym]) if S_sym.shape[1] else S
-    k = full.shape[1]
-    if p == 0:
-        return math.inf, math.inf
-    if k == 0:
-        return 0.0, 0.0
-    if p == 1:
-        mu = float(min(full.max(), -full.min()))
-        return mu, mu
-    if not yes:
-        sep = min_norm_separator(full)
-        mu = 0.0 if sep is None else -float(sep[1])
-        return mu, mu
-    if p <= 3:
-        norms = np.linalg.norm(full, axis=0)
-        try:
-            hull = ConvexHull(full[:, norms > HULL_ZERO_RTOL * norms.max()].T)
-            mu = float(max(np.min(-hull.equations[:, -1]), 0.0))
-            return mu, mu
-        except QhullError:  # degenerate input: the LP bracket below
-            pass
-    r1, hi = cross_polytope_radius(S, S_sym)
-    return r1 / math.sqrt(p), hi
-
-
-def cross_polytope_radius(S: np.ndarray, S_sym: np.ndarray | None = None) -> tuple[float, float]:
-    """Largest r with ``{y : |y|_1 <= r}`` inside conv(S), and an upper bound
-    of the inradius ``mu``.
-
-    Polar duality: the cross-polytope of radius r lies in conv(S) iff the
-    polar ``P = {v : S^T v <= 1}`` lies in the cube ``|v|_inf <= 1/r``, so
-    ``r = 1 / max_{v in P} |v|_inf``: 2p LPs in p variables with k
-    constraints (DAQP, dual active set; HiGHS if it fails). Every LP solution
-    v also gives ``mu <= max_i v^T s_i / |v|``. Since ``r e_i`` lies in
-    conv(S), ``mu <= r``, and the Euclidean ball of radius ``r / sqrt(p)``
-    lies in the cross-polytope, so ``r / sqrt(p) <= mu``.
-
-    ``S_sym`` columns count with both signs (``|s^T v| <= 1``).
-
-    Returns:
-        (r, hi); (0, 0) when 0 is not interior to conv(S).
-    """
-    p = S.shape[0]
-    if S_sym is None:
-        S_sym = np.zeros((p, 0))
-    both = np.hstack([S, S_sym])
-    norms = np.linalg.norm(both, axis=0)
-    scale = float(norms.max()) if norms.size else 0.0
-    if scale == 0:
-        return 0.0, 0.0
-    # zero vectors add only 0 <= 1 constraints
-    keep = norms > HULL_ZERO_RTOL * scale
-    G = np.ascontiguousarray(both[:, keep].T / scale)  # (k, p)
-    lower = np.where(np.arange(both.shape[1]) >= S.shape[1], -1.0, -1e30)[keep]
-    vmax, hi = 0.0, math.inf
-    for i in range(p):
-        for sign in (1.0, -1.0):
-            x = _polar_lp(G, lower, i, sign)
-            if x is None:
-                return 0.0, 0.0
-            val = sign * x[i]
-            if not val > 0:
-                return 0.0, 0.0
-            # the solver meets S^T x <= 1 to ~1e-9: rescale to feasible first
-            gx = G @ x
-            support = float(
-                max(np.max(gx), np.max(np.where(lower > -1.0 - POLAR_LP_PRIMAL_TOL, -gx, -np.inf)))
-            )
-            x = x / max(support, 1.0)
-            vmax = max(vmax, sign * x[i])
-            hi = min(hi, support / float(np.linalg.norm(x)) / max(support, 1.0))
-    r = 1.0 / vmax
-    return r * scale, min(hi, r) * scale
-
-
-def _polar_lp(G: np.ndarray, lower: np.ndarray, i: int, sign: float):
-    """argmax sign * v_i subject to lower <= G v <= 1 (G (k, p)), or None if
-    unbounded (``lower`` is -1 on two-sided rows, -1e30 elsewhere)."""
-    k, p = G.shape
-    f = np.zeros(p)
-    f[i] = -sign
-    try:
-        import daqp
-    except ImportError:  # pragma: no cover - daqp is a core dependency
-        daqp = None
-    if daqp is not None:
-        H, lo, up = np.zeros((p, p)), lower, np.ones(k)
-        # default proximal step first; a larger one when degenerate
-        # (duplicate or near-parallel constraints) makes it cycle
-        for eps in (-1e-6, 1e-3):
-            x, _, flag, _ = daqp.solve(
-                H, f, G, up, lo, primal_tol=POLAR_LP_PRIMAL_TOL, fval_bound=1e12, eps_prox=eps
-            )
-            if flag >= 1 and np.all(np.isfinite(x)):
-                return np.asarray(x, dtype=float)
-            if flag in (-1, -3):
-                # v = 0 is feasible, so this reports a (nearly) unbounded
-                # polar; near-degenerate hulls are told apart by HiGHS
-                break
-    two = lower > -1e29
-    res = linprog(
-        f,
-        A_ub=np.vstack([G, -G[two]]),
-        b_ub=np.ones(k + int(two.sum())),
-        bounds=[(None, None)] * p,
-        method="highs",
-    )
-    return res.x if res.status == 0 else None
 
 
 # --------------------------------------------------------------------------
@@ -664,15 +583,19 @@ def span_result(S: np.ndarray, tol: float = SPAN_TOL) -> SpanResult:
         )
     else:
         cert = SpanCertificate("separator", separator=v)
-    return SpanResult(Verdict.YES if yes else Verdict.NO, S.shape[0], rank, method, cert, S, tol)
+    verdict = Verdict.YES if yes else Verdict.NO
+    if not cert.verify(S):
+        verdict = Verdict.MARGINAL
+    return SpanResult(verdict, S.shape[0], rank, method, cert, S, tol)
 
 
 def _raw_weights(S, idx, w):
     """Weights found on normalised columns, converted to the raw columns."""
     if S.shape[0] == 0:
         return np.zeros(0)
-    norms = np.linalg.norm(S[:, idx], axis=0)
-    return np.asarray(w, dtype=float) / norms
+    sub, c = in_norm_range(S[:, idx])
+    # |s_i| = |c s_i| / c
+    return np.asarray(w, dtype=float) / np.linalg.norm(sub, axis=0) * c
 
 
 def wrench_closure(L, *, tol: float = SPAN_TOL) -> SpanResult:
