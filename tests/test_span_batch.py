@@ -325,10 +325,11 @@ def test_a_set_whose_certificate_does_not_recheck_is_marginal():
     result = span_result(S)
     assert result.verdict == Verdict.MARGINAL and not result.verify()
     assert not result and "leant YES" in result.reason
+    assert "candidate that does not re-check: columns" in str(result)
     assert positively_spanning(S[None]).tolist() == [MARGINAL]
 
 
-@pytest.mark.parametrize("scale", [1e-300, 1e-200, 1e-170, 1e170, 1e300])
+@pytest.mark.parametrize("scale", [1e-310, 1e-300, 1e-200, 1e-170, 1e170, 1e300])
 def test_span_decisions_are_scale_invariant(scale):
     """Vectors of 1e-300 or 1e300 (whose squares under- or overflow) get
     the verdict, a certificate that re-checks and the margin times the scale

@@ -505,5 +505,6 @@ def in_norm_range(S: np.ndarray) -> tuple[np.ndarray, float]:
     big = float(np.max(np.abs(S))) if S.size else 0.0
     if big == 0.0 or 1e-100 < big < 1e100 or not math.isfinite(big):
         return S, 1.0
-    c = math.ldexp(1.0, -math.frexp(big)[1])
+    # at most 2^1000: the smallest subnormal entries then come to about 1e-23
+    c = math.ldexp(1.0, min(-math.frexp(big)[1], 1000))
     return S * c, c

@@ -72,7 +72,7 @@ class SpanCertificate:
         kind: ``"positive-span"`` (YES) or ``"separator"`` (NO).
         indices: for YES, the columns used, shape (q,).
         weights: for YES, strictly positive weights w with
-            ``vectors[:, indices] @ w = 0``, shape (q,).
+            ``vectors[:, indices] @ w = 0``, the largest 1, shape (q,).
         separator: for NO, a unit vector v with ``v @ s_i <= 0`` for every
             column not shorter than ``ZERO_RTOL`` times the longest (shorter
             ones count as zero, as in the decision), (p,).
@@ -198,8 +198,9 @@ class SpanResult:
         if self.verdict is Verdict.MARGINAL:
             leaning = "YES" if self.certificate.kind == "positive-span" else "NO"
             return (
-                f"the decision leant {leaning}, but its certificate does not re-check: the "
-                "vectors are within the solvers' tolerances of the boundary (a closed half-space)"
+                f"the decision leant {leaning}, but no certificate re-checks: the vectors "
+                "nearly all lie in one closed half-space (one direction is barely reachable), "
+                "within the solvers' tolerances; read it as not proven either way"
             )
         if self.verdict is Verdict.YES:
             return (
@@ -230,14 +231,14 @@ class SpanResult:
     def __str__(self) -> str:
         c = self.certificate
         if c.kind == "positive-span":
-            # any positive multiple is a certificate: shown with the largest 1
+            # each weight to 4 significant digits (1e-9 beside 1 stays legible)
             w = np.asarray(c.weights, dtype=float)
-            cert = (
-                f"columns {fmt_array(c.indices)} with weights (largest 1) "
-                f"{fmt_array(w / w.max() if w.size else w, suppress_small=False)}"
-            )
+            shown = ", ".join(f"{x + 0.0:.4g}" for x in w)
+            cert = f"columns {fmt_array(c.indices)} with weights (largest 1) [{shown}]"
         else:
             cert = f"separator v = {fmt_array(c.separator)}"
+        if self.verdict is Verdict.MARGINAL:
+            cert = f"candidate that does not re-check: {cert}"
         return (
             f"positively spans R^{self.p}: {self.verdict} ({self.method}; "
             f"rank {self.rank}; margin {self.margin + 0.0:.4g})\n  {self.reason}\n  {cert}"
@@ -357,23 +358,23 @@ def _proven(S, norms, idx, w, tol):
     w = np.asarray(w, dtype=float)
     V = S[:, idx] / norms[idx]
     keep = w > ROUNDOFF_SHARE_RTOL * w.max()
-    if keep.all() and _certifies(S, norms, idx, V, w, tol):
+    if keep.all() and _certifies(S, idx, V, w, tol):
         return idx, w
     idx, V, w = idx[keep], V[:, keep], w[keep]
     w = w - np.linalg.lstsq(V, V @ w, rcond=None)[0]
-    if _certifies(S, norms, idx, V, w, tol):
+    if _certifies(S, idx, V, w, tol):
         return idx, w
     return None
 
 
-def _certifies(S, norms, idx, V, w, tol) -> bool:
+def _certifies(S, idx, V, w, tol) -> bool:
     """Weights ``w`` on the unit columns ``V = S[:, idx] / norms[idx]``
     pass :func:`check_positive_combination` there (at ``tol``) and as the
     certificate of :func:`span_result` holds them, on the raw columns (at
     RECHECK_TOL, as :meth:`SpanCertificate.verify` checks): the two differ
     by rounding, which decides a combination at the edge of the check."""
     return check_positive_combination(V, w, tol) and check_positive_combination(
-        S[:, idx], w / norms[idx], RECHECK_TOL
+        S[:, idx], _raw_weights(S, idx, w), RECHECK_TOL
     )
 
 
@@ -564,11 +565,14 @@ def positively_spans(vectors, *, tol: float = SPAN_TOL) -> SpanResult:
 
     Args:
         vectors: shape (p, k), one vector per column.
-        tol: angle-like tolerance; sets within ``tol`` of the boundary (conic
-            hull a closed half-space) are reported as NO.
+        tol: angle-like tolerance (module docstring: for p = 2 sets within
+            ``tol`` of the boundary, a closed half-plane, are NO).
 
     Returns:
-        :class:`SpanResult` with a re-checkable certificate.
+        :class:`SpanResult`: YES or NO with a certificate that
+        ``verify()`` re-checks, or MARGINAL when no certificate re-checks
+        (the vectors are within the solvers' tolerances of the boundary;
+        read it as "not proven either way").
     """
     S = as_matrix("vectors", vectors)
     return span_result(S, tol)
@@ -590,12 +594,13 @@ def span_result(S: np.ndarray, tol: float = SPAN_TOL) -> SpanResult:
 
 
 def _raw_weights(S, idx, w):
-    """Weights found on normalised columns, converted to the raw columns."""
+    """Weights found on normalised columns, converted to the raw columns
+    and scaled to a largest of 1 (any positive multiple is the same
+    certificate; w_i / |s_i| itself overflows for vectors of 1e-310)."""
     if S.shape[0] == 0:
         return np.zeros(0)
-    sub, c = in_norm_range(S[:, idx])
-    # |s_i| = |c s_i| / c
-    return np.asarray(w, dtype=float) / np.linalg.norm(sub, axis=0) * c
+    raw = np.asarray(w, dtype=float) / np.linalg.norm(in_norm_range(S[:, idx])[0], axis=0)
+    return raw / raw.max() if raw.size else raw
 
 
 def wrench_closure(L, *, tol: float = SPAN_TOL) -> SpanResult:
