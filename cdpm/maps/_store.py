@@ -42,6 +42,10 @@ __all__ = [
 
 _META = ".cdpm"
 
+#: longest wait [s], after an interrupt (Ctrl-C, SIGTERM), for a store write
+#: under way in zarr's event loop to stop (:func:`_sync`)
+INTERRUPT_SETTLE_SECONDS = 10.0
+
 #: extensions of image and document files: a store named so is a mistake
 #: (a store is a zarr directory; images are drawn from it)
 IMAGE_SUFFIXES = frozenset(
@@ -408,15 +412,13 @@ class ChunkWriter:
         # concurrently: a chunk's cost is mostly a fixed overhead per array
         # (a file each, and a round trip to zarr's loop thread), which a
         # write per array in turn paid serially.
-        from zarr.core.sync import sync
-
         region = self.plan.region(index)
         shape = tuple(s.stop - s.start for s in region)
         values = {}
         for name in self.names:
             value = data[name]
             values[name] = value.reshape(shape + value.shape[1:])
-        sync(self._write_regions(region, values))
+        _sync(self._write_regions(region, values))
         _touch(Path(self.path) / _META / "done" / str(index))
 
     async def _write_regions(self, region: tuple[slice, ...], values: dict) -> None:
@@ -446,12 +448,43 @@ def _write_metadata(coro):
     coordinates and consolidated metadata are not in the v3 specification
     yet are silenced: xarray and zarr-python read both."""
     import zarr
-    from zarr.core.sync import sync
 
     with warnings.catch_warnings(), zarr.config.set({"json_indent": None}):
         warnings.simplefilter("ignore", UserWarning)
         warnings.simplefilter("ignore", FutureWarning)
-        return sync(coro)
+        return _sync(coro)
+
+
+def _sync(coro):
+    """Run the coroutine ``coro`` in zarr's event loop
+    (``zarr.core.sync.sync``) and return its result. Interrupted while it
+    runs (Ctrl-C, or SIGTERM, which cdpm reads as Ctrl-C), it is cancelled
+    and waited for (at most INTERRUPT_SETTLE_SECONDS) before the interrupt
+    goes on: zarr's exit handler closes its loop, and printed a traceback
+    ("Cannot close a running event loop") when a write was still running
+    in it 0.2 s after the interrupt, as on a loaded machine. A cancelled
+    write leaves no partial file, and its chunk no done marker."""
+    import asyncio
+    import time
+
+    from zarr.core.sync import sync
+
+    running = []
+
+    async def tracked():
+        running.append(asyncio.current_task())
+        return await coro
+
+    try:
+        return sync(tracked())
+    except KeyboardInterrupt:
+        if running:
+            task = running[0]
+            task.get_loop().call_soon_threadsafe(task.cancel)
+            deadline = time.monotonic() + INTERRUPT_SETTLE_SECONDS
+            while not task.done() and time.monotonic() < deadline:
+                time.sleep(0.005)
+        raise
 
 
 def _file_store(path: Path, read_only: bool = False):
