@@ -307,6 +307,18 @@ def test_a_flat_set_gets_its_separator_from_whitened_vectors():
     assert positively_spanning(S[None]).tolist() == [NO]
 
 
+@pytest.mark.parametrize("eps", [1e-6, 4e-8, 2e-8, 1e-8, 6e-9, 1e-12])
+def test_a_set_needing_a_tiny_weight_beside_a_free_pair_is_certified(eps):
+    """(1, 0, 0), (-1, -eps, 0), (0, 1, 0) and +-z positively span R^3 for
+    every eps > 0 (weights 1, 1, eps, 1, 1). Between eps = 2.5e-8 and 1e-8
+    the LP decided, at its tolerance of 1e-7, with weight 0 on the +-z pair,
+    and no certificate re-checked: MARGINAL between two YES bands. The LP's
+    weights completed (the pair at weight one) re-check."""
+    X = np.array([[1, -1, 0, 0, 0], [0, -eps, 1, 0, 0], [0, 0, 0, 1, -1.0]])
+    result = span_result(X)
+    assert result.verdict == Verdict.YES and result.verify()
+
+
 def test_a_set_whose_certificate_does_not_recheck_is_marginal():
     """A vector, nearly its opposite (1e-9 apart) and two more in R^3:
     within the tolerance of a set that does not positively span. The

@@ -14,7 +14,8 @@ Decision paths (reported in ``SpanResult.method``):
 - ``"nnls"`` (p >= 3): rank p and ``-S 1`` in cone(S), one non-negative
   least-squares solve (``-S 1 = S mu``, mu >= 0 gives w = 1 + mu > 0; the
   NNLS residual otherwise gives a separating vector);
-- ``"lp"``: a HiGHS LP, only when the NNLS answer does not re-check;
+- ``"lp"``: a HiGHS LP, only when the NNLS answer does not re-check (YES
+  weights it leaves at 0 are completed by one NNLS);
 - ``"rank"``: rank < p (a vector orthogonal to all of S separates).
 
 Every certificate is re-checked as :meth:`SpanCertificate.verify` checks
@@ -303,15 +304,41 @@ def span_core(S: np.ndarray, tol: float = SPAN_TOL, zero_rtol: float = ZERO_RTOL
         found = None if deep is None or same else _proven(S, norms, deep[3], deep[4], tol)
         if found is not None:
             out = deep
+    lp = out
     if found is None and out[1] != "lp":
         lp = _span_lp(U, nz, tol, out[2])
         found = _proven(S, norms, lp[3], lp[4], tol) if lp[0] else None
+    if found is None and lp[0] and lp[1] == "lp":
+        cert = _completed(U, nz, lp[3], lp[4])
+        found = None if cert is None else _proven(S, norms, *cert, tol)
     if found is None and out[2] == p:
         cert = _whitened(U, nz, tol, True)
         found = None if cert is None else _proven(S, norms, *cert, tol)
     if found is None:  # no certificate re-checks (span_result reads it as MARGINAL)
         return out
     return (*out[:3], *found, None)
+
+
+def _completed(U: np.ndarray, nz: np.ndarray, idx, w):
+    """The LP's YES weights ``w`` on the unit columns U (p, k) (``idx``:
+    indices into ``nz``) with the columns they leave at round-off given
+    weight one and the weights mu >= 0 that cancel those (one NNLS,
+    ``U mu = -sum of them``) added to all: (nz, weights), or None.
+
+    At its absolute tolerance the LP can leave a whole part of the set at
+    weight 0: in R^3 the pair +-z beside x-y vectors that need a weight of
+    1e-8, whose least weight the LP cannot raise above its tolerance. The
+    pair cancels itself (mu = 0), and the weights become (..., 1, 1)."""
+    full = np.zeros(U.shape[1])
+    full[np.searchsorted(nz, idx)] = w
+    small = full <= ROUNDOFF_SHARE_RTOL * full.max()
+    if not small.any() or small.all():
+        return None
+    b = -U[:, small].sum(axis=1)
+    mu = nnls(U, b, maxiter=50 * U.shape[1] + 100)[0]
+    if np.linalg.norm(U @ mu - b) > NNLS_RES_RTOL * max(1.0, float(np.linalg.norm(b))):
+        return None
+    return nz, np.where(small, 1.0, full) + mu
 
 
 def _whitened(U: np.ndarray, nz: np.ndarray, tol: float, yes: bool):
