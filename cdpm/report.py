@@ -224,7 +224,8 @@ class PoseReport:
             f"Output controllability: {self.output_controllability}"
             + self._more_outputs_than_dof(),
             f"Controllability (Kalman): {self.controllability}",
-            f"Wrench closure: {self.wrench_closure}",
+            # the wrench of each cable, named as in the spec
+            f"Wrench closure: {self.wrench_closure.describe(lin.cable_names, 'cables')}",
         ]
         # decided quantities in the results' own text, each to its scale:
         # the span margin is on unit vectors, the eigenvalues are A's

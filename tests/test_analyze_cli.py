@@ -318,3 +318,19 @@ def test_more_outputs_than_degrees_of_freedom_is_said(tmp_path, capsys):
     out = capsys.readouterr().out
     assert "(3 outputs, 2 degrees of freedom: never output controllable)" in out
     assert "Positive output controllability (Theorem 1): NO" in out
+
+
+def test_wrench_closure_certificate_names_the_cables():
+    """The report's wrench-closure certificate names the cables as the spec
+    does (c1...), not by 0-based column numbers, which read as the wrong
+    cable (column 2 is c3); the API's text keeps the column numbers."""
+    from pathlib import Path
+
+    spec = Path(__file__).resolve().parents[1] / "models" / "spatial_8cable" / "spatial_8cable.yaml"
+    robot = cdpm.load_robot(spec)
+    report = cdpm.analyze_pose(robot, robot.poses[next(iter(robot.poses))], margin=False)
+    text = str(report)
+    line = next(x for x in text.splitlines() if "with weights (largest 1)" in x)
+    names = ", ".join(report.linearisation.cable_names)
+    assert line.strip().startswith(f"cables [{names}]")
+    assert str(report.wrench_closure).splitlines()[-1].strip().startswith("columns [0, 1")

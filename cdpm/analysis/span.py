@@ -230,12 +230,23 @@ class SpanResult:
         )
 
     def __str__(self) -> str:
+        return self.describe()
+
+    def describe(self, names=None, noun: str = "columns") -> str:
+        """The result as text; ``names``: one per vector (column of
+        ``vectors``), e.g. the cables' names, shown after ``noun`` instead
+        of the column indices in the certificate."""
         c = self.certificate
         if c.kind == "positive-span":
             # each weight to 4 significant digits (1e-9 beside 1 stays legible)
             w = np.asarray(c.weights, dtype=float)
             shown = ", ".join(f"{x + 0.0:.4g}" for x in w)
-            cert = f"columns {fmt_array(c.indices)} with weights (largest 1) [{shown}]"
+            which = (
+                f"{noun} {fmt_array(c.indices)}"
+                if names is None
+                else f"{noun} [{', '.join(str(names[i]) for i in c.indices)}]"
+            )
+            cert = f"{which} with weights (largest 1) [{shown}]"
         else:
             cert = f"separator v = {fmt_array(c.separator)}"
         if self.verdict is Verdict.MARGINAL:
