@@ -330,16 +330,10 @@ def cluster(values: np.ndarray, atol: float) -> list[np.ndarray]:
 # presentation
 
 
-def fmt_array(x, digits: int = 4, suppress_small: bool = True) -> str:
-    """Compact one-line rendering of a small array; ``suppress_small=False``
-    keeps entries many orders below the largest readable (in exponent
-    notation) instead of printing them as 0."""
+def fmt_array(x, digits: int = 4) -> str:
+    """Compact one-line rendering of a small array."""
     return np.array2string(
-        np.asarray(x),
-        precision=digits,
-        suppress_small=suppress_small,
-        max_line_width=10_000,
-        separator=", ",
+        np.asarray(x), precision=digits, suppress_small=True, max_line_width=10_000, separator=", "
     )
 
 

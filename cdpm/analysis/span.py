@@ -89,7 +89,6 @@ class SpanCertificate:
         S = np.asarray(vectors, dtype=float)
         if not np.all(np.isfinite(S)):
             return False
-        S = in_norm_range(S)[0]
         p = S.shape[0]
         if self.kind == "positive-span":
             if p == 0:
@@ -97,6 +96,7 @@ class SpanCertificate:
             sub = S[:, self.indices]
             return check_positive_combination(sub, self.weights, tol)
         if self.kind == "separator":
+            S = in_norm_range(S)[0]  # norms that neither under- nor overflow
             v = np.asarray(self.separator, dtype=float)
             nv = np.linalg.norm(v)
             if nv == 0:
@@ -320,7 +320,7 @@ def span_core(S: np.ndarray, tol: float = SPAN_TOL, zero_rtol: float = ZERO_RTOL
         lp = _span_lp(U, nz, tol, out[2])
         found = _proven(S, norms, lp[3], lp[4], tol) if lp[0] else None
     if found is None and lp[0] and lp[1] == "lp":
-        cert = _completed(U, nz, lp[3], lp[4])
+        cert = _completed(U, nz, lp[4])
         found = None if cert is None else _proven(S, norms, *cert, tol)
     if found is None and out[2] == p:
         cert = _whitened(U, nz, tol, True)
@@ -330,18 +330,18 @@ def span_core(S: np.ndarray, tol: float = SPAN_TOL, zero_rtol: float = ZERO_RTOL
     return (*out[:3], *found, None)
 
 
-def _completed(U: np.ndarray, nz: np.ndarray, idx, w):
-    """The LP's YES weights ``w`` on the unit columns U (p, k) (``idx``:
-    indices into ``nz``) with the columns they leave at round-off given
-    weight one and the weights mu >= 0 that cancel those (one NNLS,
-    ``U mu = -sum of them``) added to all: (nz, weights), or None.
+def _completed(U: np.ndarray, nz: np.ndarray, w: np.ndarray):
+    """The LP's YES weights ``w`` on every unit column of U (p, k) (as
+    :func:`_span_lp` returns them, for the columns ``nz``), with the columns
+    they leave at round-off given weight one and the weights mu >= 0 that
+    cancel those (one NNLS, ``U mu = -sum of them``) added to all:
+    (nz, weights), or None.
 
     At its absolute tolerance the LP can leave a whole part of the set at
     weight 0: in R^3 the pair +-z beside x-y vectors that need a weight of
     1e-8, whose least weight the LP cannot raise above its tolerance. The
     pair cancels itself (mu = 0), and the weights become (..., 1, 1)."""
-    full = np.zeros(U.shape[1])
-    full[np.searchsorted(nz, idx)] = w
+    full = np.asarray(w, dtype=float)
     small = full <= ROUNDOFF_SHARE_RTOL * full.max()
     if not small.any() or small.all():
         return None
