@@ -561,6 +561,27 @@ def test_a_stored_map_reads_back_identical_to_the_map_in_memory(paper_robot, tmp
     assert not [p for p in (tmp_path / "m.zarr").rglob("*") if p.name.endswith(".partial")]
 
 
+def test_new_store_consolidated_metadata_is_zarrs_own(paper_robot, tmp_path, monkeypatch):
+    """A new store's root document, whose consolidated metadata is made
+    from the arrays just created (not read back), is the one zarr's own
+    consolidation writes from the files (regions left out: their write
+    rewrites the document)."""
+    import zarr
+
+    import cdpm.maps.regions
+
+    monkeypatch.setattr(cdpm.maps.regions, "attach_regions", lambda ds, store=None: ds)
+    axes = {"q1": np.linspace(-3, 3, 9), "q2": np.linspace(0, 1, 7)}
+    workspace_map(paper_robot, axes, workers=1, store=tmp_path / "m.zarr")
+    root = tmp_path / "m.zarr" / "zarr.json"
+    written = root.read_bytes()
+    assert "poc_region" not in json.loads(written)["consolidated_metadata"]["metadata"]
+    with warnings.catch_warnings(), zarr.config.set({"json_indent": None}):
+        warnings.simplefilter("ignore")  # consolidated metadata: not in the v3 spec yet
+        zarr.consolidate_metadata(str(tmp_path / "m.zarr"))
+    assert root.read_bytes() == written
+
+
 def test_regions_write_creates_nothing_on_a_wrong_path_and_consolidates_again(
     paper_robot, tmp_path
 ):
