@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from cdpm.errors import InputError
+from cdpm.errors import InputError, float_array
 from cdpm.expressions import parse_number
 from cdpm.numerics import CONFIGURATION_UNIT_NORM_TOL
 
@@ -119,7 +119,10 @@ def _quaternion_to_rpy(quat: np.ndarray) -> np.ndarray:
 
 def configuration_from_natural(model, natural: Any) -> np.ndarray:
     """Configuration vector q (nq,) from natural coordinates (nv,)."""
-    values = np.asarray(natural, dtype=float).reshape(-1)
+    try:
+        values = float_array(natural).reshape(-1)
+    except (TypeError, ValueError) as exc:
+        raise ConfigurationError(f"natural coordinates must be a vector of numbers: {exc}") from exc
     _check_magnitudes(values, "natural coordinates")
     if values.shape[0] != model.nv:
         raise ConfigurationError(
@@ -181,7 +184,7 @@ def as_configuration(model, q: Any, name: str = "q") -> np.ndarray:
         ConfigurationError: wrong length, non-finite or non-unit entries.
     """
     try:
-        arr = np.array(q, dtype=float).reshape(-1)
+        arr = float_array(q, copy=True).reshape(-1)
     except (TypeError, ValueError) as exc:
         raise ConfigurationError(f"{name} must be a vector of numbers: {exc}") from exc
     _check_magnitudes(arr, name)

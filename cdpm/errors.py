@@ -17,6 +17,7 @@ __all__ = [
     "MissingExtraError",
     "short_repr",
     "capped_lines",
+    "float_array",
     "MAX_LISTED_PROBLEMS",
     "MAX_PROBLEM_CHARS",
     "MAX_MESSAGE_CHARS",
@@ -52,6 +53,29 @@ def capped_lines(lines: list[str]) -> list[str]:
     if len(lines) > MAX_LISTED_PROBLEMS:
         out.append(f"and {len(lines) - MAX_LISTED_PROBLEMS} more")
     return out
+
+
+def float_array(value, copy: bool = False):
+    """``value`` as a float numpy array, as ``np.asarray(value, dtype=float)``
+    makes it (``np.array``, a copy, with ``copy``), except that complex
+    numbers raise: numpy would drop their imaginary parts with only a
+    ComplexWarning. The TypeError is the one numpy raises for other
+    non-numbers, so a caller's message for those (``except (TypeError,
+    ValueError)``) covers complex input too.
+
+    Raises:
+        TypeError: complex entries (e.g. ``[0.1j, 0.2]``), or other
+            non-numbers as numpy raises for them.
+        ValueError: strings and ragged lists, as numpy raises for them.
+    """
+    import numpy as np
+
+    arr = np.asarray(value)
+    if arr.dtype.kind == "c":
+        raise TypeError(
+            f"complex numbers are not accepted (got {short_repr(value, 60)}); give real numbers"
+        )
+    return np.array(arr, dtype=float) if copy else np.asarray(arr, dtype=float)
 
 
 #: longest message a cdpm error prints [characters]; the full text stays in

@@ -33,7 +33,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from cdpm.errors import InputError
+from cdpm.errors import InputError, float_array, short_repr
 
 if TYPE_CHECKING:  # pragma: no cover
     from cdpm.robot import CableRobot
@@ -65,8 +65,8 @@ class TensionProfile:
 
     def __post_init__(self) -> None:
         try:
-            t = np.array(self.time, dtype=float).reshape(-1)
-            f = np.array(self.values, dtype=float)
+            t = float_array(self.time, copy=True).reshape(-1)
+            f = float_array(self.values, copy=True)
         except (TypeError, ValueError) as exc:
             raise InputError(f"tension profile: time and values must be numbers ({exc})") from exc
         if f.ndim != 2 or t.shape[0] != f.shape[0] + 1 or f.shape[0] < 1:
@@ -240,11 +240,11 @@ def _as_tension(robot: CableRobot, tension: Any) -> TensionProfile | Feedback | 
     if isinstance(tension, tuple) and len(tension) == 2 and np.ndim(tension[0]) == 1:
         return TensionProfile.make(tension[0], tension[1], m)
     try:
-        f = np.array(tension, dtype=float).reshape(-1)
+        f = float_array(tension, copy=True).reshape(-1)
     except (TypeError, ValueError) as exc:
         raise InputError(
-            "tension must be a TensionProfile, (time, values), a constant (m,) [N] "
-            f"or a callable f(t, q, v); got {type(tension).__name__}"
+            "tension must be a TensionProfile, (time, values), a constant (m,) [N] of real "
+            f"numbers or a callable f(t, q, v); got {short_repr(tension)}"
         ) from exc
     if f.shape != (m,) or not np.all(np.isfinite(f)):
         raise InputError(f"a constant tension needs {m} finite values [N], got {tension!r}")

@@ -31,7 +31,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from cdpm.errors import InputError
+from cdpm.errors import InputError, float_array
 from cdpm.simulation import TensionProfile, Trajectory, simulate
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -291,9 +291,11 @@ def steer(
     lin = linearise(robot, q, tension=tension, pretension=pretension)
     p = robot.n_outputs
     try:
-        goal = np.array(target, dtype=float).reshape(-1)
+        goal = float_array(target, copy=True).reshape(-1)
     except (TypeError, ValueError) as exc:
-        raise InputError(f"target must be {p} numbers (outputs {robot.output_names})") from exc
+        raise InputError(
+            f"target must be {p} real numbers (outputs {robot.output_names}): {exc}"
+        ) from exc
     if goal.shape != (p,) or not np.all(np.isfinite(goal)):
         raise InputError(
             f"target must be {p} finite numbers, one per output "

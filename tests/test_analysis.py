@@ -315,6 +315,44 @@ def test_input_validation(args, match):
         positive_output_controllability(*args)
 
 
+def _complex_inputs(robot):
+    """name -> a call of the public API with one complex argument."""
+    import cdpm
+
+    z = np.array([0.1j, 0.2])
+    m = robot.n_cables
+    return {
+        "spans": lambda: cdpm.positively_spans(np.array([[1, -1, 0, 0], [0, 0, 1j, -1]])),
+        "poc": lambda: positive_output_controllability(np.eye(2) * 1j, np.eye(2), np.eye(2)),
+        "scale": lambda: positive_output_controllability(
+            np.eye(2), np.eye(2), np.eye(2), input_scale=[1j, 1.0]
+        ),
+        "pose": lambda: cdpm.analyze_pose(robot, z),
+        "linearise": lambda: cdpm.linearise(robot, z),
+        "poses": lambda: cdpm.evaluate_poses(robot, z[None]),
+        "axis": lambda: cdpm.workspace_map(robot, {"q1": z, "q2": [0.0, 0.1]}),
+        "tension": lambda: cdpm.check_equilibrium(robot, [0.1, 0.2], [1j] + [1.0] * (m - 1)),
+        "target": lambda: cdpm.steer(robot, [0.1, 0.2], target=[1j, 0.1]),
+        "profile": lambda: cdpm.simulate(robot, [0.1, 0.2], tension=[1j] * m, duration=0.1),
+    }
+
+
+@pytest.mark.parametrize(
+    "call",
+    ["spans", "poc", "scale", "pose", "linearise", "poses", "axis", "tension", "target", "profile"],
+)
+def test_complex_input_is_refused_by_name(paper_robot, call):
+    """Complex numbers raise an InputError that says so, not numpy's
+    ComplexWarning with the imaginary parts dropped (warnings are errors
+    here: none may be emitted first)."""
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(InputError, match=r"complex numbers are not accepted|real numbers"):
+            _complex_inputs(paper_robot)[call]()
+
+
 def test_mask_validation():
     with pytest.raises(InputError, match=r"sign_constrained has shape \(3,\), expected"):
         positive_output_controllability(

@@ -14,7 +14,7 @@ import numpy as np
 from scipy import linalg as sla
 from scipy.linalg import lapack as _lapack
 
-from cdpm.errors import InputError
+from cdpm.errors import InputError, float_array
 from cdpm.numerics import (
     KRYLOV_RTOL,
     NULL_SPACE_RTOL,
@@ -62,7 +62,7 @@ def as_matrix(
             expectation comes from, e.g. "B has 5 rows, expected n=6 (rows of A)".
     """
     try:
-        arr = np.array(value, dtype=float)
+        arr = float_array(value, copy=True)
     except (TypeError, ValueError) as e:
         raise InputError(f"{name} must be a numeric matrix: {e}") from e
     if arr.ndim == 1 and rows == 1:
@@ -112,7 +112,10 @@ def as_positive_vector(name: str, value, size: int, size_from: str) -> np.ndarra
     """A strictly positive, finite vector of length ``size`` (or ones if None)."""
     if value is None:
         return np.ones(size)
-    arr = np.array(value, dtype=float, copy=True).reshape(-1)
+    try:
+        arr = float_array(value, copy=True).reshape(-1)
+    except (TypeError, ValueError) as e:
+        raise InputError(f"{name} must be {size} numbers: {e}") from e
     if arr.size == 1:
         arr = np.full(size, float(arr[0]))
     if arr.shape != (size,):

@@ -58,7 +58,7 @@ from cdpm.equilibrium.result import (
     NotAnEquilibriumError,
     ZeroPretensionWarning,
 )
-from cdpm.errors import InputError
+from cdpm.errors import InputError, float_array
 from cdpm.numerics import STATICS_RTOL
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -184,7 +184,7 @@ def check_equilibrium(robot: CableRobot, q: Any, tension: Any) -> EquilibriumRes
         InputError: the tension has the wrong length or non-finite entries.
     """
     try:
-        f = np.array(tension, dtype=float).reshape(-1)
+        f = float_array(tension, copy=True).reshape(-1)
     except (TypeError, ValueError) as exc:
         raise InputError(f"tension must be a vector of {robot.n_cables} numbers: {exc}") from exc
     if f.shape[0] != robot.n_cables:

@@ -71,10 +71,10 @@ def configurations(robot: CableRobot, natural: np.ndarray) -> np.ndarray:
 def check_poses(robot: CableRobot, natural) -> np.ndarray:
     """Poses as a float array (N, nv) of finite natural coordinates, or an
     InputError naming the expected shape."""
-    from cdpm.errors import InputError
+    from cdpm.errors import InputError, float_array
 
     try:
-        arr = np.asarray(natural, dtype=float)
+        arr = float_array(natural)
     except (TypeError, ValueError) as exc:
         raise InputError(f"poses must be numbers (natural coordinates): {exc}") from exc
     if arr.ndim == 1 and arr.size == robot.nv:

@@ -125,7 +125,7 @@ def resolve_tension(robot: CableRobot, tension: Any) -> str | list[float]:
     vector gives the tensions [N] (one per cable).
     """
     from cdpm.equilibrium import EQUILIBRIUM_METHODS
-    from cdpm.errors import InputError
+    from cdpm.errors import InputError, float_array
 
     if tension is None:
         tension = str(robot.spec.equilibrium_method)
@@ -147,8 +147,11 @@ def resolve_tension(robot: CableRobot, tension: Any) -> str | list[float]:
                 stacklevel=3,
             )
         return tension
-    f = np.asarray(tension, dtype=float).reshape(-1)
-    if f.shape != (robot.n_cables,) or not np.all(np.isfinite(f)):
+    try:
+        f = float_array(tension).reshape(-1)
+    except (TypeError, ValueError):
+        f = None  # not numbers: the message below
+    if f is None or f.shape != (robot.n_cables,) or not np.all(np.isfinite(f)):
         raise InputError(
             f"tension must be a method name or {robot.n_cables} finite tensions [N] "
             f"(cables {', '.join(robot.cable_names)}), got {tension!r}"

@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from cdpm.errors import InputError
+from cdpm.errors import InputError, float_array
 from cdpm.maps.criteria import CRITERIA
 from cdpm.numerics import SPAN_TOL
 
@@ -211,9 +211,9 @@ def _chunk_shape(shape: tuple[int, ...], chunk_size: int) -> tuple[int, ...]:
 
 def _as_axis(name: str, values: Any) -> np.ndarray:
     try:
-        arr = np.array(values, dtype=float).reshape(-1)
+        arr = float_array(values, copy=True).reshape(-1)
     except (TypeError, ValueError) as exc:
-        raise InputError(f"axis {name!r}: values must be numbers, got {values!r}") from exc
+        raise InputError(f"axis {name!r}: values must be real numbers, got {values!r}") from exc
     if arr.size == 0:
         raise InputError(f"axis {name!r} has no values")
     if not np.all(np.isfinite(arr)):
@@ -391,9 +391,9 @@ _OVERRIDE_KEYS = ("gravity", "tension_bounds", "pretension", "external_wrench")
 
 def _finite_vector(what: str, value: Any, size: int) -> np.ndarray:
     try:
-        arr = np.array(value, dtype=float).reshape(-1)
+        arr = float_array(value, copy=True).reshape(-1)
     except (TypeError, ValueError) as exc:
-        raise InputError(f"{what} must be {size} numbers, got {value!r}") from exc
+        raise InputError(f"{what} must be {size} real numbers, got {value!r}") from exc
     if arr.shape != (size,) or not np.all(np.isfinite(arr)):
         raise InputError(f"{what} must be {size} finite numbers, got {value!r}")
     return arr

@@ -38,7 +38,7 @@ from urllib.parse import urlsplit
 
 import numpy as np
 
-from cdpm.errors import CdpmError, InputError
+from cdpm.errors import CdpmError, InputError, float_array
 from cdpm.verdicts import VERDICT_COLORS, VERDICT_LABELS, VERDICT_ORDER
 from cdpm.viewer.coordinates import coordinate_sliders
 from cdpm.viewer.outputs import output_drawing
@@ -262,7 +262,7 @@ def _natural(robot: CableRobot, natural: Any) -> np.ndarray:
     """Natural coordinates from a request: nv finite numbers."""
     names = ", ".join(robot.coordinate_names)
     try:
-        values = np.array(natural, dtype=float).reshape(-1)
+        values = float_array(natural, copy=True).reshape(-1)
     except (TypeError, ValueError) as exc:
         raise InputError(f"natural must be {robot.nv} numbers ({names}), got {natural!r}") from exc
     if values.size != robot.nv or not np.all(np.isfinite(values)):
