@@ -257,6 +257,19 @@ def test_a_separator_ignores_columns_counted_as_zero():
     assert not result.certificate.verify(np.array([[-2.11, -1.73, 1e-6], [0.0, 0.0, 0.0]]))
 
 
+def test_a_rank_reason_says_which_columns_count_as_zero():
+    """(1, 0), (-1, 0) and (1e-13, 1e-13) have rank 2, but the third is
+    counted as zero: the reason says so rather than "rank 1 < 2" alone."""
+    result = span_result(np.array([[1.0, -1.0, 1e-13], [0.0, 0.0, 1e-13]]))
+    assert result.verdict == Verdict.NO and result.rank == 1
+    assert result.reason == (
+        "the vectors have numerical rank 1 < 2; 1 of the 3 is shorter than 1e-11 times the "
+        "longest and counted as zero"
+    )
+    plain = span_result(np.array([[1.0, -1.0], [0.0, 0.0]]))
+    assert plain.reason == "the vectors have numerical rank 1 < 2"
+
+
 def test_a_yes_is_checked_as_its_certificate_holds_it():
     """Directions at 2e-9, pi - 1.2e-16, -pi + 1.7e-9 and 0: the first
     three directions' combination passes the check on unit columns, by
@@ -339,6 +352,21 @@ def test_a_set_whose_certificate_does_not_recheck_is_marginal():
     assert not result and "leant YES" in result.reason
     assert "candidate that does not re-check: columns" in str(result)
     assert positively_spanning(S[None]).tolist() == [MARGINAL]
+    assert "candidate that does not re-check: columns" in result._repr_html_()
+
+
+def test_span_result_reads_as_text_in_html_and_json():
+    """The notebook table shows the certificate as the text shows it (not
+    a dict's repr); a separator entry of -6e-17 reads 0, not -0; the JSON
+    names the space's dimension (nv for wrench closure), not ``p``, which
+    elsewhere counts outputs."""
+    yes = span_result(np.array([[1.0, -1.0, 0.0, 0.0], [0.0, 0.0, 1.0, -1.0]]))
+    assert "columns [0, 1, 2, 3] with weights (largest 1) [1, 1, 1, 1]" in yes._repr_html_()
+    assert "{" not in yes._repr_html_()
+    no = span_result(np.array([[1.0, -1.0, 0.0], [0.0, 0.0, 1.0]]))
+    assert no.verdict == Verdict.NO and no.verify()
+    assert "separator v = [ 0., -1.]" in str(no) and "-0." not in no._repr_html_()
+    assert no.as_dict()["dimension"] == 2 and "p" not in no.as_dict()
 
 
 @pytest.mark.parametrize("scale", [1e-310, 1e-300, 1e-200, 1e-170, 1e170, 1e300])

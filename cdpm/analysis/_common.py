@@ -334,10 +334,14 @@ def cluster(values: np.ndarray, atol: float) -> list[np.ndarray]:
 
 
 def fmt_array(x, digits: int = 4) -> str:
-    """Compact one-line rendering of a small array."""
-    return np.array2string(
+    """Compact one-line rendering of a small array; an entry shown as zero
+    has no minus sign (-6e-17 beside 1 reads ``0.``, not ``-0.``)."""
+    import re
+
+    text = np.array2string(
         np.asarray(x), precision=digits, suppress_small=True, max_line_width=10_000, separator=", "
     )
+    return re.sub(r"-(0\.0*)(?=[,\]])", r" \1", text)
 
 
 def to_plain(x):

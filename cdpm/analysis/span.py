@@ -104,7 +104,7 @@ class SpanCertificate:
             norms = np.linalg.norm(S, axis=0)
             if norms.size == 0:
                 return True
-            counted = norms > ZERO_RTOL * norms.max()
+            counted = _counted(norms)
             return bool(np.all((v @ S <= tol * nv * norms + 1e-300)[counted]))
         return False
 
@@ -117,6 +117,12 @@ class SpanCertificate:
                 "separator": self.separator,
             }
         )
+
+
+def _counted(norms: np.ndarray) -> np.ndarray:
+    """Mask of the columns whose ``norms`` (k,) exceed ZERO_RTOL times the
+    largest: the others count as zero (as :func:`span_core` decides)."""
+    return norms > ZERO_RTOL * norms.max() if norms.size else np.zeros(0, bool)
 
 
 def check_positive_combination(S: np.ndarray, w: np.ndarray, tol: float) -> bool:
@@ -209,7 +215,16 @@ class SpanResult:
                 f"combine to 0 with strictly positive weights and have rank {self.p}"
             )
         if self.rank < self.p:
-            return f"the vectors have rank {self.rank} < {self.p}"
+            k = self.vectors.shape[1]
+            zero = k - int(_counted(np.linalg.norm(in_norm_range(self.vectors)[0], axis=0)).sum())
+            verb = "is" if zero == 1 else "are"
+            counted = (
+                f"; {zero} of the {k} {verb} shorter than {ZERO_RTOL:g} times the longest and "
+                "counted as zero"
+                if zero
+                else ""
+            )
+            return f"the vectors have numerical rank {self.rank} < {self.p}{counted}"
         return "a separating vector v has v.s <= 0 for every vector s"
 
     def verify(self, vectors=None) -> bool:
@@ -220,7 +235,7 @@ class SpanResult:
         return to_plain(
             {
                 "verdict": self.verdict,
-                "p": self.p,
+                "dimension": self.p,
                 "rank": self.rank,
                 "method": self.method,
                 "margin": self.margin,
@@ -236,6 +251,13 @@ class SpanResult:
         """The result as text; ``names``: one per vector (column of
         ``vectors``), e.g. the cables' names, shown after ``noun`` instead
         of the column indices in the certificate."""
+        return (
+            f"positively spans R^{self.p}: {self.verdict} ({self.method}; "
+            f"rank {self.rank}; margin {self.margin + 0.0:.4g})\n  {self.reason}\n  "
+            f"{self._certificate_text(names, noun)}"
+        )
+
+    def _certificate_text(self, names=None, noun: str = "columns") -> str:
         c = self.certificate
         if c.kind == "positive-span":
             # each weight to 4 significant digits (1e-9 beside 1 stays legible)
@@ -251,10 +273,7 @@ class SpanResult:
             cert = f"separator v = {fmt_array(c.separator)}"
         if self.verdict is Verdict.MARGINAL:
             cert = f"candidate that does not re-check: {cert}"
-        return (
-            f"positively spans R^{self.p}: {self.verdict} ({self.method}; "
-            f"rank {self.rank}; margin {self.margin + 0.0:.4g})\n  {self.reason}\n  {cert}"
-        )
+        return cert
 
     def _repr_html_(self) -> str:
         return html_table(
@@ -263,7 +282,7 @@ class SpanResult:
                 ("method", self.method),
                 ("margin", f"{self.margin + 0.0:.4g}"),
                 ("reason", self.reason),
-                ("certificate", str(self.certificate.as_dict())),
+                ("certificate", self._certificate_text()),
             ],
         )
 
