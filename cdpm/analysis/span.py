@@ -158,9 +158,9 @@ class SpanResult:
     """Whether the columns of ``vectors`` positively span R^p.
 
     Attributes:
-        verdict: ``Verdict.YES`` or ``Verdict.NO`` (boundary cases within
-            ``tol`` are NO: the conic hull is then a closed half-space or
-            less); ``Verdict.MARGINAL`` when the decision's certificate does
+        verdict: ``Verdict.YES`` or ``Verdict.NO`` (for p = 2, boundary
+            cases within ``tol`` are NO: the conic hull is then a closed
+            half-plane or less); ``Verdict.MARGINAL`` when the decision's certificate does
             not re-check (vectors within the solvers' own tolerances of the
             boundary: nothing is proven, and ``certificate`` holds the
             candidate that failed).
