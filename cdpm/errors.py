@@ -18,6 +18,8 @@ __all__ = [
     "short_repr",
     "capped_lines",
     "float_array",
+    "float_scalar",
+    "positive_number",
     "MAX_LISTED_PROBLEMS",
     "MAX_PROBLEM_CHARS",
     "MAX_MESSAGE_CHARS",
@@ -76,6 +78,33 @@ def float_array(value, copy: bool = False):
             f"complex numbers are not accepted (got {short_repr(value, 60)}); give real numbers"
         )
     return np.array(arr, dtype=float) if copy else np.asarray(arr, dtype=float)
+
+
+def float_scalar(value) -> float:
+    """One real number as a float: :func:`float_array` of a single value.
+
+    Raises:
+        TypeError: complex numbers, arrays of more than one value, None and
+            other non-numbers.
+        ValueError: strings that are not numbers.
+    """
+    arr = float_array(value)
+    if arr.size != 1:
+        raise TypeError(f"expected one number, got {arr.size} values")
+    return float(arr.reshape(-1)[0])
+
+
+def positive_number(value, message: str, largest: float = 1.7976931348623157e308) -> float:
+    """``value`` as a float in (0, ``largest``] (by default: positive and
+    finite), or an InputError with ``message`` (which names the argument,
+    its unit and its range) when it is not one real number in that range."""
+    try:
+        x = float_scalar(value)
+    except (TypeError, ValueError):
+        x = float("nan")
+    if not (0 < x <= largest):
+        raise InputError(message)
+    return x
 
 
 #: longest message a cdpm error prints [characters]; the full text stays in

@@ -58,6 +58,9 @@ RANK_RTOL = 1e-10
 ROW_ZERO_RTOL = 1e-12
 #: angle-like tolerance of every positive-span decision [rad]
 SPAN_TOL = 1e-9
+#: the range of the largest |entry| of each of A, B and C that the per-pose
+#: analysis takes (0 too): beyond it products of entries under- or overflow
+MATRIX_SCALE_RANGE = (1e-100, 1e100)
 #: columns shorter than this times the longest are zero in span decisions
 ZERO_RTOL = 1e-11
 #: batched rank exits: unit-column matrices whose singular-value ratio
@@ -140,6 +143,12 @@ REACH_MIN_ACCELERATION = 1.0
 #: default reach horizon: the time in which that acceleration moves the
 #: robot by this fraction of its size (the linearisation is a local model)
 REACH_SIZE_FRACTION = 0.1
+#: longest time a reach horizon, a steering or a simulation may span [s]
+#: (about 12 days; T^2 and the time grids stay far from overflow)
+MAX_TIME_SPAN = 1e6
+#: largest tension budget of the reach margin [N] (the margin grows with
+#: it; sums of squares of its generators stay far from overflow)
+MAX_TENSION_BUDGET = 1e12
 
 # --------------------------------------------------------------------------
 # regions of maps

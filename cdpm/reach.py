@@ -33,8 +33,14 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from cdpm.errors import InputError
-from cdpm.numerics import REACH_MIN_ACCELERATION, REACH_SIZE_FRACTION, REACH_ZERO_RTOL
+from cdpm.errors import InputError, float_scalar
+from cdpm.numerics import (
+    MAX_TENSION_BUDGET,
+    MAX_TIME_SPAN,
+    REACH_MIN_ACCELERATION,
+    REACH_SIZE_FRACTION,
+    REACH_ZERO_RTOL,
+)
 
 if TYPE_CHECKING:  # pragma: no cover
     from cdpm.linearisation import Linearisation, LinearisationBatch
@@ -90,16 +96,16 @@ class ReachSettings:
         }
 
 
-def _positive(name: str, value: Any, unit: str) -> float:
+def _positive(name: str, value: Any, unit: str, largest: float) -> float:
     from cdpm.expressions import parse_number
 
     text = value.strip() if isinstance(value, str) else value
-    message = f"{name} must be a positive finite number [{unit}], got {text!r}"
+    message = f"{name} must be a positive number of at most {largest:g} {unit}, got {text!r}"
     try:
-        x = parse_number(text) if isinstance(text, str) else float(text)
+        x = parse_number(text) if isinstance(text, str) else float_scalar(text)
     except (TypeError, ValueError) as exc:
         raise InputError(message) from exc
-    if not (math.isfinite(x) and x > 0):
+    if not (0 < x <= largest):
         raise InputError(message)
     return x
 
@@ -122,9 +128,9 @@ def reach_settings(
         return horizon
     T = F = None
     if horizon is not None:
-        T = _positive("the reach horizon", horizon, "s")
+        T = _positive("the reach horizon", horizon, "s", MAX_TIME_SPAN)
     if tension_budget is not None:
-        F = _positive("the tension budget", tension_budget, "N")
+        F = _positive("the tension budget", tension_budget, "N", MAX_TENSION_BUDGET)
     if T is None or F is None:
         T0, F0 = _model_scales(robot)[:2]
         T = T0 if T is None else T

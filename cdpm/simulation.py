@@ -33,7 +33,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from cdpm.errors import InputError, float_array, short_repr
+from cdpm.errors import InputError, float_array, positive_number, short_repr
+from cdpm.numerics import MAX_TIME_SPAN
 
 if TYPE_CHECKING:  # pragma: no cover
     from cdpm.robot import CableRobot
@@ -68,7 +69,9 @@ class TensionProfile:
             t = float_array(self.time, copy=True).reshape(-1)
             f = float_array(self.values, copy=True)
         except (TypeError, ValueError) as exc:
-            raise InputError(f"tension profile: time and values must be numbers ({exc})") from exc
+            raise InputError(
+                f"tension profile: time and values must be real numbers: {exc}"
+            ) from exc
         if f.ndim != 2 or t.shape[0] != f.shape[0] + 1 or f.shape[0] < 1:
             raise InputError(
                 f"tension profile: time has {t.shape[0]} knots and values shape {f.shape}; "
@@ -292,6 +295,13 @@ class _Dynamics:
         return rhs
 
 
+def checked_duration(duration) -> float:
+    """A steering or simulation time [s] as a float in (0, MAX_TIME_SPAN],
+    or an InputError."""
+    message = f"duration must be a positive time of at most {MAX_TIME_SPAN:g} s, got {duration!r}"
+    return positive_number(duration, message, largest=MAX_TIME_SPAN)
+
+
 def simulate(
     robot: CableRobot,
     q0: Any,
@@ -330,9 +340,12 @@ def simulate(
 
     q = robot.as_q(q0)
     nv, m = robot.nv, robot.n_cables
-    v = np.zeros(nv) if v0 is None else np.array(v0, dtype=float).reshape(-1)
-    if v.shape != (nv,) or not np.all(np.isfinite(v)):
-        raise InputError(f"v0 must be {nv} finite velocities, got {v0!r}")
+    try:
+        v = np.zeros(nv) if v0 is None else float_array(v0, copy=True).reshape(-1)
+    except (TypeError, ValueError):
+        v = None
+    if v is None or v.shape != (nv,) or not np.all(np.isfinite(v)):
+        raise InputError(f"v0 must be {nv} finite real velocities [rad/s or m/s], got {v0!r}")
     law = _as_tension(robot, tension)
     profile = law if isinstance(law, TensionProfile) else None
     t_start = float(profile.time[0]) if profile is not None else 0.0
@@ -340,9 +353,7 @@ def simulate(
         if profile is None:
             raise InputError("give duration= [s] for a constant tension or a feedback law")
         duration = float(profile.time[-1] - t_start)
-    duration = float(duration)
-    if not (math.isfinite(duration) and duration > 0):
-        raise InputError(f"duration must be a positive time [s], got {duration!r}")
+    duration = checked_duration(duration)
     if not (0 < rtol < 1 and 0 < atol):
         raise InputError(f"rtol must be in (0, 1) and atol > 0, got {rtol}, {atol}")
     t_end = t_start + duration

@@ -31,8 +31,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from cdpm.errors import InputError, float_array
-from cdpm.simulation import TensionProfile, Trajectory, simulate
+from cdpm.errors import InputError, float_array, positive_number
+from cdpm.simulation import TensionProfile, Trajectory, checked_duration, simulate
 
 if TYPE_CHECKING:  # pragma: no cover
     from cdpm.linearisation import Linearisation
@@ -294,11 +294,11 @@ def steer(
         goal = float_array(target, copy=True).reshape(-1)
     except (TypeError, ValueError) as exc:
         raise InputError(
-            f"target must be {p} real numbers (outputs {robot.output_names}): {exc}"
+            f"target must be real numbers, one per output ({', '.join(robot.output_names)}): {exc}"
         ) from exc
     if goal.shape != (p,) or not np.all(np.isfinite(goal)):
         raise InputError(
-            f"target must be {p} finite numbers, one per output "
+            f"target must be finite numbers, one per output "
             f"({', '.join(robot.output_names)}); got {target!r}"
         )
     if not (isinstance(intervals, (int, np.integer)) and not isinstance(intervals, bool)) or not (
@@ -309,14 +309,14 @@ def steer(
         )
     if not (isinstance(max_iterations, (int, np.integer)) and max_iterations >= 1):
         raise InputError(f"max_iterations must be a positive integer, got {max_iterations!r}")
-    T = default_duration(lin) if duration is None else float(duration)
-    if not (math.isfinite(T) and T > 0):
-        raise InputError(f"duration must be a positive time [s], got {duration!r}")
+    T = default_duration(lin) if duration is None else checked_duration(duration)
     y0 = lin.output.copy()
     dy = goal - y0
-    tol = tolerance if tolerance is not None else max(STEER_MISS_RTOL * np.linalg.norm(dy), 1e-12)
-    if not (math.isfinite(tol) and tol > 0):
-        raise InputError(f"tolerance must be positive, got {tolerance!r}")
+    if tolerance is None:
+        tol = max(STEER_MISS_RTOL * np.linalg.norm(dy), 1e-12)
+    else:
+        message = f"tolerance must be a positive finite number, got {tolerance!r}"
+        tol = positive_number(tolerance, message)
     fmin, fmax = robot.tension_min, robot.tension_max
     f0 = lin.tension
     time = np.linspace(0.0, T, intervals + 1)

@@ -12,12 +12,13 @@ in R.
 from __future__ import annotations
 
 import html
+import math
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from cdpm.errors import InputError
+from cdpm.errors import InputError, float_scalar
 from cdpm.steering import SteerResult, steer
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -261,8 +262,11 @@ def verify_pose(
     )
     q = lin.q
     size = default_radius(robot, q)[1]
-    R = RADIUS_FRACTION * size if radius is None else float(radius)
-    if not (np.isfinite(R) and 0 < R <= size):
+    try:
+        R = RADIUS_FRACTION * size if radius is None else float_scalar(radius)
+    except (TypeError, ValueError):
+        R = math.nan
+    if not (0 < R <= size):
         raise InputError(
             f"radius must be a positive distance of at most the robot's size, {size:.3g} "
             f"(targets near the pose: the check is local), got {radius!r}"

@@ -320,6 +320,7 @@ def _complex_inputs(robot):
     import cdpm
 
     z = np.array([0.1j, 0.2])
+    c = np.complex128(2.0)
     m = robot.n_cables
     return {
         "spans": lambda: cdpm.positively_spans(np.array([[1, -1, 0, 0], [0, 0, 1j, -1]])),
@@ -334,13 +335,34 @@ def _complex_inputs(robot):
         "tension": lambda: cdpm.check_equilibrium(robot, [0.1, 0.2], [1j] + [1.0] * (m - 1)),
         "target": lambda: cdpm.steer(robot, [0.1, 0.2], target=[1j, 0.1]),
         "profile": lambda: cdpm.simulate(robot, [0.1, 0.2], tension=[1j] * m, duration=0.1),
+        "v0": lambda: cdpm.simulate(robot, [0.1, 0.2], [1j, 0], tension=[1.0] * m, duration=0.1),
+        "verify": lambda: cdpm.positively_spans(np.eye(2)[:, [0, 0, 1, 1]] * [1, -1, 1, -1]).verify(
+            np.eye(2)[:, [0, 0, 1, 1]] * [1, -1, 1, -1] + 1j
+        ),
+        # numpy complex scalars (np.complex128 is no Python float)
+        "tol": lambda: cdpm.positively_spans(np.eye(2), tol=c),
+        "horizon": lambda: positive_output_controllability(
+            np.eye(2), np.eye(2), np.eye(2), horizon=c
+        ),
+        "pretension": lambda: cdpm.analyze_pose(robot, [0.1, 0.2], pretension=c),
+        "reach horizon": lambda: cdpm.analyze_pose(robot, [0.1, 0.2], horizon=c),
+        "budget": lambda: cdpm.analyze_pose(robot, [0.1, 0.2], tension_budget=c),
+        "radius": lambda: cdpm.poc_neighbourhood(robot, [0.1, 0.2], radius=c),
+        "duration": lambda: cdpm.steer(robot, [0.1, 0.2], target=[0.1], duration=c),
+        "tolerance": lambda: cdpm.steer(robot, [0.1, 0.2], target=[0.1], tolerance=c),
+        "cap": lambda: cdpm.best_tension(robot, [0.1, 0.2], tension_cap=c),
+        "range": lambda: cdpm.sample_axes({"q1": (0.0, c)}, 10),
     }
 
 
-@pytest.mark.parametrize(
-    "call",
-    ["spans", "poc", "scale", "pose", "linearise", "poses", "axis", "tension", "target", "profile"],
-)
+COMPLEX_CALLS = [
+    "spans", "poc", "scale", "pose", "linearise", "poses", "axis", "tension", "target", "profile",
+    "v0", "verify", "tol", "horizon", "pretension", "reach horizon", "budget", "radius",
+    "duration", "tolerance", "cap", "range",
+]  # fmt: skip
+
+
+@pytest.mark.parametrize("call", COMPLEX_CALLS)
 def test_complex_input_is_refused_by_name(paper_robot, call):
     """Complex numbers raise an InputError that says so, not numpy's
     ComplexWarning with the imaginary parts dropped (warnings are errors
@@ -349,8 +371,46 @@ def test_complex_input_is_refused_by_name(paper_robot, call):
 
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        with pytest.raises(InputError, match=r"complex numbers are not accepted|real numbers"):
+        with pytest.raises(InputError, match=r"complex numbers are not accepted|real|np.complex"):
             _complex_inputs(paper_robot)[call]()
+
+
+def test_out_of_range_arguments_are_refused_by_name(paper_robot):
+    """Values whose arithmetic would over- or underflow, or that make no
+    sense for the argument, give an InputError naming the limit, never a
+    verdict on meaningless numbers (a pose at q1 = 1e300 was POC YES) or an
+    error from inside numpy."""
+    import cdpm
+
+    robot, q = paper_robot, [0.5, 1.0]
+    I2 = np.eye(2)
+    B = np.hstack([I2, -I2])
+    cases = [
+        (lambda: cdpm.evaluate_poses(robot, [[1e300, 0.2]]), "magnitude above 100000"),
+        (lambda: cdpm.workspace_map(robot, {"q1": [0.1, 1e300], "q2": [0.2]}), "above 100000"),
+        (lambda: cdpm.sample_axes({"q1": (0.0, 1e300)}, 10), "within \\+-100000"),
+        (lambda: cdpm.analyze_pose(robot, q, horizon=1e300), "at most 1e\\+06 s"),
+        (lambda: cdpm.analyze_pose(robot, q, tension_budget=1e300), "at most 1e\\+12 N"),
+        (lambda: cdpm.steer(robot, q, target=[0.1], duration=1e300), "at most 1e\\+06 s"),
+        (lambda: cdpm.simulate(robot, q, tension=[1.0] * 4, duration=1e300), "at most 1e\\+06"),
+        (lambda: cdpm.positively_spans(B, tol=np.nan), "tol must be an angle in \\(0, 1\\)"),
+        (lambda: cdpm.positively_spans(B, tol=10), "tol must be an angle"),
+        (lambda: positive_output_controllability(I2, B, I2, tol=-1), "tol must be an angle"),
+        (lambda: positive_output_controllability(I2, B, None), "C \\(the output matrix"),
+        (lambda: positive_output_controllability(I2, 1e-200 * B, I2), "largest entry is 1e-200"),
+        (lambda: positive_output_controllability(1e200 * I2, B, I2), "largest entry is 1e\\+200"),
+        (lambda: cdpm.output_controllability(I2, 1e160 * I2, I2), "express the model in other"),
+        (lambda: cdpm.positively_spans(B).verify(B[:, :3]), "do not fit this certificate"),
+        (lambda: cdpm.workspace_map(robot, {"q1": [0.1, np.ones(2)], "q2": [0.2]}), "real numbers"),
+    ]
+    for call, match in cases:
+        with pytest.raises(InputError, match=match):
+            call()
+    # inside the range the verdicts do not depend on the scale
+    A = np.array([[0.0, 1.0], [0.0, 0.0]])
+    for s in (1e-99, 1e99):
+        assert positive_output_controllability(A, s * B, I2).verdict is Verdict.YES
+        assert positive_output_controllability(s * A, B, I2).verdict is Verdict.YES
 
 
 def test_mask_validation():

@@ -263,11 +263,16 @@ def test_a_rank_reason_says_which_columns_count_as_zero():
     result = span_result(np.array([[1.0, -1.0, 1e-13], [0.0, 0.0, 1e-13]]))
     assert result.verdict == Verdict.NO and result.rank == 1
     assert result.reason == (
-        "the vectors have numerical rank 1 < 2; 1 of the 3 is shorter than 1e-11 times the "
-        "longest and counted as zero"
+        "the vectors have numerical rank 1 < 2; 1 of the 3 vectors is not longer than 1e-11 "
+        "times the longest and counted as zero"
     )
     plain = span_result(np.array([[1.0, -1.0], [0.0, 0.0]]))
     assert plain.reason == "the vectors have numerical rank 1 < 2"
+    # a separator's reason says so too, and that it holds to within tol
+    separated = span_result(np.array([[1.0, 0.0, -1e-13], [0.0, 1.0, -1e-13]]))
+    assert separated.verdict == Verdict.NO and separated.verify()
+    assert "to within tol = 1e-09); 1 of the 3 vectors is not longer" in separated.reason
+    assert span_result(np.zeros((2, 3))).reason == "the 3 vectors are all zero"
 
 
 def test_a_yes_is_checked_as_its_certificate_holds_it():
@@ -366,6 +371,10 @@ def test_span_result_reads_as_text_in_html_and_json():
     no = span_result(np.array([[1.0, -1.0, 0.0], [0.0, 0.0, 1.0]]))
     assert no.verdict == Verdict.NO and no.verify()
     assert "separator v = [ 0., -1.]" in str(no) and "-0." not in no._repr_html_()
+    # numpy pads an entry shown as zero when another needs more digits
+    from cdpm.analysis._common import fmt_array
+
+    assert fmt_array(np.array([-1e-5, 0.1234])) == "[ 0.    ,  0.1234]"
     assert no.as_dict()["dimension"] == 2 and "p" not in no.as_dict()
 
 

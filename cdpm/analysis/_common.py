@@ -14,12 +14,14 @@ import numpy as np
 from scipy import linalg as sla
 from scipy.linalg import lapack as _lapack
 
-from cdpm.errors import InputError, float_array
+from cdpm.errors import InputError, float_array, positive_number
 from cdpm.numerics import (
     KRYLOV_RTOL,
+    MATRIX_SCALE_RANGE,
     NULL_SPACE_RTOL,
     RANK_RTOL,
     ROW_ZERO_RTOL,
+    SPAN_TOL,
     SQUARE_ZERO_RTOL,
 )
 
@@ -76,6 +78,12 @@ def as_matrix(
     if check_finite:
         _check_finite(name, arr)
     return arr
+
+
+def check_tol(tol) -> float:
+    """The span tolerance as a float in (0, 1) [rad], or an InputError."""
+    message = f"tol must be an angle in (0, 1) rad, got {tol!r} (default {SPAN_TOL})"
+    return positive_number(tol, message, largest=math.nextafter(1.0, 0.0))
 
 
 def _expect(label: str, value: int) -> str:
@@ -141,6 +149,15 @@ def as_system(A, B, C=None, sign_constrained=None):
     if not math.isfinite(sum(float(M.sum()) for _, M in mats)):
         for name, M in mats:
             _check_finite(name, M)
+    low, high = MATRIX_SCALE_RANGE
+    for name, M in mats:
+        big = float(np.abs(M).max()) if M.size else 0.0
+        if big > high or 0 < big < low:
+            raise InputError(
+                f"{name}'s largest entry is {big:.3g} in magnitude; the analysis takes matrices "
+                f"whose largest entry is between {low:g} and {high:g} (or 0), where products "
+                "of entries neither under- nor overflow: express the model in other units"
+            )
     return (A, B, mask) if C is None else (A, B, C, mask)
 
 
@@ -341,7 +358,7 @@ def fmt_array(x, digits: int = 4) -> str:
     text = np.array2string(
         np.asarray(x), precision=digits, suppress_small=True, max_line_width=10_000, separator=", "
     )
-    return re.sub(r"-(0\.0*)(?=[,\]])", r" \1", text)
+    return re.sub(r"-(0\.0*)(?=\s*[,\]])", r" \1", text)
 
 
 def to_plain(x):

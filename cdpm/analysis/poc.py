@@ -29,8 +29,6 @@ samples, the output-rank check, the reduction); the paths live in
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from scipy.linalg import expm
 
@@ -38,6 +36,7 @@ from cdpm.analysis._common import (
     Verdict,
     as_positive_vector,
     as_system,
+    check_tol,
     complement,
     orth,
     qr_pivots,
@@ -53,7 +52,7 @@ from cdpm.analysis.poc_result import POCResult
 from cdpm.analysis.poc_result import poc_margin as poc_margin
 from cdpm.analysis.rank import output_reachable_basis
 from cdpm.analysis.span import independent_columns
-from cdpm.errors import InputError
+from cdpm.errors import InputError, positive_number
 from cdpm.numerics import FREE_SAMPLE_ZERO_RTOL, FREE_SPAN_RATIO, ROW_ZERO_RTOL, SPAN_TOL
 
 # poc_margin, poc_margins and POCResult are re-exported: other code (cdpm.maps,
@@ -95,9 +94,15 @@ def positive_output_controllability(
     Raises:
         InputError: shapes, non-finite values or a bad mask.
     """
+    if C is None:
+        raise InputError(
+            "C (the output matrix, shape (p, n)) is required; pass np.eye(n) for the whole state"
+        )
     A, B, C, mask = as_system(A, B, C, sign_constrained)
-    if horizon is not None and not (math.isfinite(horizon) and horizon > 0):
-        raise InputError(f"horizon must be a positive finite time, got {horizon!r}")
+    tol = check_tol(tol)
+    if horizon is not None:
+        message = f"horizon must be a positive finite time, got {horizon!r}"
+        horizon = positive_number(horizon, message)
     if input_scale is not None:
         input_scale = as_positive_vector("input_scale", input_scale, B.shape[1], "m (columns of B)")
     if output_weight is not None:

@@ -41,6 +41,7 @@ from scipy.optimize import linprog, nnls
 from cdpm.analysis._common import (
     Verdict,
     as_matrix,
+    check_tol,
     eigh,
     fmt_array,
     html_table,
@@ -51,6 +52,7 @@ from cdpm.analysis._common import (
     to_plain,
 )
 from cdpm.analysis._span_hull import min_norm_separator, span_margin_bracket
+from cdpm.errors import InputError
 from cdpm.numerics import (
     COMBINATION_SHARE_MARGIN,
     COMBINATION_SV_MIN,
@@ -85,11 +87,26 @@ class SpanCertificate:
     separator: np.ndarray | None = None
 
     def verify(self, vectors, tol: float = RECHECK_TOL) -> bool:
-        """Re-check against ``vectors`` (p, k) by direct linear algebra."""
-        S = np.asarray(vectors, dtype=float)
+        """Re-check against ``vectors`` (p, k) by direct linear algebra.
+
+        Raises:
+            InputError: ``vectors`` is not a real matrix, or has fewer
+                columns than the certificate uses or another number of rows
+                than its separator has entries.
+        """
+        S = as_matrix("vectors", vectors, check_finite=False)
         if not np.all(np.isfinite(S)):
             return False
-        p = S.shape[0]
+        p, k = S.shape
+        used = self.indices if self.kind == "positive-span" else []
+        if (len(used) and int(np.max(used)) >= k) or (
+            self.kind == "separator" and np.size(self.separator) != p
+        ):
+            what = f"columns {fmt_array(used)}" if len(used) else f"{np.size(self.separator)} rows"
+            raise InputError(
+                f"vectors of shape {S.shape} do not fit this certificate (it uses {what}); "
+                "re-check it against the vectors it was made for"
+            )
         if self.kind == "positive-span":
             if p == 0:
                 return True
@@ -205,27 +222,32 @@ class SpanResult:
         if self.verdict is Verdict.MARGINAL:
             leaning = "YES" if self.certificate.kind == "positive-span" else "NO"
             return (
-                f"the decision leant {leaning}, but no certificate re-checks: the vectors "
-                "nearly all lie in one closed half-space (one direction is barely reachable), "
-                "within the solvers' tolerances; read it as not proven either way"
+                f"the decision leant {leaning}, but no certificate re-checks: the vectors all "
+                "lie within the solvers' tolerances of one closed half-space (one direction "
+                "is barely reachable); read it as not proven either way"
             )
         if self.verdict is Verdict.YES:
             return (
                 f"{len(self.certificate.indices)} of the {self.vectors.shape[1]} vectors "
                 f"combine to 0 with strictly positive weights and have rank {self.p}"
             )
+        k = self.vectors.shape[1]
+        zero = k - int(_counted(np.linalg.norm(in_norm_range(self.vectors)[0], axis=0)).sum())
+        if zero == k:
+            return f"the {k} vectors are all zero" if k else "there are no vectors"
+        verb = "is" if zero == 1 else "are"
+        counted = (
+            f"; {zero} of the {k} vectors {verb} not longer than {ZERO_RTOL:g} times the "
+            "longest and counted as zero"
+            if zero
+            else ""
+        )
         if self.rank < self.p:
-            k = self.vectors.shape[1]
-            zero = k - int(_counted(np.linalg.norm(in_norm_range(self.vectors)[0], axis=0)).sum())
-            verb = "is" if zero == 1 else "are"
-            counted = (
-                f"; {zero} of the {k} {verb} shorter than {ZERO_RTOL:g} times the longest and "
-                "counted as zero"
-                if zero
-                else ""
-            )
             return f"the vectors have numerical rank {self.rank} < {self.p}{counted}"
-        return "a separating vector v has v.s <= 0 for every vector s"
+        return (
+            "a separating unit vector v has v.s <= tol |s| for every vector s (they all lie "
+            f"in a half-space, to within tol = {self.tol:g}){counted}"
+        )
 
     def verify(self, vectors=None) -> bool:
         """Re-check the certificate (against ``vectors`` if given)."""
@@ -632,7 +654,7 @@ def positively_spans(vectors, *, tol: float = SPAN_TOL) -> SpanResult:
         read it as "not proven either way").
     """
     S = as_matrix("vectors", vectors)
-    return span_result(S, tol)
+    return span_result(S, check_tol(tol))
 
 
 def span_result(S: np.ndarray, tol: float = SPAN_TOL) -> SpanResult:
@@ -671,4 +693,4 @@ def wrench_closure(L, *, tol: float = SPAN_TOL) -> SpanResult:
         :class:`SpanResult` over the m columns of ``-L^T`` (shape (nv, m)).
     """
     L = as_matrix("L", L)
-    return span_result(-L.T, tol)
+    return span_result(-L.T, check_tol(tol))

@@ -13,13 +13,13 @@ def add_reach_arguments(parser: argparse.ArgumentParser, margin_switch: bool = F
     group.add_argument(
         "--horizon",
         metavar="T",
-        help="horizon T [s] of the reach margin (default: the model's, printed)",
+        help="horizon T [s] of the reach margin, at most 1e6 (default: the model's, printed)",
     )
     group.add_argument(
         "--tension-budget",
         metavar="F",
-        help="largest tension change [N], up or down, of a cable without an upper bound "
-        "(cables with one use their bounds; default: the model's, printed)",
+        help="largest tension change [N], up or down, of a cable without an upper bound, at "
+        "most 1e12 (cables with one use their bounds; default: the model's, printed)",
     )
     if margin_switch:
         group.add_argument(

@@ -58,7 +58,7 @@ from cdpm.equilibrium.result import (
     NotAnEquilibriumError,
     ZeroPretensionWarning,
 )
-from cdpm.errors import InputError, float_array
+from cdpm.errors import InputError, float_array, float_scalar
 from cdpm.numerics import STATICS_RTOL
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -112,7 +112,7 @@ def checked_pretension(pretension: Any) -> float:
         InputError: not a number, negative or not finite.
     """
     try:
-        value = float(pretension)
+        value = float_scalar(pretension)
     except (TypeError, ValueError) as exc:
         raise InputError(f"pretension must be a number of newtons, got {pretension!r}") from exc
     if not (math.isfinite(value) and value >= 0):

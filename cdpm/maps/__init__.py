@@ -361,8 +361,8 @@ def _n_poses(axes) -> int:
         return int(axes.n)
     try:
         return int(np.prod([np.size(v) for v in axes.values()]))
-    except (AttributeError, TypeError):
-        return 1  # make_plan explains what is wrong with the axes
+    except (AttributeError, TypeError, ValueError):
+        return 1  # make_plan explains what is wrong with the axes (ragged ones too)
 
 
 def default_workers() -> int:

@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from cdpm.configuration import _kind
+from cdpm.configuration import MAX_COORDINATE, _kind
 
 if TYPE_CHECKING:  # pragma: no cover
     from cdpm.robot import CableRobot
@@ -87,4 +87,10 @@ def check_poses(robot: CableRobot, natural) -> np.ndarray:
     if not np.all(np.isfinite(arr)):
         bad = np.flatnonzero(~np.all(np.isfinite(arr), axis=1))
         raise InputError(f"poses {bad[:5].tolist()} have non-finite coordinates")
+    if not np.all(np.abs(arr) <= MAX_COORDINATE):
+        bad = np.flatnonzero(~np.all(np.abs(arr) <= MAX_COORDINATE, axis=1))
+        raise InputError(
+            f"poses {bad[:5].tolist()} have coordinates of magnitude above {MAX_COORDINATE:g} "
+            "(rad or m); give coordinates within it"
+        )
     return arr

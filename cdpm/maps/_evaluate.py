@@ -28,6 +28,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 import cdpm.maps.tension_criteria  # noqa: F401  (registers the tension search's criteria)
+from cdpm.analysis._common import check_tol
 from cdpm.maps._batch import check_poses
 from cdpm.maps.criteria import CRITERIA, PoseBatch
 from cdpm.numerics import MIN_SEGMENT_LENGTH, SPAN_TOL
@@ -168,21 +169,6 @@ def resolve_tension(robot: CableRobot, tension: Any) -> str | list[float]:
             f"spec's tension_min/tension_max or a method name ({', '.join(EQUILIBRIUM_METHODS)})"
         )
     return [float(x) for x in f]
-
-
-def check_tol(tol: Any) -> float:
-    """The span tolerance as a float in (0, 1) [rad], or an InputError."""
-    import math
-
-    from cdpm.errors import InputError
-
-    try:
-        value = float(tol)
-    except (TypeError, ValueError):
-        value = math.nan
-    if not (0 < value < 1):
-        raise InputError(f"tol must be an angle in (0, 1) rad, got {tol!r} (default {SPAN_TOL})")
-    return value
 
 
 def zero_equilibrium(robot: CableRobot, setting) -> bool:

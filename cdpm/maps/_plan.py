@@ -10,14 +10,14 @@ from __future__ import annotations
 
 import hashlib
 import json
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from cdpm.errors import InputError, float_array
+from cdpm.configuration import MAX_COORDINATE
+from cdpm.errors import InputError, float_array, float_scalar
 from cdpm.maps.criteria import CRITERIA
 from cdpm.numerics import SPAN_TOL
 
@@ -86,14 +86,15 @@ def sample_axes(
     values, clean = {}, {}
     for name, bounds in ranges.items():
         try:
-            lo, hi = (float(b) for b in bounds)
+            lo, hi = (float_scalar(b) for b in bounds)
         except (TypeError, ValueError) as exc:
             raise InputError(
                 f"sample range of {name!r} must be (low, high), got {bounds!r}"
             ) from exc
-        if not (math.isfinite(lo) and math.isfinite(hi) and lo <= hi):
+        if not (abs(lo) <= MAX_COORDINATE and abs(hi) <= MAX_COORDINATE and lo <= hi):
             raise InputError(
-                f"sample range of {name!r} must be finite with low <= high, got {bounds!r}"
+                f"sample range of {name!r} must be finite, within +-{MAX_COORDINATE:g} (rad or "
+                f"m), with low <= high, got {bounds!r}"
             )
         clean[name] = (lo, hi)
         values[name] = rng.uniform(lo, hi, int(n))
@@ -218,6 +219,11 @@ def _as_axis(name: str, values: Any) -> np.ndarray:
         raise InputError(f"axis {name!r} has no values")
     if not np.all(np.isfinite(arr)):
         raise InputError(f"axis {name!r} has non-finite values")
+    if not np.all(np.abs(arr) <= MAX_COORDINATE):
+        raise InputError(
+            f"axis {name!r} has values of magnitude above {MAX_COORDINATE:g} (rad or m); "
+            "give coordinates within it"
+        )
     return arr
 
 

@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from cdpm.errors import InputError
+from cdpm.errors import InputError, float_scalar
 from cdpm.numerics import REGION_BASE_ATOL, REGION_RADIUS_FACTOR, REGION_WRAP_RTOL
 from cdpm.verdicts import YES
 
@@ -333,7 +333,7 @@ def default_radius(layout: MapLayout) -> float:
 
 def check_radius(radius: Any) -> float:
     try:
-        r = float(radius)
+        r = float_scalar(radius)
     except (TypeError, ValueError) as exc:
         raise InputError(f"radius must be a distance >= 0, got {radius!r}") from exc
     if not (math.isfinite(r) and r >= 0):

@@ -47,18 +47,13 @@ def default_tension_cap(robot: CableRobot, tension_budget: Any = None) -> float:
 
 def checked_cap(cap: Any) -> float:
     """A tension cap [N] as a positive finite float, or an InputError."""
-    from cdpm.errors import InputError
+    from cdpm.errors import positive_number
 
-    try:
-        value = float(cap)
-    except (TypeError, ValueError):
-        value = math.nan
-    if not (math.isfinite(value) and value > 0):
-        raise InputError(
-            f"tension_cap must be a positive finite tension [N] (the largest tension the search "
-            f"gives a cable without an upper bound), got {cap!r}"
-        )
-    return value
+    return positive_number(
+        cap,
+        f"tension_cap must be a positive finite tension [N] (the largest tension the search "
+        f"gives a cable without an upper bound), got {cap!r}",
+    )
 
 
 @dataclass(frozen=True)
