@@ -60,23 +60,35 @@ def capped_lines(lines: list[str]) -> list[str]:
 def float_array(value, copy: bool = False):
     """``value`` as a float numpy array, as ``np.asarray(value, dtype=float)``
     makes it (``np.array``, a copy, with ``copy``), except that complex
-    numbers raise: numpy would drop their imaginary parts with only a
-    ComplexWarning. The TypeError is the one numpy raises for other
-    non-numbers, so a caller's message for those (``except (TypeError,
-    ValueError)``) covers complex input too.
+    numbers, booleans and None raise: numpy would drop imaginary parts with
+    only a ComplexWarning, read True as 1 and None as nan. The TypeError is
+    the one numpy raises for other non-numbers, so a caller's message for
+    those (``except (TypeError, ValueError)``) covers these too.
 
     Raises:
-        TypeError: complex entries (e.g. ``[0.1j, 0.2]``), or other
-            non-numbers as numpy raises for them.
-        ValueError: strings and ragged lists, as numpy raises for them.
+        TypeError: complex entries (e.g. ``[0.1j, 0.2]``), booleans, None,
+            or other non-numbers as numpy raises for them.
+        ValueError: strings that are not numbers, and ragged lists.
     """
     import numpy as np
 
-    arr = np.asarray(value)
-    if arr.dtype.kind == "c":
+    try:
+        arr = np.asarray(value)
+    except ValueError as exc:
+        if "inhomogeneous" not in str(exc):
+            raise
+        raise ValueError(
+            f"rows of different lengths (a ragged list: {short_repr(value, 60)})"
+        ) from None
+    kind = arr.dtype.kind
+    if kind == "c":
         raise TypeError(
             f"complex numbers are not accepted (got {short_repr(value, 60)}); give real numbers"
         )
+    if kind == "b":
+        raise TypeError(f"booleans are not numbers (got {short_repr(value, 60)})")
+    if kind == "O" and any(x is None for x in arr.reshape(-1)):
+        raise TypeError(f"None is not a number (got {short_repr(value, 60)})")
     return np.array(arr, dtype=float) if copy else np.asarray(arr, dtype=float)
 
 

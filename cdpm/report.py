@@ -192,7 +192,7 @@ class PoseReport:
             "positive_controllability": self.positive_controllability.as_dict(),
             "output_controllability": self.output_controllability.as_dict(),
             "controllability": self.controllability.as_dict(),
-            "wrench_closure": self.wrench_closure.as_dict(),
+            "wrench_closure": _named_closure(self.wrench_closure, lin.cable_names),
             "criteria": to_plain(self.criteria),
             "reach": None
             if self.reach is None
@@ -472,6 +472,16 @@ def _closest_words(eq: EquilibriumResult) -> str:
     if eq.method == "pretension":
         where += f" and at least {eq.pretension:g} N (the pretension)"
     return f"the least-squares solution of the statics {where}"
+
+
+def _named_closure(result, cable_names) -> dict:
+    """The wrench closure's ``as_dict()`` with the cables' names beside the
+    0-based column indices of its certificate (``cables``)."""
+    out = result.as_dict()
+    indices = out["certificate"]["indices"]
+    if indices is not None:
+        out["certificate"]["cables"] = [str(cable_names[i]) for i in indices]
+    return out
 
 
 def _finite_or_none(x: float) -> float | None:

@@ -375,6 +375,26 @@ def test_complex_input_is_refused_by_name(paper_robot, call):
             _complex_inputs(paper_robot)[call]()
 
 
+@pytest.mark.parametrize(
+    ("q", "match"),
+    [
+        (None, "None is not a number"),
+        ([None, 0.1], "None is not a number"),
+        ([True, False], "booleans are not numbers"),
+        ([[0.1], [0.2, 0.3]], "rows of different lengths"),
+    ],
+)
+def test_non_numbers_are_named_not_read_as_nan_or_1(paper_robot, q, match):
+    """None was read as nan ("q[0] = nan: ..."), True as 1, and a ragged
+    list gave numpy's words; each is now named."""
+    import cdpm
+
+    with pytest.raises(InputError, match=match):
+        cdpm.analyze_pose(paper_robot, q)
+    with pytest.raises(InputError, match=match):
+        cdpm.evaluate_poses(paper_robot, [q] if q is not None else q)
+
+
 def test_out_of_range_arguments_are_refused_by_name(paper_robot):
     """Values whose arithmetic would over- or underflow, or that make no
     sense for the argument, give an InputError naming the limit, never a

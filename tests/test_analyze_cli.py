@@ -334,3 +334,7 @@ def test_wrench_closure_certificate_names_the_cables():
     names = ", ".join(report.linearisation.cable_names)
     assert line.strip().startswith(f"cables [{names}]")
     assert str(report.wrench_closure).splitlines()[-1].strip().startswith("columns [0, 1")
+    # the JSON keeps the 0-based indices and names the cables beside them
+    cert = report.as_dict()["wrench_closure"]["certificate"]
+    assert cert["cables"] == [report.linearisation.cable_names[i] for i in cert["indices"]]
+    assert cert["cables"][:2] == list(report.linearisation.cable_names[:2])

@@ -246,7 +246,7 @@ def test_page_endpoints_and_shutdown(paper_robot):
         for body, message in [
             ({"natural": [0.0]}, "natural must be 2 finite numbers (q1, q2)"),
             ({"natural": [0.0, "x"]}, "natural must be 2 numbers"),
-            ({"natural": [0.0, None]}, "natural must be 2 finite numbers"),
+            ({"natural": [0.0, None]}, "natural must be 2 numbers"),  # JSON null: no number
             ({"pose": "home"}, "pose 'home' not in spec; poses: nominal"),
             ({}, "give natural coordinates or a pose name"),
         ]:
