@@ -512,8 +512,9 @@ def analyze_pose(
 
     Args:
         robot: a :class:`~cdpm.robot.CableRobot`.
-        q: a pose name from the spec, a configuration vector (nq,) or
-            natural coordinates (nv,).
+        q: a pose name from the spec, a configuration vector (nq,),
+            natural coordinates (nv,) or ``{coordinate: value}`` (as
+            :meth:`~cdpm.robot.CableRobot.as_q` reads it).
         tension: equilibrium tension: None (the spec's method), a method
             name or an array (see :func:`~cdpm.linearise`).
         pretension: least tension [N] for the ``pretension`` method.

@@ -224,8 +224,10 @@ class CableRobot:
 
     def as_q(self, q: Any) -> np.ndarray:
         """Validated configuration vector (nq,) from a pose name, a
-        configuration vector (nq,) or natural coordinates (nv,)."""
-        if isinstance(q, str):
+        configuration vector (nq,), natural coordinates (nv,) or a mapping
+        ``{joint or coordinate name: value}`` as a spec's poses give it
+        (coordinates not named are 0)."""
+        if isinstance(q, (str, dict)):
             return self.configuration(q)
         return as_configuration(self.model, q)
 

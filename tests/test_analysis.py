@@ -395,6 +395,19 @@ def test_non_numbers_are_named_not_read_as_nan_or_1(paper_robot, q, match):
         cdpm.evaluate_poses(paper_robot, [q] if q is not None else q)
 
 
+def test_a_pose_may_be_given_by_coordinate_names(paper_robot):
+    """{coordinate: value} (numbers or arithmetic strings, as in a spec)
+    is the same pose as the vector; an unknown name is refused by name."""
+    import cdpm
+
+    named = cdpm.analyze_pose(paper_robot, {"q1": 0.5, "q2": "pi/4"}, margin=False)
+    vector = cdpm.analyze_pose(paper_robot, [0.5, np.pi / 4], margin=False)
+    np.testing.assert_array_equal(named.linearisation.q, vector.linearisation.q)
+    assert named.poc.verdict is vector.poc.verdict
+    with pytest.raises(InputError, match="'q9' is not a joint or coordinate; valid: q1, q2"):
+        cdpm.analyze_pose(paper_robot, {"q9": 1.0})
+
+
 def test_out_of_range_arguments_are_refused_by_name(paper_robot):
     """Values whose arithmetic would over- or underflow, or that make no
     sense for the argument, give an InputError naming the limit, never a
