@@ -22,6 +22,7 @@ specs, the CLI and maps share one definition.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -241,20 +242,23 @@ def configuration_from_values(model, value: Any) -> np.ndarray:
         except ValueError as exc:
             raise ConfigurationError(f"{where}: {exc}") from exc
 
-    if isinstance(value, dict):
+    if isinstance(value, Mapping):
         names = coordinate_names(model)
         natural = np.zeros(model.nv)
         joint_names = {jname: joint for jname, joint in _joints(model)}
         for key, item in value.items():
             if key in joint_names:
                 joint = joint_names[key]
-                items = item if isinstance(item, (list, tuple)) else [item]
+                if isinstance(item, np.ndarray):
+                    items = list(item.reshape(-1))
+                else:
+                    items = list(item) if isinstance(item, (list, tuple)) else [item]
                 if len(items) != joint.nv:
                     raise ConfigurationError(
                         f"joint {key!r} takes {joint.nv} natural coordinate(s), got {len(items)}"
                     )
                 for k, x in enumerate(items):
-                    natural[joint.idx_v + k] = number(x, f"{key}[{k}]")
+                    natural[joint.idx_v + k] = number(x, f"{key}[{k}]" if joint.nv > 1 else key)
             elif key in names:
                 natural[names.index(key)] = number(item, str(key))
             else:

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import ast
 import math
+import numbers
 import operator
 from typing import Any
 
@@ -34,7 +35,8 @@ MAX_EXPRESSION_DEPTH = 50
 
 
 def parse_number(value: Any) -> float:
-    """Turn a YAML scalar into a float.
+    """Turn a YAML scalar (or a real number from Python: numpy scalars and
+    0-d arrays, fractions, decimals) into a float.
 
     Accepts numbers and strings of plain arithmetic on numbers and the
     constants ``pi``, ``e`` and ``inf`` (``"pi/6"``, ``"-2*pi/3"``, ``"1e-3"``).
@@ -44,9 +46,14 @@ def parse_number(value: Any) -> float:
     Raises:
         ValueError: the value is not a number or such an expression.
     """
+    if getattr(value, "ndim", None) == 0 and getattr(value, "dtype", None) is not None:
+        # numpy scalars and 0-d arrays: their Python value (booleans refused below)
+        if value.dtype.kind not in "biuf":
+            raise ValueError(f"{str(value)[:40]!r} is not a real number")
+        value = value.item()
     if isinstance(value, bool):
         raise ValueError(f"{value!r} is a boolean, expected a number")
-    if isinstance(value, (int, float)):
+    if isinstance(value, numbers.Real) or type(value).__name__ == "Decimal":
         try:
             return float(value)
         except OverflowError:

@@ -27,6 +27,10 @@ MASS_COND_MAX = 1e12
 #: statics hold when |L^T f + G + w_ext| <= STATICS_RTOL max(1 N, |G + w_ext|,
 #: |L| |f|); a tension within STATICS_RTOL max(1, |f|) [N] of a bound sits on it
 STATICS_RTOL = 1e-9
+#: a given tension whose statics residual is below this times max(1 N, its
+#: largest entry) fails the statics by round-off only (printed digits,
+#: float32); the refusal then says so
+ROUNDED_RESIDUAL_RTOL = 1e-5
 #: a given tension within this [N] of a bound is on it (clipped onto it)
 BOUND_TOLERANCE = 1e-9
 #: singular values of L^T at most this times the largest are zero (equality
@@ -143,6 +147,10 @@ REACH_MIN_ACCELERATION = 1.0
 #: default reach horizon: the time in which that acceleration moves the
 #: robot by this fraction of its size (the linearisation is a local model)
 REACH_SIZE_FRACTION = 0.1
+#: largest magnitude of gravity [m/s^2] and of each external load entry
+#: [N or N m] a spec or an override may give (beyond, the dynamics overflow)
+MAX_GRAVITY = 1e6
+MAX_EXTERNAL_LOAD = 1e12
 #: longest time a reach horizon, a steering or a simulation may span [s]
 #: (about 12 days; T^2 and the time grids stay far from overflow)
 MAX_TIME_SPAN = 1e6

@@ -16,6 +16,7 @@ all cables is ``-L^T f``.
 from __future__ import annotations
 
 import os
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -227,7 +228,7 @@ class CableRobot:
         configuration vector (nq,), natural coordinates (nv,) or a mapping
         ``{joint or coordinate name: value}`` as a spec's poses give it
         (coordinates not named are 0)."""
-        if isinstance(q, (str, dict)):
+        if isinstance(q, (str, Mapping)):
             return self.configuration(q)
         return as_configuration(self.model, q)
 

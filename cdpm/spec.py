@@ -64,7 +64,7 @@ from cdpm._spec_urdf import (
 from cdpm.equilibrium import EQUILIBRIUM_METHODS
 from cdpm.errors import SpecError
 from cdpm.expressions import parse_number
-from cdpm.numerics import SPEC_COINCIDENT_POINT_ATOL
+from cdpm.numerics import MAX_EXTERNAL_LOAD, MAX_GRAVITY, SPEC_COINCIDENT_POINT_ATOL
 from cdpm.outputs import (
     OUTPUT_COMPONENTS,
     POSITION_COMPONENTS,
@@ -270,8 +270,8 @@ def load_spec(path: str | os.PathLike) -> CableSpec:
     if "gravity" in data:
         g = read_vector(problems, "gravity", data["gravity"], 3)
         if g is not None:
-            if not all(math.isfinite(x) for x in g):
-                problems.add("gravity", "values must be finite")
+            if not all(abs(x) <= MAX_GRAVITY for x in g):
+                problems.add("gravity", f"values must be finite, at most {MAX_GRAVITY:g} m/s^2")
             gravity = np.array(g)
 
     frames = FrameTable(model, link_coms(urdf_path)) if model is not None else None
@@ -283,7 +283,12 @@ def load_spec(path: str | os.PathLike) -> CableSpec:
     external = None
     if data.get("external_wrench") is not None and model is not None:
         w = read_vector(problems, "external_wrench", data["external_wrench"], model.nv)
-        if w is not None:
+        if w is not None and not all(abs(x) <= MAX_EXTERNAL_LOAD for x in w):
+            problems.add(
+                "external_wrench",
+                f"values must be finite, at most {MAX_EXTERNAL_LOAD:g} (N or N m)",
+            )
+        elif w is not None:
             external = np.array(w)
 
     if problems.items:

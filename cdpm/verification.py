@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from cdpm.errors import InputError, float_scalar
+from cdpm.expressions import parse_number
 from cdpm.steering import SteerResult, steer
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -263,7 +264,10 @@ def verify_pose(
     q = lin.q
     size = default_radius(robot, q)[1]
     try:
-        R = RADIUS_FRACTION * size if radius is None else float_scalar(radius)
+        if radius is None:
+            R = RADIUS_FRACTION * size
+        else:
+            R = parse_number(radius) if isinstance(radius, str) else float_scalar(radius)
     except (TypeError, ValueError):
         R = math.nan
     if not (0 < R <= size):

@@ -18,6 +18,7 @@ from cdpm.analysis import (
     wrench_closure,
 )
 from cdpm.errors import InputError
+from tests.conftest import MODELS
 
 
 def poc_checked(A, B, C, mask=None, **kw):
@@ -406,6 +407,44 @@ def test_a_pose_may_be_given_by_coordinate_names(paper_robot):
     assert named.poc.verdict is vector.poc.verdict
     with pytest.raises(InputError, match="'q9' is not a joint or coordinate; valid: q1, q2"):
         cdpm.analyze_pose(paper_robot, {"q9": 1.0})
+    # values as numpy, fractions or decimals give them; any Mapping will do
+    import types
+    from decimal import Decimal
+    from fractions import Fraction
+
+    q = paper_robot.as_q({"q1": 0.5, "q2": 0.25})
+    for v in (np.float32(0.5), np.array(0.5), Fraction(1, 2), Decimal("0.5")):
+        np.testing.assert_array_equal(paper_robot.as_q({"q1": v, "q2": 0.25}), q)
+    np.testing.assert_array_equal(
+        paper_robot.as_q(types.MappingProxyType({"q1": 0.5, "q2": 0.25})), q
+    )
+    with pytest.raises(InputError, match="q1: True is a boolean"):
+        paper_robot.as_q({"q1": np.True_})
+
+
+def test_a_free_flyer_pose_may_be_a_numpy_array():
+    """{joint: array of its six natural coordinates} is the list's pose."""
+    import cdpm
+
+    robot = cdpm.load_robot(MODELS / "spatial_8cable" / "spatial_8cable.yaml")
+    six = [0.0, 0.0, 1.0, 0.0, 0.0, 0.0]
+    np.testing.assert_array_equal(
+        robot.as_q({"platform_joint": np.array(six)}), robot.as_q({"platform_joint": six})
+    )
+
+
+def test_tensions_that_miss_the_statics_by_round_off_say_so(paper_robot):
+    """Tensions with a few digits dropped (as printed) fail the statics by
+    round-off; the refusal says how to give them instead."""
+    import cdpm
+
+    robot = cdpm.load_robot(MODELS / "two_link_vertical" / "two_link_vertical.yaml")
+    f = cdpm.equilibrium_tension(robot, "horizontal").tension
+    with pytest.raises(InputError, match="miss by round-off: give them to full precision"):
+        cdpm.linearise(robot, "horizontal", tension=np.round(f, 6))
+    with pytest.raises(InputError) as far:
+        cdpm.linearise(robot, "horizontal", tension=2 * f)
+    assert "round-off" not in str(far.value)
 
 
 def test_out_of_range_arguments_are_refused_by_name(paper_robot):
@@ -434,7 +473,7 @@ def test_out_of_range_arguments_are_refused_by_name(paper_robot):
         (lambda: positive_output_controllability(1e200 * I2, B, I2), "largest entry is 1e\\+200"),
         (lambda: cdpm.output_controllability(I2, 1e160 * I2, I2), "express the model in other"),
         (lambda: cdpm.positively_spans(B).verify(B[:, :3]), "do not fit this certificate"),
-        (lambda: cdpm.workspace_map(robot, {"q1": [0.1, np.ones(2)], "q2": [0.2]}), "real numbers"),
+        (lambda: cdpm.workspace_map(robot, {"q1": [0.1, np.ones(2)], "q2": [0.2]}), "ragged"),
     ]
     for call, match in cases:
         with pytest.raises(InputError, match=match):

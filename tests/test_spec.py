@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 import cdpm
+from cdpm.errors import InputError, SpecError
 from cdpm.spec import load_spec, parse_number
 from tests.conftest import PAPER_SPEC
 
@@ -38,6 +39,20 @@ def test_paper_spec_fields():
     np.testing.assert_array_equal(spec.gravity, [0, 0, 0])
     np.testing.assert_array_equal(spec.model.gravity.linear, [0, 0, 0])
     assert len(spec.sha256) == 64
+
+
+def test_gravity_and_loads_beyond_physics_are_refused(write_spec):
+    """Gravity of 1e308 m/s^2 made the dynamics overflow into numpy's
+    LinAlgError; the spec and the overrides now name the limit."""
+    from cdpm.maps._plan import override_robot
+
+    with pytest.raises(SpecError, match="gravity: values must be finite, at most 1e\\+06 m/s\\^2"):
+        load_spec(write_spec(GOOD.replace("gravity: [0, 0, 0]", "gravity: [1.0e+308, 0, 0]")))
+    robot = cdpm.load_robot(write_spec(GOOD))
+    with pytest.raises(InputError, match="gravity \\[m/s\\^2\\] must be 3 numbers of at most"):
+        override_robot(robot, gravity=[1e308, 0, 0])
+    with pytest.raises(InputError, match="external wrench .* of at most 1e\\+12"):
+        override_robot(robot, external_wrench=[1e300, 0])
 
 
 def test_default_gravity_is_standard(write_spec):

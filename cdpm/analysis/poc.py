@@ -86,7 +86,7 @@ def positive_output_controllability(
         input_scale: positive (m,) input scales for the margin (e.g. tension
             bounds [N]); default ones.
         output_weight: positive (p,) output weights for the margin; default ones.
-        tol: angle-like tolerance of the span decisions.
+        tol: angle-like tolerance of the span decisions, in (0, 1) [rad].
 
     Returns:
         :class:`POCResult`.

@@ -52,7 +52,7 @@ from cdpm.analysis._common import (
     to_plain,
 )
 from cdpm.analysis._span_hull import min_norm_separator, span_margin_bracket
-from cdpm.errors import InputError
+from cdpm.errors import InputError, positive_number
 from cdpm.numerics import (
     COMBINATION_SHARE_MARGIN,
     COMBINATION_SV_MIN,
@@ -95,6 +95,7 @@ class SpanCertificate:
                 than its separator has entries.
         """
         S = as_matrix("vectors", vectors, check_finite=False)
+        tol = positive_number(tol, f"tol must be in (0, 1), got {tol!r}", np.nextafter(1.0, 0))
         if not np.all(np.isfinite(S)):
             return False
         p, k = S.shape
@@ -644,8 +645,9 @@ def positively_spans(vectors, *, tol: float = SPAN_TOL) -> SpanResult:
 
     Args:
         vectors: shape (p, k), one vector per column.
-        tol: angle-like tolerance (module docstring: for p = 2 sets within
-            ``tol`` of the boundary, a closed half-plane, are NO).
+        tol: angle-like tolerance in (0, 1) [rad] (module docstring: for
+            p = 2 sets within ``tol`` of the boundary, a closed half-plane,
+            are NO).
 
     Returns:
         :class:`SpanResult`: YES or NO with a certificate that
@@ -688,6 +690,7 @@ def wrench_closure(L, *, tol: float = SPAN_TOL) -> SpanResult:
     Args:
         L: cable Jacobian, shape (m, nv); ``l' = L q'``. A tension f >= 0
             produces the generalised force ``-L^T f`` (paper eq 11).
+        tol: as :func:`positively_spans`.
 
     Returns:
         :class:`SpanResult` over the m columns of ``-L^T`` (shape (nv, m)).

@@ -65,7 +65,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="the target as a change of the outputs from the pose's [m]",
     )
     parser.add_argument(
-        "--duration", type=argument_type(_duration), metavar="T", help="steering time [s]"
+        "--duration",
+        type=argument_type(_duration),
+        metavar="T",
+        help="steering time [s], at most 1e6 (default: per pose, from its dynamics)",
     )
     parser.add_argument(
         "--intervals", type=int, default=20, metavar="K", help="piecewise-constant intervals"

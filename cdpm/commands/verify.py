@@ -90,7 +90,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="also steer to N random directions at distance R (YES poses)",
     )
     parser.add_argument(
-        "--duration", type=argument_type(_duration), metavar="T", help="steering time [s]"
+        "--duration",
+        type=argument_type(_duration),
+        metavar="T",
+        help="steering time [s], at most 1e6 (default: per pose, from its dynamics)",
     )
     parser.add_argument("--json", action="store_true", help="print the report as JSON")
     parser.add_argument(

@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from cdpm.errors import InputError, ModelError
+from cdpm.numerics import ROUNDED_RESIDUAL_RTOL, STATICS_RTOL
 
 __all__ = [
     "EquilibriumResult",
@@ -160,10 +161,18 @@ class NotAnEquilibriumError(InputError):
         self.result = result
         self.methods = tuple(methods)
         named = ", ".join(method_option.format(m) for m in self.methods)
+        near = result.residual <= ROUNDED_RESIDUAL_RTOL * max(1.0, float(np.max(result.tension)))
+        hint = (
+            f"; the statics hold to a relative {STATICS_RTOL:g}, which tensions copied from "
+            "printed output or held in float32 miss by round-off: give them to full "
+            "precision (cdpm analyze --json prints it)"
+            if near
+            else ""
+        )
         super().__init__(
             "the given tension is not an equilibrium at this pose: statics residual "
-            f"|L^T f + G + w_ext| = {result.residual:.6g} (N or N m); let cdpm compute one: "
-            f"{omit_option} or name a method ({named})"
+            f"|L^T f + G + w_ext| = {result.residual:.6g} (N or N m){hint}; let cdpm compute "
+            f"one: {omit_option} or name a method ({named})"
         )
 
     def spelled(self, **options: str) -> NotAnEquilibriumError:

@@ -19,7 +19,7 @@ import numpy as np
 from cdpm.configuration import MAX_COORDINATE
 from cdpm.errors import InputError, float_array, float_scalar
 from cdpm.maps.criteria import CRITERIA
-from cdpm.numerics import SPAN_TOL
+from cdpm.numerics import MAX_EXTERNAL_LOAD, MAX_GRAVITY, SPAN_TOL
 
 if TYPE_CHECKING:  # pragma: no cover
     from cdpm.robot import CableRobot
@@ -214,7 +214,10 @@ def _as_axis(name: str, values: Any) -> np.ndarray:
     try:
         arr = float_array(values, copy=True).reshape(-1)
     except (TypeError, ValueError) as exc:
-        raise InputError(f"axis {name!r}: values must be real numbers, got {values!r}") from exc
+        raise InputError(
+            f"axis {name!r}: values must be numbers, got {values!r}: {exc} (expressions such "
+            "as pi/4 are for the command line's --axis)"
+        ) from exc
     if arr.size == 0:
         raise InputError(f"axis {name!r} has no values")
     if not np.all(np.isfinite(arr)):
@@ -395,13 +398,13 @@ def _axis_text(info) -> str:
 _OVERRIDE_KEYS = ("gravity", "tension_bounds", "pretension", "external_wrench")
 
 
-def _finite_vector(what: str, value: Any, size: int) -> np.ndarray:
+def _finite_vector(what: str, value: Any, size: int, largest: float) -> np.ndarray:
     try:
         arr = float_array(value, copy=True).reshape(-1)
     except (TypeError, ValueError) as exc:
-        raise InputError(f"{what} must be {size} real numbers, got {value!r}") from exc
-    if arr.shape != (size,) or not np.all(np.isfinite(arr)):
-        raise InputError(f"{what} must be {size} finite numbers, got {value!r}")
+        raise InputError(f"{what} must be {size} numbers, got {value!r}") from exc
+    if arr.shape != (size,) or not np.all(np.abs(arr) <= largest):
+        raise InputError(f"{what} must be {size} numbers of at most {largest:g}, got {value!r}")
     return arr
 
 
@@ -478,7 +481,7 @@ def override_robot(
     spec = robot.spec
     changes: dict[str, Any] = {}
     if gravity is not None:
-        g = _finite_vector("gravity [m/s^2]", gravity, 3)
+        g = _finite_vector("gravity [m/s^2]", gravity, 3, MAX_GRAVITY)
         model = spec.model.copy()
         model.gravity.linear = g
         changes.update(gravity=g, model=model)
@@ -496,7 +499,7 @@ def override_robot(
         changes["pretension"] = checked_pretension(pretension)
     if external_wrench is not None:
         changes["external_wrench"] = _finite_vector(
-            f"external wrench (nv={robot.nv} values)", external_wrench, robot.nv
+            f"external wrench (nv={robot.nv} values)", external_wrench, robot.nv, MAX_EXTERNAL_LOAD
         )
     if not changes:
         return robot
