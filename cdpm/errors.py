@@ -20,6 +20,7 @@ __all__ = [
     "float_array",
     "float_scalar",
     "positive_number",
+    "check_tol",
     "MAX_LISTED_PROBLEMS",
     "MAX_PROBLEM_CHARS",
     "MAX_MESSAGE_CHARS",
@@ -117,6 +118,18 @@ def positive_number(value, message: str, largest: float = 1.7976931348623157e308
     if not (0 < x <= largest):
         raise InputError(message)
     return x
+
+
+def check_tol(tol) -> float:
+    """The span tolerance as a float in (0, 1) [rad], or an InputError.
+    (Here, not beside the analysis, so that a map's worker processes need
+    not import SciPy to check it.)"""
+    import math
+
+    from cdpm.numerics import SPAN_TOL
+
+    message = f"tol must be an angle in (0, 1) rad, got {tol!r} (default {SPAN_TOL})"
+    return positive_number(tol, message, largest=math.nextafter(1.0, 0.0))
 
 
 #: longest message a cdpm error prints [characters]; the full text stays in

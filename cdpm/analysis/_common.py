@@ -14,14 +14,13 @@ import numpy as np
 from scipy import linalg as sla
 from scipy.linalg import lapack as _lapack
 
-from cdpm.errors import InputError, float_array, positive_number
+from cdpm.errors import InputError, float_array
 from cdpm.numerics import (
     KRYLOV_RTOL,
     MATRIX_SCALE_RANGE,
     NULL_SPACE_RTOL,
     RANK_RTOL,
     ROW_ZERO_RTOL,
-    SPAN_TOL,
     SQUARE_ZERO_RTOL,
 )
 
@@ -78,12 +77,6 @@ def as_matrix(
     if check_finite:
         _check_finite(name, arr)
     return arr
-
-
-def check_tol(tol) -> float:
-    """The span tolerance as a float in (0, 1) [rad], or an InputError."""
-    message = f"tol must be an angle in (0, 1) rad, got {tol!r} (default {SPAN_TOL})"
-    return positive_number(tol, message, largest=math.nextafter(1.0, 0.0))
 
 
 def _expect(label: str, value: int) -> str:

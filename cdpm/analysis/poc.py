@@ -36,7 +36,6 @@ from cdpm.analysis._common import (
     Verdict,
     as_positive_vector,
     as_system,
-    check_tol,
     complement,
     orth,
     qr_pivots,
@@ -52,7 +51,7 @@ from cdpm.analysis.poc_result import POCResult
 from cdpm.analysis.poc_result import poc_margin as poc_margin
 from cdpm.analysis.rank import output_reachable_basis
 from cdpm.analysis.span import independent_columns
-from cdpm.errors import InputError, positive_number
+from cdpm.errors import InputError, check_tol, positive_number
 from cdpm.numerics import FREE_SAMPLE_ZERO_RTOL, FREE_SPAN_RATIO, ROW_ZERO_RTOL, SPAN_TOL
 
 # poc_margin, poc_margins and POCResult are re-exported: other code (cdpm.maps,

@@ -41,7 +41,6 @@ from scipy.optimize import linprog, nnls
 from cdpm.analysis._common import (
     Verdict,
     as_matrix,
-    check_tol,
     eigh,
     fmt_array,
     html_table,
@@ -52,7 +51,7 @@ from cdpm.analysis._common import (
     to_plain,
 )
 from cdpm.analysis._span_hull import min_norm_separator, span_margin_bracket
-from cdpm.errors import InputError, positive_number
+from cdpm.errors import InputError, check_tol, positive_number
 from cdpm.numerics import (
     COMBINATION_SHARE_MARGIN,
     COMBINATION_SV_MIN,

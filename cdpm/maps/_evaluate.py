@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 import cdpm.maps.tension_criteria  # noqa: F401  (registers the tension search's criteria)
-from cdpm.analysis._common import check_tol
+from cdpm.errors import check_tol
 from cdpm.maps._batch import check_poses
 from cdpm.maps.criteria import CRITERIA, PoseBatch
 from cdpm.numerics import MIN_SEGMENT_LENGTH, SPAN_TOL
