@@ -108,27 +108,35 @@ def float_scalar(value) -> float:
 
 
 def positive_number(value, message: str, largest: float = 1.7976931348623157e308) -> float:
-    """``value`` as a float in (0, ``largest``] (by default: positive and
-    finite), or an InputError with ``message`` (which names the argument,
-    its unit and its range) when it is not one real number in that range."""
+    """``value`` (a number, a numpy scalar or an arithmetic string such as
+    ``"pi/20"``: :func:`cdpm.expressions.parse_number`) as a float in
+    (0, ``largest``] (by default: positive and finite), or an InputError
+    with ``message`` (which names the argument, its unit and its range)
+    when it is not one real number in that range."""
+    from cdpm.expressions import parse_number
+
     try:
-        x = float_scalar(value)
-    except (TypeError, ValueError):
+        x = parse_number(value)
+    except ValueError:
         x = float("nan")
     if not (0 < x <= largest):
         raise InputError(message)
     return x
 
 
-def check_tol(tol) -> float:
-    """The span tolerance as a float in (0, 1) [rad], or an InputError.
-    (Here, not beside the analysis, so that a map's worker processes need
-    not import SciPy to check it.)"""
+def check_tol(
+    tol, default: float | None = None, kind: str = "an angle", unit: str = " rad"
+) -> float:
+    """A tolerance as a float in (0, 1), or an InputError: by default the
+    span tolerance [rad] (default SPAN_TOL). (Here, not beside the
+    analysis, so that a map's worker processes need not import SciPy to
+    check it.)"""
     import math
 
     from cdpm.numerics import SPAN_TOL
 
-    message = f"tol must be an angle in (0, 1) rad, got {tol!r} (default {SPAN_TOL})"
+    default = SPAN_TOL if default is None else default
+    message = f"tol must be {kind} in (0, 1){unit}, got {tol!r} (default {default:g})"
     return positive_number(tol, message, largest=math.nextafter(1.0, 0.0))
 
 

@@ -10,6 +10,7 @@ cdpm, so any layer may use it.
 from __future__ import annotations
 
 import ast
+import decimal
 import math
 import numbers
 import operator
@@ -53,7 +54,7 @@ def parse_number(value: Any) -> float:
         value = value.item()
     if isinstance(value, bool):
         raise ValueError(f"{value!r} is a boolean, expected a number")
-    if isinstance(value, numbers.Real) or type(value).__name__ == "Decimal":
+    if isinstance(value, (numbers.Real, decimal.Decimal)):
         try:
             return float(value)
         except OverflowError:

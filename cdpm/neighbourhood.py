@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from cdpm.errors import InputError, float_scalar
+from cdpm.errors import InputError
 from cdpm.numerics import SPAN_TOL, SUSPECT_LIPSCHITZ_SAFETY
 from cdpm.verdicts import NOT_ANALYSED, STATUS_CODES, STATUS_LABELS, VERDICT_CODES, YES, verdict_key
 
@@ -326,10 +326,8 @@ def _check_radius(radius: Any) -> float:
     from cdpm.expressions import parse_number
 
     try:
-        if isinstance(radius, bool) or not isinstance(radius, (int, float, str, np.number)):
-            raise TypeError
-        value = parse_number(radius) if isinstance(radius, str) else float_scalar(radius)
-    except (TypeError, ValueError) as exc:
+        value = parse_number(radius)
+    except ValueError as exc:
         raise InputError(
             f"radius must be a number [rad or m], e.g. 0.1 or 'pi/20', got {radius!r}"
         ) from exc

@@ -63,7 +63,8 @@ ROW_ZERO_RTOL = 1e-12
 #: angle-like tolerance of every positive-span decision [rad]
 SPAN_TOL = 1e-9
 #: the range of the largest |entry| of each of A, B and C that the per-pose
-#: analysis takes (0 too): beyond it products of entries under- or overflow
+#: analysis takes (0 too): beyond it products of entries under- or overflow;
+#: span vectors outside it are scaled into it by a power of two
 MATRIX_SCALE_RANGE = (1e-100, 1e100)
 #: columns shorter than this times the longest are zero in span decisions
 ZERO_RTOL = 1e-11

@@ -33,7 +33,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from cdpm.errors import InputError, float_scalar
+from cdpm.errors import positive_number
 from cdpm.numerics import (
     MAX_TENSION_BUDGET,
     MAX_TIME_SPAN,
@@ -97,17 +97,9 @@ class ReachSettings:
 
 
 def _positive(name: str, value: Any, unit: str, largest: float) -> float:
-    from cdpm.expressions import parse_number
-
     text = value.strip() if isinstance(value, str) else value
     message = f"{name} must be a positive number of at most {largest:g} {unit}, got {text!r}"
-    try:
-        x = parse_number(text) if isinstance(text, str) else float_scalar(text)
-    except (TypeError, ValueError) as exc:
-        raise InputError(message) from exc
-    if not (0 < x <= largest):
-        raise InputError(message)
-    return x
+    return positive_number(value, message, largest)
 
 
 def reach_settings(

@@ -12,14 +12,12 @@ in R.
 from __future__ import annotations
 
 import html
-import math
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from cdpm.errors import InputError, float_scalar
-from cdpm.expressions import parse_number
+from cdpm.errors import InputError, positive_number
 from cdpm.steering import SteerResult, steer
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -263,18 +261,13 @@ def verify_pose(
     )
     q = lin.q
     size = default_radius(robot, q)[1]
-    try:
-        if radius is None:
-            R = RADIUS_FRACTION * size
-        else:
-            R = parse_number(radius) if isinstance(radius, str) else float_scalar(radius)
-    except (TypeError, ValueError):
-        R = math.nan
-    if not (0 < R <= size):
-        raise InputError(
+    R = RADIUS_FRACTION * size
+    if radius is not None:
+        message = (
             f"radius must be a positive distance of at most the robot's size, {size:.3g} "
             f"(targets near the pose: the check is local), got {radius!r}"
         )
+        R = positive_number(radius, message, largest=size)
     if not (isinstance(random_directions, (int, np.integer)) and random_directions >= 0):
         raise InputError(f"random_directions must be a count >= 0, got {random_directions!r}")
     p = robot.n_outputs

@@ -514,7 +514,8 @@ def in_norm_range(S: np.ndarray) -> tuple[np.ndarray, float]:
     it (in a column norm) under- or overflows; otherwise ``(S, 1.0)``.
     A power of two scales exactly, so directions and ratios are unchanged."""
     big = float(np.max(np.abs(S))) if S.size else 0.0
-    if big == 0.0 or 1e-100 < big < 1e100 or not math.isfinite(big):
+    low, high = MATRIX_SCALE_RANGE
+    if big == 0.0 or low < big < high or not math.isfinite(big):
         return S, 1.0
     # at most 2^1000: the smallest subnormal entries then come to about 1e-23
     c = math.ldexp(1.0, min(-math.frexp(big)[1], 1000))

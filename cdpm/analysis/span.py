@@ -51,7 +51,7 @@ from cdpm.analysis._common import (
     to_plain,
 )
 from cdpm.analysis._span_hull import min_norm_separator, span_margin_bracket
-from cdpm.errors import InputError, check_tol, positive_number
+from cdpm.errors import InputError, check_tol
 from cdpm.numerics import (
     COMBINATION_SHARE_MARGIN,
     COMBINATION_SV_MIN,
@@ -94,7 +94,7 @@ class SpanCertificate:
                 than its separator has entries.
         """
         S = as_matrix("vectors", vectors, check_finite=False)
-        tol = positive_number(tol, f"tol must be in (0, 1), got {tol!r}", np.nextafter(1.0, 0))
+        tol = check_tol(tol, RECHECK_TOL, "a relative tolerance", "")
         if not np.all(np.isfinite(S)):
             return False
         p, k = S.shape

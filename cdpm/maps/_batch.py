@@ -84,11 +84,12 @@ def check_poses(robot: CableRobot, natural) -> np.ndarray:
             f"poses must have shape (N, {robot.nv}) (natural coordinates "
             f"{', '.join(robot.coordinate_names)}), got shape {arr.shape}"
         )
-    if not np.all(np.isfinite(arr)):
-        bad = np.flatnonzero(~np.all(np.isfinite(arr), axis=1))
-        raise InputError(f"poses {bad[:5].tolist()} have non-finite coordinates")
-    if not np.all(np.abs(arr) <= MAX_COORDINATE):
-        bad = np.flatnonzero(~np.all(np.abs(arr) <= MAX_COORDINATE, axis=1))
+    within = np.abs(arr) <= MAX_COORDINATE  # False for nan and inf too: one pass
+    if not within.all():
+        if not np.all(np.isfinite(arr)):
+            bad = np.flatnonzero(~np.all(np.isfinite(arr), axis=1))
+            raise InputError(f"poses {bad[:5].tolist()} have non-finite coordinates")
+        bad = np.flatnonzero(~within.all(axis=1))
         raise InputError(
             f"poses {bad[:5].tolist()} have coordinates of magnitude above {MAX_COORDINATE:g} "
             "(rad or m); give coordinates within it"
