@@ -712,27 +712,28 @@ def test_sigkilled_map_resumes_to_the_same_result(paper_robot, tmp_path):
 
 def test_default_chunks_under_load_are_few_and_even(tmp_path):
     """Writing a chunk costs about 10 ms whatever its size, so default chunks
-    under load hold at least 1024 poses (a 2048-pose map is two: one per
-    process of two), a thirty-second of a larger map, at most 4096; a
-    map's chunk files lie side by side (no folder per chunk)."""
+    under load hold at least 2048 poses (a 2048-pose map is one: a second
+    chunk would add its writing, and a worker process starts slower than
+    the map runs), a thirty-second of a larger map, at most 4096; a map's
+    chunk files lie side by side (no folder per chunk)."""
     from cdpm.maps import MIN_PER_POSE_CHUNK_SIZE, PER_POSE_CHUNK_SIZE, _per_pose_chunk_size
 
-    assert (MIN_PER_POSE_CHUNK_SIZE, PER_POSE_CHUNK_SIZE) == (1024, 4096)
-    sizes = {n: _per_pose_chunk_size(n) for n in (1, 2048, 16384, 40000, 65536, 131072, 10**6)}
+    assert (MIN_PER_POSE_CHUNK_SIZE, PER_POSE_CHUNK_SIZE) == (2048, 4096)
+    sizes = {n: _per_pose_chunk_size(n) for n in (1, 2048, 4096, 16384, 80000, 131072, 10**6)}
     assert sizes == {
-        1: 1024,
-        2048: 1024,
-        16384: 1024,
-        40000: 1536,
-        65536: 2048,
+        1: 2048,
+        2048: 2048,
+        4096: 2048,
+        16384: 2048,
+        80000: 2560,
         131072: 4096,
         10**6: 4096,
     }
-    assert [-(-n // size) for n, size in sizes.items()] == [1, 2, 16, 27, 32, 32, 245]
-    axes = {"q1": np.linspace(-3.0, 3.0, 32), "q2": np.linspace(-3.0, 3.0, 64)}
+    assert [-(-n // size) for n, size in sizes.items()] == [1, 1, 2, 8, 32, 32, 245]
+    axes = {"q1": np.linspace(-3.0, 3.0, 64), "q2": np.linspace(-3.0, 3.0, 64)}
     store = tmp_path / "v.zarr"
     ds = workspace_map(VERTICAL_SPEC, axes, workers=1, store=store, margin=False)
-    assert ds.attrs["chunk_size"] == 1024 and ds["poc"].encoding["chunks"] == (16, 64)
+    assert ds.attrs["chunk_size"] == 2048 and ds["poc"].encoding["chunks"] == (32, 64)
     assert sorted(p.name for p in (store / "poc").iterdir()) == ["c.0.0", "c.1.0", "zarr.json"]
     assert sorted(p.name for p in (store / ".cdpm" / "done").iterdir()) == ["0", "1"]
     _same(ds, workspace_map(VERTICAL_SPEC, axes, workers=1, chunk_size=256, margin=False))

@@ -90,7 +90,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--chunk-size",
         type=int,
         metavar="N",
-        help="poses per chunk (default 16384 without load, up to 1024 under load)",
+        help="poses per chunk (default 16384 without load, 2048 to 4096 under load)",
     )
     parser.add_argument(
         "--no-margin",

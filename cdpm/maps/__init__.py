@@ -66,10 +66,11 @@ DEFAULT_MAX_WORKERS = 16
 #: 2 s
 PER_POSE_CHUNK_SIZE = 4096
 
-#: smallest default chunk under load: a 2048-pose map is two chunks (one
-#: per process of two); smaller chunks would spend as long writing as
-#: computing on the cheaper models
-MIN_PER_POSE_CHUNK_SIZE = 1024
+#: smallest default chunk under load: a map of up to 2048 poses is one
+#: chunk (a tenth of a second on the cheaper models, less than a worker
+#: process takes to start, so a second chunk would only add its writing);
+#: smaller chunks would spend as long writing as computing on those models
+MIN_PER_POSE_CHUNK_SIZE = 2048
 
 #: chunk size of maps with the tension search (``tension="best"``: tens of
 #: LPs and candidate analyses per pose, 0.03 to 1 s a pose)
@@ -142,7 +143,7 @@ def workspace_map(
             chunks not yet done are computed). None keeps the map in memory.
         overwrite: replace an existing ``store`` instead of resuming it.
         chunk_size: poses per chunk (default 16384; under load, when poses
-            go through the analyser, a thirty-second of the map within 1024
+            go through the analyser, a thirty-second of the map within 2048
             and 4096).
         progress: True prints what runs where (see ``announce``) and a
             progress bar on stderr; a callable is called as
