@@ -543,7 +543,20 @@ def test_a_stored_map_reads_back_identical_to_the_map_in_memory(paper_robot, tmp
         axes, kw = {"q1": np.linspace(-3, 3, 9), "q2": np.linspace(0, 1, 7)}, {}
     memory = workspace_map(paper_robot, axes, workers=1, **kw)
     stored = workspace_map(paper_robot, axes, workers=1, store=tmp_path / "m.zarr", **kw)
-    for ds in (stored, open_map(tmp_path / "m.zarr")):
+    opened = open_map(tmp_path / "m.zarr")
+    # the returned map indexes the coordinates it wrote, without reading
+    # them back: the same indexes, and every variable read from the store
+    # as open_map reads it (its regions are the labels just computed)
+    assert {name: type(index) for name, index in stored.xindexes.items()} == {
+        name: type(index) for name, index in opened.xindexes.items()
+    }
+    for name in opened.variables:
+        if name != "poc_region":
+            got, read = stored[name].encoding, opened[name].encoding
+            assert got.keys() == read.keys(), name
+            for key, value in read.items():  # NaN fill values compare unequal
+                assert got[key] == value or (np.isnan(got[key]) and np.isnan(value)), (name, key)
+    for ds in (stored, opened):
         xr.testing.assert_identical(ds.load(), memory)
         assert ds.encoding["source"] == os.path.abspath(tmp_path / "m.zarr")
     if sampled:
@@ -557,8 +570,37 @@ def test_a_stored_map_reads_back_identical_to_the_map_in_memory(paper_robot, tmp
         warnings.simplefilter("ignore")  # consolidated metadata: not in the v3 spec yet
         zarr.consolidate_metadata(str(tmp_path / "m.zarr"))
     assert json.loads(root.read_text()) == written
-    # every file went through a temporary file renamed over it
+    # no temporary file is left behind
     assert not [p for p in (tmp_path / "m.zarr").rglob("*") if p.name.endswith(".partial")]
+
+
+def test_a_run_stopped_while_creating_its_store_is_made_again(paper_robot, tmp_path, monkeypatch):
+    """A run stopped while it writes the new store's files (written in
+    place, not renamed; here by a full disk) leaves a store without its
+    created marker; the next run makes the store again instead of refusing
+    it as not a map."""
+    import xarray as xr
+
+    from cdpm.maps._filestore import MapFileStore
+
+    axes = {"q1": np.linspace(-3, 3, 9), "q2": np.linspace(0, 1, 7)}
+    store = tmp_path / "m.zarr"
+    set_new, calls = MapFileStore.set_new, []
+
+    async def full_after_five(self, key, value):
+        calls.append(key)
+        if len(calls) > 5:
+            raise OSError(28, "No space left on device")
+        await set_new(self, key, value)
+
+    monkeypatch.setattr(MapFileStore, "set_new", full_after_five)
+    with pytest.raises(OSError, match="No space left"):
+        workspace_map(paper_robot, axes, workers=1, store=store)
+    assert (store / ".cdpm").is_dir() and not (store / ".cdpm" / "created").exists()
+    assert sum(p.is_file() for p in store.rglob("*") if ".cdpm" not in p.parts) == 5
+    monkeypatch.setattr(MapFileStore, "set_new", set_new)
+    again = workspace_map(paper_robot, axes, workers=1, store=store)
+    xr.testing.assert_identical(again.load(), workspace_map(paper_robot, axes, workers=1))
 
 
 def test_new_store_consolidated_metadata_is_zarrs_own(paper_robot, tmp_path, monkeypatch):
@@ -570,7 +612,7 @@ def test_new_store_consolidated_metadata_is_zarrs_own(paper_robot, tmp_path, mon
 
     import cdpm.maps.regions
 
-    monkeypatch.setattr(cdpm.maps.regions, "attach_regions", lambda ds, store=None: ds)
+    monkeypatch.setattr(cdpm.maps.regions, "attach_new_regions", lambda ds, *args: ds)
     axes = {"q1": np.linspace(-3, 3, 9), "q2": np.linspace(0, 1, 7)}
     workspace_map(paper_robot, axes, workers=1, store=tmp_path / "m.zarr")
     root = tmp_path / "m.zarr" / "zarr.json"

@@ -192,7 +192,7 @@ def workspace_map(
     from cdpm.maps._plan import make_plan
     from cdpm.maps._runner import ProgressPrinter, RobotSource, prestart_workers, run_chunks
     from cdpm.maps._store import MemorySink, ZarrSink
-    from cdpm.maps.regions import attach_regions
+    from cdpm.maps.regions import attach_new_regions
     from cdpm.reach import reach_settings
     from cdpm.robot import CableRobot, load_robot
 
@@ -297,7 +297,7 @@ def workspace_map(
             if isinstance(progress, ProgressPrinter):
                 progress.stopped()
             raise
-        return attach_regions(sink.dataset(), store)
+        return attach_new_regions(sink.dataset(), store, sink.group)
 
 
 def _print_to_stderr(info: MapRunInfo) -> None:

@@ -52,13 +52,7 @@ class MapFileStore(LocalStore):
         return (prototype or default_buffer_prototype()).buffer.from_bytes(data)
 
     async def set(self, key: str, value: Buffer) -> None:
-        if not self._is_open:
-            await self._open()
-        self._check_writable()
-        if not isinstance(value, Buffer):
-            raise TypeError(f"MapFileStore.set(): value must be a zarr Buffer, got {type(value)}")
-        path = self.root / key
-        path.parent.mkdir(parents=True, exist_ok=True)
+        path = await self._path_to_write(key, value)
         partial = path.with_name(f"{path.name}.{os.getpid()}.partial")
         try:
             with open(partial, "wb") as fh:
@@ -67,3 +61,25 @@ class MapFileStore(LocalStore):
         except BaseException:
             partial.unlink(missing_ok=True)
             raise
+
+    async def set_new(self, key: str, value: Buffer) -> None:
+        """:meth:`set` for the files of a store being created, written in
+        place (no temporary file and rename: 1-2 ms of a new map store's
+        two dozen files). A store that is still being created is not a
+        map yet (cdpm marks it complete once every file is written), so a
+        half-written file there is never read: a run that stops while
+        creating it makes it again."""
+        path = await self._path_to_write(key, value)
+        path.write_bytes(value.as_buffer_like())
+
+    async def _path_to_write(self, key: str, value: Buffer):
+        """The file of ``key``, its folder made; refuses a read-only store
+        and a value that is not a zarr Buffer."""
+        if not self._is_open:
+            await self._open()
+        self._check_writable()
+        if not isinstance(value, Buffer):
+            raise TypeError(f"MapFileStore.set(): value must be a zarr Buffer, got {type(value)}")
+        path = self.root / key
+        path.parent.mkdir(parents=True, exist_ok=True)
+        return path

@@ -483,12 +483,20 @@ def attach_regions(ds, store: str | os.PathLike | None = None):
     Returns:
         ``ds`` with the variable ``poc_region`` (a new Dataset; ``ds`` unchanged).
     """
+    return attach_new_regions(ds, store, None)
+
+
+def attach_new_regions(ds, store, group):
+    """:func:`attach_regions`, at the end of the run that wrote the map:
+    ``group`` is the store's zarr group if that run created the store, and
+    the regions are written through it without opening the store again
+    (:func:`cdpm.maps._store.write_variable`); None opens the store."""
     labels = label_regions(ds)
     out = ds.drop_vars(REGION_VARIABLE, errors="ignore").assign({REGION_VARIABLE: labels})
     if store is not None:
         from cdpm.maps._store import write_variable
 
-        write_variable(Path(store).expanduser(), labels)
+        write_variable(Path(store).expanduser(), labels, group)
     return out
 
 
