@@ -598,9 +598,31 @@ def test_a_run_stopped_while_creating_its_store_is_made_again(paper_robot, tmp_p
         workspace_map(paper_robot, axes, workers=1, store=store)
     assert (store / ".cdpm").is_dir() and not (store / ".cdpm" / "created").exists()
     assert sum(p.is_file() for p in store.rglob("*") if ".cdpm" not in p.parts) == 5
+    with pytest.raises(InputError, match="incomplete cdpm map .* run the same `cdpm map"):
+        open_map(store)  # its files may be half written
     monkeypatch.setattr(MapFileStore, "set_new", set_new)
     again = workspace_map(paper_robot, axes, workers=1, store=store)
     xr.testing.assert_identical(again.load(), workspace_map(paper_robot, axes, workers=1))
+
+
+def test_a_resumed_map_is_read_from_its_store(paper_robot, tmp_path):
+    """A run that finds its map finished (or resumes it) returns the map as
+    open_map reads it, coordinates included: only the run that created the
+    store indexes the coordinate values it wrote without reading them."""
+    import xarray as xr
+    import zarr
+
+    axes = {"q1": np.linspace(-3, 3, 9), "q2": np.linspace(0, 1, 7)}
+    store = tmp_path / "m.zarr"
+    workspace_map(paper_robot, axes, workers=1, store=store)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # consolidated metadata: not in the v3 spec yet
+        zarr.open_array(str(store / "q1"), mode="r+")[:] = np.arange(9.0)  # edited by hand
+    again = workspace_map(paper_robot, axes, workers=1, store=store)
+    np.testing.assert_array_equal(again["q1"].values, np.arange(9.0))
+    xr.testing.assert_identical(
+        again.drop_vars("poc_region"), open_map(store).drop_vars("poc_region")
+    )
 
 
 def test_new_store_consolidated_metadata_is_zarrs_own(paper_robot, tmp_path, monkeypatch):

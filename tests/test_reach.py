@@ -101,6 +101,36 @@ def test_flat_and_shifted_zonotopes_have_zero_inradius():
 # hand-worked values
 
 
+@pytest.mark.parametrize("p", [2, 3])
+def test_margins_do_not_depend_on_the_batch_they_are_computed_in(p, monkeypatch):
+    """A system's r_T is the same to the last bit alone, in a batch and in
+    the quadrature's blocks (QUADRATURE_BLOCK_BYTES): a map stores the
+    per-pose function's value whatever its chunk. The zonotope's centre was
+    summed by einsum, whose order depends on the batch size: one system in
+    a block of its own differed from the batch in its last bit."""
+    import cdpm.analysis.reach as reach
+
+    rng = np.random.default_rng(p)
+    k, n, m = 11, 4, 5
+    A = rng.normal(size=(k, n, n)) - 2.0 * np.eye(n)
+    B, C = rng.normal(size=(k, n, m)), rng.normal(size=(k, p, n))
+    lower, upper = -rng.random((k, m)), rng.random((k, m))
+    whole = reach.reach_margins(A, B, C, lower, upper, 0.7)
+    alone = [
+        reach.reach_margins(*(x[i : i + 1] for x in (A, B, C, lower, upper)), 0.7) for i in range(k)
+    ]
+    nodes = reach.reach_nodes(p) + 1
+    # blocks of 3 systems: 4 blocks, the last of 2
+    monkeypatch.setattr(reach, "QUADRATURE_BLOCK_BYTES", 3 * 8 * n * nodes * m)
+    blocks = reach.reach_margins(A, B, C, lower, upper, 0.7)
+    assert np.all(whole.value > 0) and np.all(whole.error < whole.value)
+    np.testing.assert_array_equal(blocks.value, whole.value)
+    np.testing.assert_array_equal(blocks.error, whole.error)
+    for i, one in enumerate(alone):
+        np.testing.assert_array_equal(one.value, whole.value[i : i + 1])
+        np.testing.assert_array_equal(one.error, whole.error[i : i + 1])
+
+
 def test_double_integrator_by_hand():
     # x'' = u, y = x, u in [-1, 2]: y(T) ranges over [-T^2/2, T^2]: r = T^2/2
     A = np.array([[0.0, 1.0], [0.0, 0.0]])

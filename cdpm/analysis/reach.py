@@ -188,7 +188,10 @@ def _quadrature(A, B, Cw, mid, half, T: float, K: int):
         Gs = G[:, :, ::step] * simpson_weights(K // step, T)[:, None]
         if not np.any(Gs[:, :, 0]):  # C B = 0 (mechanical systems): drop t = 0
             Gs = Gs[:, :, 1:]
-        center = np.einsum("kpim,km->kp", Gs, mid)
+        # summed per system in the same order whatever k (einsum's order
+        # depends on k: a pose's margin changed in its last bit with the
+        # block it was computed in)
+        center = (Gs * mid[:, None, None, :]).sum(axis=(2, 3))
         # generators input-major: each input's samples in time form a run
         D = np.swapaxes(Gs * half[:, None, None, :], 2, 3).reshape(k, Gs.shape[1], -1)
         values.append(zonotope_inradii(D, center, group=Gs.shape[2]))

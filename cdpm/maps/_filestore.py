@@ -28,7 +28,9 @@ class MapFileStore(LocalStore):
     A write goes to ``<file>.<pid>.partial`` and is renamed over the file,
     as ``LocalStore`` does: a reader never sees a half-written file, and
     processes writing different files of one store (map workers, each its
-    own chunks) never share a temporary file.
+    own chunks) never share a temporary file. The one exception is
+    :meth:`set_new`, for the files of a store being created, which no
+    reader opens before the store is marked created.
 
     Args:
         root: the store directory.
@@ -66,9 +68,9 @@ class MapFileStore(LocalStore):
         """:meth:`set` for the files of a store being created, written in
         place (no temporary file and rename: 1-2 ms of a new map store's
         two dozen files). A store that is still being created is not a
-        map yet (cdpm marks it complete once every file is written), so a
-        half-written file there is never read: a run that stops while
-        creating it makes it again."""
+        map yet: cdpm marks it created once every file is written, refuses
+        to open it before (``open_map``), and a run that finds it unmarked
+        makes it again."""
         path = await self._path_to_write(key, value)
         path.write_bytes(value.as_buffer_like())
 

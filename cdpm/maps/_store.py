@@ -394,9 +394,10 @@ class ZarrSink:
         self._writer.write(index, data)
 
     def dataset(self):
-        # the dimension coordinates are the plan's, as written at creation
-        # (or checked against the settings on resuming): xarray indexes
-        # these values instead of reading each coordinate array back
+        if self.group is None:  # a store this run did not create: read as it is
+            return open_map(self.path)
+        # the dimension coordinates are the plan's, as this run wrote them:
+        # xarray indexes these values instead of reading each array back
         coords = _coords(self.robot, self.plan)
         return _open_map(self.path, {name: c[1] for name, c in coords.items() if c[0] == name})
 
@@ -551,6 +552,12 @@ def _open_map(path, index_values: dict | None = None):
     fix = "give a store written by `cdpm map SPEC ... --out STORE` (or cdpm.workspace_map)"
     if not (p / "zarr.json").is_file() and not (p / ".zgroup").is_file():
         raise InputError(f"map store {p} is not a zarr store; {fix}")
+    if (p / _META).is_dir() and not (p / _META / "created").is_file():
+        # its files are written in place (MapFileStore.set_new): maybe not all, or half
+        raise InputError(
+            f"map store {p} is an incomplete cdpm map (its run stopped while creating it); "
+            f"run the same `cdpm map SPEC ... --out {p}` again to remake it"
+        )
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", UserWarning)
@@ -644,9 +651,10 @@ async def _write_variable(path: Path, values, group=None) -> None:
         # metadata never consolidated, or arrays added or removed since
         await consolidate_metadata(store)
         return
-    # add the array to the consolidated metadata read when the group was
-    # opened and save the group's metadata (update_attributes writes it,
-    # consolidated part included): one file written, where consolidating
-    # again reads every array's metadata back from disk
+    # add the array to the consolidated metadata of the group (as read when
+    # it was opened, or as this run created it) and save the group's
+    # metadata (update_attributes writes it, consolidated part included):
+    # one file written, where consolidating again reads every array's
+    # metadata back from disk
     consolidated.metadata[values.name] = array.metadata
     await group.update_attributes({})
