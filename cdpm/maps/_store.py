@@ -396,8 +396,8 @@ class ZarrSink:
     def dataset(self):
         if self.group is None:  # a store this run did not create: read as it is
             return open_map(self.path)
-        # the dimension coordinates are the plan's, as this run wrote them:
-        # xarray indexes these values instead of reading each array back
+        # the dimension coordinates as this run wrote them: xarray indexes
+        # these values instead of reading each array back
         coords = _coords(self.robot, self.plan)
         return _open_map(self.path, {name: c[1] for name, c in coords.items() if c[0] == name})
 
@@ -552,12 +552,16 @@ def _open_map(path, index_values: dict | None = None):
     fix = "give a store written by `cdpm map SPEC ... --out STORE` (or cdpm.workspace_map)"
     if not (p / "zarr.json").is_file() and not (p / ".zgroup").is_file():
         raise InputError(f"map store {p} is not a zarr store; {fix}")
-    if (p / _META).is_dir() and not (p / _META / "created").is_file():
-        # its files are written in place (MapFileStore.set_new): maybe not all, or half
-        raise InputError(
-            f"map store {p} is an incomplete cdpm map (its run stopped while creating it); "
+
+    def incomplete(why: str = "") -> InputError:
+        return InputError(
+            f"map store {p} is an incomplete cdpm map (its run stopped while creating it{why}); "
             f"run the same `cdpm map SPEC ... --out {p}` again to remake it"
         )
+
+    if (p / _META).is_dir() and not (p / _META / "created").is_file():
+        # its files are written in place (MapFileStore.set_new): maybe not all, or half
+        raise incomplete()
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", UserWarning)
@@ -583,10 +587,7 @@ def _open_map(path, index_values: dict | None = None):
             f"map store {p} is a zarr store but not a cdpm map (no cdpm_settings); {fix}"
         )
     if "poc" not in ds.data_vars:
-        raise InputError(
-            f"map store {p} is an incomplete cdpm map (no 'poc' variable: its run stopped "
-            f"while creating it); run the same `cdpm map SPEC ... --out {p}` again to remake it"
-        )
+        raise incomplete(": no 'poc' variable")
     if index_values is not None:
         # the indexes xarray makes when it reads the coordinates itself:
         # the lazily read variables (attributes, encoding) with these values
