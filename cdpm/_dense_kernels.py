@@ -9,12 +9,12 @@ margin's facet normals. Imported by those kernel modules only.
 
 from __future__ import annotations
 
-from numba import njit
+from cdpm._kernel import kernel
 
 __all__ = ["eliminate", "solve_in_place", "back_substitute", "det_in_place"]
 
 
-@njit(cache=True)
+@kernel
 def eliminate(M, rhs, n):  # pragma: no cover - compiled
     """Gaussian elimination with partial pivoting (as LAPACK's getrf) of the
     leading n x n block of M, in place, applied to ``rhs`` (n,) as well.
@@ -49,7 +49,7 @@ def eliminate(M, rhs, n):  # pragma: no cover - compiled
     return swaps
 
 
-@njit(cache=True)
+@kernel
 def solve_in_place(M, rhs, n):  # pragma: no cover - compiled
     """Solve M y = rhs for the leading n x n block of M (destroyed): rhs
     (n,) becomes y. False (rhs then meaningless) when M is singular to a
@@ -60,7 +60,7 @@ def solve_in_place(M, rhs, n):  # pragma: no cover - compiled
     return True
 
 
-@njit(cache=True)
+@kernel
 def back_substitute(U, y, out, n):  # pragma: no cover - compiled
     """out (n,) solving U out = y for the upper triangle of U's leading
     n x n block (nonzero diagonal); ``out`` may be ``y``."""
@@ -71,7 +71,7 @@ def back_substitute(U, y, out, n):  # pragma: no cover - compiled
         out[c] = s / U[c, c]
 
 
-@njit(cache=True)
+@kernel
 def det_in_place(M, n, scratch):  # pragma: no cover - compiled
     """Determinant of the leading n x n block of M (destroyed); ``scratch``
     (>= n,) is overwritten."""

@@ -16,7 +16,8 @@ strides, so there is one compiled version.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from cdpm._kernel import kernel
 
 __all__ = ["stiffness_batch"]
 
@@ -31,7 +32,7 @@ _SIGNATURE = (
 BLOCK = 8
 
 
-@njit(_SIGNATURE, cache=True, error_model="numpy")
+@kernel(_SIGNATURE, error_model="numpy")
 def _stiffness_poses(
     jac, units, seg_len, spatial, tension, seg_points, seg_cable, support, point_mask, out
 ):  # pragma: no cover - compiled

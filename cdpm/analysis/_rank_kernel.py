@@ -32,8 +32,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
+from cdpm._kernel import kernel
 from cdpm.numerics import KRYLOV_COLUMN_NEGLIGIBLE, RANK_RATIO
 
 EPS = float(np.finfo(np.float64).eps)
@@ -45,7 +45,7 @@ BRACKET_RTOL = 0.01
 __all__ = ["krylov_rank_codes", "krylov_matrices"]
 
 
-@njit(cache=True)
+@kernel
 def _krylov_rows(A, B, use, C, s, project, W, R, Rn, K):  # pragma: no cover - compiled
     """System s's Krylov matrix into the leading columns of K (r, n m);
     returns how many columns (inputs not in use and zero inputs give none:
@@ -106,7 +106,7 @@ def _krylov_rows(A, B, use, C, s, project, W, R, Rn, K):  # pragma: no cover - c
     return n * nw
 
 
-@njit(cache=True, fastmath={"reassoc", "contract"})
+@kernel(fastmath={"reassoc", "contract"})
 def _gram(K, nc, G):  # pragma: no cover - compiled
     """G = K K^T of the leading nc columns of K (r, .); the sums in any
     order (round-off within the band)."""
@@ -122,7 +122,7 @@ def _gram(K, nc, G):  # pragma: no cover - compiled
             G[b, a] = x
 
 
-@njit(cache=True)
+@kernel
 def _factorises(G, r, sign, shift, L):  # pragma: no cover - compiled
     """Does the Cholesky factorisation of ``sign G - shift I`` (r x r)
     complete with positive pivots?"""
@@ -142,7 +142,7 @@ def _factorises(G, r, sign, shift, L):  # pragma: no cover - compiled
     return True
 
 
-@njit(cache=True)
+@kernel
 def _decide(G, r, L, v, w):  # pragma: no cover - compiled
     """1: lambda_min(G) > t lambda_max(G) beyond doubt, 0: below it beyond
     doubt, -1: undecided (module docstring)."""
@@ -205,7 +205,7 @@ def _decide(G, r, L, v, w):  # pragma: no cover - compiled
     return -1
 
 
-@njit(cache=True)
+@kernel
 def _codes(A, B, use, C, idx, project):  # pragma: no cover - compiled
     n = A.shape[1]
     m = B.shape[2]
@@ -243,7 +243,7 @@ def _codes(A, B, use, C, idx, project):  # pragma: no cover - compiled
     return codes
 
 
-@njit(cache=True)
+@kernel
 def _matrices(A, B, use, C, idx, project):  # pragma: no cover - compiled
     n = A.shape[1]
     m = B.shape[2]

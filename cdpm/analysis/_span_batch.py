@@ -32,9 +32,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
 from cdpm._dense_kernels import back_substitute, solve_in_place
+from cdpm._kernel import kernel
 
 __all__ = ["span_certificates"]
 
@@ -45,7 +45,7 @@ OPEN, NO, YES = -1, 0, 1
 _MAX_ITER = 64
 
 
-@njit(cache=True)
+@kernel
 def _deep_separator(P, depth, x):  # pragma: no cover - compiled
     """Is 0 at least ``depth`` away from the convex hull of the columns of P
     (dim, n), with a proof? Wolfe's min-norm-point algorithm; True when it
@@ -143,7 +143,7 @@ def _deep_separator(P, depth, x):  # pragma: no cover - compiled
     return False
 
 
-@njit(cache=True)
+@kernel
 def _least_squares(U, cols, q, b, z):  # pragma: no cover - compiled
     """z (q,) minimising |U[:, cols[:q]] z - b| (Householder QR); False
     when a column is numerically dependent on the previous ones."""
@@ -184,7 +184,7 @@ def _least_squares(U, cols, q, b, z):  # pragma: no cover - compiled
     return True
 
 
-@njit(cache=True)
+@kernel
 def _nnls_residual(U, b, r):  # pragma: no cover - compiled
     """Lawson-Hanson NNLS, min |U mu - b| over mu >= 0 (U (d, m) unit
     columns). Returns |U mu - b| and leaves ``U mu - b`` in r (d,); -1
@@ -242,7 +242,7 @@ def _nnls_residual(U, b, r):  # pragma: no cover - compiled
     return -1.0
 
 
-@njit(cache=True)
+@kernel
 def _null_basis(U, cond_max, N):  # pragma: no cover - compiled
     """An orthonormal basis of the null space of U (d, m), m > d, in N
     (m, m - d), from a Householder QR of U^T; False (N unset) unless U has
@@ -309,7 +309,7 @@ def _null_basis(U, cond_max, N):  # pragma: no cover - compiled
     return True, sigma_min
 
 
-@njit(cache=True)
+@kernel
 def _decide(S, depth, cond_max, tol):  # pragma: no cover - compiled
     """The code of one set S (d, m): YES, NO or OPEN (module docstring)."""
     d, m = S.shape
@@ -362,7 +362,7 @@ def _decide(S, depth, cond_max, tol):  # pragma: no cover - compiled
     return OPEN
 
 
-@njit(cache=True)
+@kernel
 def _decide_all(S, depth, cond_max, tol):  # pragma: no cover - compiled
     k = S.shape[0]
     codes = np.empty(k, dtype=np.int8)

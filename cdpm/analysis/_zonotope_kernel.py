@@ -23,9 +23,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
 from cdpm._dense_kernels import det_in_place
+from cdpm._kernel import kernel
 from cdpm.numerics import ZONOTOPE_BOUND_RTOL
 
 EPS = float(np.finfo(np.float64).eps)
@@ -33,7 +33,7 @@ EPS = float(np.finfo(np.float64).eps)
 __all__ = ["facet_inradii"]
 
 
-@njit(cache=True)
+@kernel
 def _length(A, i):  # pragma: no cover - compiled
     """Euclidean length of row i of A."""
     total = 0.0
@@ -42,7 +42,7 @@ def _length(A, i):  # pragma: no cover - compiled
     return math.sqrt(total)
 
 
-@njit(cache=True)
+@kernel
 def _normal(G, subset, p, n, minor, scratch):  # pragma: no cover - compiled
     """Normal n (length p) of the hyperplane spanned by the generators
     ``G[subset]`` (rows of G, (N, p)): generalised cross product by
@@ -62,7 +62,7 @@ def _normal(G, subset, p, n, minor, scratch):  # pragma: no cover - compiled
             n[i] = (-1.0) ** i * det_in_place(minor, r, scratch)
 
 
-@njit(cache=True)
+@kernel
 def _abs_sum(n, G, bound, p):  # pragma: no cover - compiled
     """sum_l |n . G[l]| over the rows of G; +inf as soon as the sum
     reaches ``bound`` (NaN if it overflowed)."""
@@ -82,7 +82,7 @@ def _abs_sum(n, G, bound, p):  # pragma: no cover - compiled
     return total
 
 
-@njit(cache=True)
+@kernel
 def _rows_longest_first(D, s, p, run, count):  # pragma: no cover - compiled
     """Rows g = 0..count-1: the sums of the columns g run + [0, run) of
     D[s], sorted by decreasing length; shape (count, p)."""
@@ -96,7 +96,7 @@ def _rows_longest_first(D, s, p, run, count):  # pragma: no cover - compiled
     return rows[np.argsort(-lengths)]
 
 
-@njit(cache=True)
+@kernel
 def _cross_unit(A, i, B, j, n):  # pragma: no cover - compiled
     """n = a x b / |a x b| for the rows a = A[i], b = B[j] (3-vectors);
     returns |a x b| (n untouched if 0)."""
@@ -109,7 +109,7 @@ def _cross_unit(A, i, B, j, n):  # pragma: no cover - compiled
     return length
 
 
-@njit(cache=True)
+@kernel
 def _spread(n, rows, c, bound):  # pragma: no cover - compiled
     """``sum_l |n . rows_l| - |n . c|`` in R^3; +inf once the sum reaches
     ``bound + |n . c|``."""
@@ -117,7 +117,7 @@ def _spread(n, rows, c, bound):  # pragma: no cover - compiled
     return _abs_sum(n, rows, bound + shift, 3) - shift
 
 
-@njit(cache=True)
+@kernel
 def _upper_bound(runs, exact, c, slack):  # pragma: no cover - compiled
     """An upper bound of the inradius (when 0 is inside): the least exact
     spread over the 3 normals of pairs of runs whose run bound is least,
@@ -144,7 +144,7 @@ def _upper_bound(runs, exact, c, slack):  # pragma: no cover - compiled
     return best + slack
 
 
-@njit(cache=True)
+@kernel
 def _circle_above(G, a, runs, c, bound):  # pragma: no cover - compiled
     """True when every candidate normal orthogonal to generator a (the
     facets containing it) has a spread of at least ``bound`` (>= 0).
@@ -167,7 +167,7 @@ def _circle_above(G, a, runs, c, bound):  # pragma: no cover - compiled
     return kinks > 0
 
 
-@njit(cache=True)
+@kernel
 def _inradius3(G, norms, runs, exact, c, normal_rtol, slack):  # pragma: no cover - compiled
     """The facet search in R^3 (pairs of generators), with the run bound,
     an upper bound from the runs' own facets and the circles it shuts when
@@ -205,7 +205,7 @@ def _inradius3(G, norms, runs, exact, c, normal_rtol, slack):  # pragma: no cove
     return best
 
 
-@njit(cache=True)
+@kernel
 def _inradius2(G, norms, c, slack):  # pragma: no cover - compiled
     """The facet search in R^2 by one sweep in angle: the candidates are
     the normals n_a of the generators; between two consecutive ones (in
@@ -254,7 +254,7 @@ def _inradius2(G, norms, c, slack):  # pragma: no cover - compiled
     return best
 
 
-@njit(cache=True)
+@kernel
 def _search(G, norms, runs, exact, c, normal_rtol, ceiling, best_normal):  # pragma: no cover
     """The facet search in R^p, any p >= 2: every (p - 1)-subset of the
     rows of G (N, p) in lexicographic order; candidates whose run sum or
@@ -302,7 +302,7 @@ def _search(G, norms, runs, exact, c, normal_rtol, ceiling, best_normal):  # pra
             subset[j] = subset[j - 1] + 1
 
 
-@njit(cache=True)
+@kernel
 def facet_inradii(D, center, normal_rtol, group):  # pragma: no cover - compiled
     """Least ``sum_l |n . d_l| - |n . c|`` over the unit normals n of the
     hyperplanes spanned by p - 1 generators, per zonotope.

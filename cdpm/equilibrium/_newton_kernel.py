@@ -11,15 +11,15 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 
 from cdpm._dense_kernels import solve_in_place
+from cdpm._kernel import kernel
 
 __all__ = ["solve_poses"]
 
 
-@numba.njit(cache=True)
+@kernel
 def _solve(a, x, n):
     """Solve a y = x in place (x (n,) becomes y; a is destroyed); an exactly
     singular a gives NaN, which the callers' comparisons reject."""
@@ -27,7 +27,7 @@ def _solve(a, x, n):
         x[:n] = np.nan
 
 
-@numba.njit(cache=True)
+@kernel
 def _tensions(LT, lam, lower, upper, z, f):
     """z = L lam and f = clip(z, lower, upper), each (m,), for one pose's
     L^T (nv, m) and multipliers lam (nv,)."""
@@ -45,7 +45,7 @@ def _tensions(LT, lam, lower, upper, z, f):
         f[j] = v
 
 
-@numba.njit(cache=True)
+@kernel
 def _residual(LT, f, load, r):
     """r = L^T f - load (nv,); returns max |r| (nan when r has a nan)."""
     nv, m = LT.shape
@@ -63,7 +63,7 @@ def _residual(LT, f, load, r):
     return largest
 
 
-@numba.njit(cache=True)
+@kernel
 def _dual_value(load, lam, z, f):
     """Dual objective of min 1/2 |f|^2 s.t. L^T f = load, lower <= f <= upper
     at multipliers lam (nv,), with z = L lam and f = clip(z) (m,):
@@ -77,7 +77,7 @@ def _dual_value(load, lam, z, f):
     return s + t
 
 
-@numba.njit(cache=True)
+@kernel
 def _newton_matrix(LT, z, lower, upper, all_free, diagonal, free, hess):
     """hess = L^T diag(free) L + diagonal I (nv, nv), cable j free when
     lower_j < z_j < upper_j (or every cable when all_free): the generalised
@@ -98,7 +98,7 @@ def _newton_matrix(LT, z, lower, upper, all_free, diagonal, free, hess):
         hess[a, a] += diagonal
 
 
-@numba.njit(cache=True)
+@kernel
 def _farkas_gap(LT, load, lower, upper, cand, sign):
     """v.load - max_{lower <= f <= upper} v.L^T f for v = sign cand / |cand|
     (nv,), or -inf when cand = 0 (no direction)."""
@@ -124,7 +124,7 @@ def _farkas_gap(LT, load, lower, upper, cand, sign):
     return gap - reach
 
 
-@numba.njit(cache=True)
+@kernel
 def _solved(largest, statics_rtol, scale, trace, f):
     """The statics residual ``largest`` is below statics_rtol of the
     statics' scale, max(scale, |L| |f|) (|L|^2 = trace)."""
@@ -134,7 +134,7 @@ def _solved(largest, statics_rtol, scale, trace, f):
     return largest <= statics_rtol * max(scale, math.sqrt(trace) * math.sqrt(f_sq))
 
 
-@numba.njit(cache=True)
+@kernel
 def _farkas(LT, load, lower, upper, lam, r, threshold):
     """Farkas: a unit v with v.load > max over the box of v.L^T f (by more
     than ``threshold``) proves that no tension holds the pose; candidates:
@@ -145,7 +145,7 @@ def _farkas(LT, load, lower, upper, lam, r, threshold):
     )
 
 
-@numba.njit(cache=True)
+@kernel
 def solve_poses(
     LT,
     load,
