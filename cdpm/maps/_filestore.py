@@ -28,9 +28,8 @@ class MapFileStore(LocalStore):
     A write goes to ``<file>.<pid>.partial`` and is renamed over the file,
     as ``LocalStore`` does: a reader never sees a half-written file, and
     processes writing different files of one store (map workers, each its
-    own chunks) never share a temporary file. The one exception is
-    :meth:`set_new`, for the files of a store being created, which no
-    reader opens before the store is marked created.
+    own chunks) never share a temporary file. (A new store's skeleton is
+    written in place: :class:`cdpm.maps._files.SkeletonFiles`.)
 
     Args:
         root: the store directory.
@@ -53,8 +52,21 @@ class MapFileStore(LocalStore):
             return None
         return (prototype or default_buffer_prototype()).buffer.from_bytes(data)
 
+    async def set_if_not_exists(self, key: str, value: Buffer) -> None:
+        # zarr calls this for each parent group of an array it creates,
+        # whose metadata is there already: looked for first, without
+        # LocalStore's temporary file and thread hop
+        if not (self.root / key).exists():
+            await super().set_if_not_exists(key, value)
+
     async def set(self, key: str, value: Buffer) -> None:
-        path = await self._path_to_write(key, value)
+        if not self._is_open:
+            await self._open()
+        self._check_writable()
+        if not isinstance(value, Buffer):
+            raise TypeError(f"MapFileStore.set(): value must be a zarr Buffer, got {type(value)}")
+        path = self.root / key
+        path.parent.mkdir(parents=True, exist_ok=True)
         partial = path.with_name(f"{path.name}.{os.getpid()}.partial")
         try:
             with open(partial, "wb") as fh:
@@ -63,25 +75,3 @@ class MapFileStore(LocalStore):
         except BaseException:
             partial.unlink(missing_ok=True)
             raise
-
-    async def set_new(self, key: str, value: Buffer) -> None:
-        """:meth:`set` for the files of a store being created, written in
-        place (no temporary file and rename: 1-2 ms of a new map store's
-        two dozen files). A store that is still being created is not a
-        map yet: cdpm marks it created once every file is written, refuses
-        to open it before (``open_map``), and a run that finds it unmarked
-        makes it again."""
-        path = await self._path_to_write(key, value)
-        path.write_bytes(value.as_buffer_like())
-
-    async def _path_to_write(self, key: str, value: Buffer):
-        """The file of ``key``, its folder made; refuses a read-only store
-        and a value that is not a zarr Buffer."""
-        if not self._is_open:
-            await self._open()
-        self._check_writable()
-        if not isinstance(value, Buffer):
-            raise TypeError(f"MapFileStore.set(): value must be a zarr Buffer, got {type(value)}")
-        path = self.root / key
-        path.parent.mkdir(parents=True, exist_ok=True)
-        return path
