@@ -12,11 +12,10 @@ __all__ = ["kernel"]
 
 def kernel(*args, **options):
     """``numba.njit`` with the options every cdpm kernel has: compiled
-    code cached on disk, and the GIL released while the kernel runs
-    (``nogil``: kernels touch no Python object), so that another thread
-    of the process runs meanwhile (a new map store's files are written
-    while its first chunk computes: :class:`cdpm.maps._store.ZarrSink`;
-    :mod:`cdpm.compiled` loads the kernels ahead of use).
+    code cached on disk (:mod:`cdpm.compiled` loads the kernels ahead of
+    use), and the GIL released while the kernel runs (``nogil``: kernels
+    touch no Python object), so that the other threads of a program that
+    maps in a thread of its own (a GUI, a server) keep running meanwhile.
 
     Used as ``@kernel``, ``@kernel(fastmath=...)`` or
     ``@kernel(signature, ...)``; ``args`` and ``options`` go to

@@ -381,3 +381,24 @@ def test_oversized_modules_are_named(tmp_path):
         },
     )
     assert oversized_modules(package, MAX_LINES) == [("pkg/deep/long.py", MAX_LINES + 1)]
+
+
+def test_every_compiled_kernel_is_cached_and_releases_the_gil():
+    """Every numba kernel is declared through cdpm._kernel.kernel: cached
+    on disk, and releasing the GIL while it runs."""
+    import importlib
+
+    from numba.core.registry import CPUDispatcher
+
+    from cdpm.compiled import KERNEL_MODULES
+
+    kernels = {}
+    for name in (*KERNEL_MODULES, "cdpm._dense_kernels"):
+        module = importlib.import_module(name)
+        for attr, value in vars(module).items():
+            if isinstance(value, CPUDispatcher) and value.__module__ == name:
+                kernels[f"{name}.{attr}"] = value
+    assert len(kernels) >= 30
+    loose = [k for k, d in kernels.items() if not d.targetoptions.get("nogil")]
+    uncached = [k for k, d in kernels.items() if type(d._cache).__name__ != "FunctionCache"]
+    assert not loose and not uncached

@@ -574,54 +574,11 @@ def test_a_stored_map_reads_back_identical_to_the_map_in_memory(paper_robot, tmp
     assert not [p for p in (tmp_path / "m.zarr").rglob("*") if p.name.endswith(".partial")]
 
 
-def _slow_skeleton_files(monkeypatch, seconds: float) -> list:
-    """Make each file of a new store's skeleton take ``seconds`` to write;
-    returns the list of paths written so far."""
-    from cdpm.maps import _files
-
-    write_new_file, written = _files.write_new_file, []
-
-    def slow(path, data):
-        time.sleep(seconds)
-        write_new_file(path, data)
-        written.append(path)
-
-    monkeypatch.setattr(_files, "write_new_file", slow)
-    return written
-
-
-def test_a_new_store_is_written_while_its_first_chunk_computes(paper_robot, tmp_path, monkeypatch):
-    """The skeleton of a new store goes to disk from a thread of its own
-    while the first chunk computes; the chunk is written after it, and the
-    map is the map in memory."""
-    import threading
-
-    import xarray as xr
-
-    from cdpm.maps._evaluate import MapJob
-
-    axes = {"q1": np.linspace(-3, 3, 9), "q2": np.linspace(0, 1, 7)}
-    store = tmp_path / "m.zarr"
-    written = _slow_skeleton_files(monkeypatch, 0.01)
-    evaluate, seen = MapJob.evaluate, []
-
-    def observed(self, robot, natural):
-        seen.append(((store / ".cdpm" / "created").exists(), len(written)))
-        return evaluate(self, robot, natural)
-
-    monkeypatch.setattr(MapJob, "evaluate", observed)
-    ds = workspace_map(paper_robot, axes, workers=1, store=store)
-    assert seen and seen[0][0] is False and seen[0][1] < len(written)
-    assert (store / ".cdpm" / "created").is_file()
-    assert not [t for t in threading.enumerate() if t.name == "cdpm-new-store"]
-    xr.testing.assert_identical(ds.load(), workspace_map(paper_robot, axes, workers=1))
-
-
 def test_a_map_to_a_store_silences_only_zarrs_warnings(paper_robot, tmp_path, monkeypatch):
     """zarr's warnings about a map store's string coordinates and
     consolidated metadata are silenced; a warning from anywhere else (here
-    the evaluation, which runs while the new store's files are written)
-    still reaches the caller, and the warning filters are as they were."""
+    the evaluation) still reaches the caller, and the warning filters are
+    as they were."""
     from cdpm.maps._evaluate import MapJob
 
     evaluate = MapJob.evaluate
@@ -640,39 +597,6 @@ def test_a_map_to_a_store_silences_only_zarrs_warnings(paper_robot, tmp_path, mo
     assert warnings.filters == filters
 
 
-def test_a_run_that_fails_while_its_store_is_written_stops_writing_it(
-    paper_robot, tmp_path, monkeypatch
-):
-    """A run that fails (or is interrupted) while its new store's skeleton
-    is still being written stops that writing before it returns: no thread
-    is left writing into the store once its lock is released, the store
-    is not marked created, and the next run makes it again."""
-    import threading
-
-    import xarray as xr
-
-    from cdpm.maps._evaluate import MapJob
-
-    axes = {"q1": np.linspace(-3, 3, 9), "q2": np.linspace(0, 1, 7)}
-    store = tmp_path / "m.zarr"
-    written = _slow_skeleton_files(monkeypatch, 0.2)  # two dozen files: seconds
-
-    def fails(self, robot, natural):
-        raise RuntimeError("evaluation failed")
-
-    with monkeypatch.context() as m:
-        m.setattr(MapJob, "evaluate", fails)
-        with pytest.raises(RuntimeError, match="evaluation failed"):
-            workspace_map(paper_robot, axes, workers=1, store=store)
-    assert not [t for t in threading.enumerate() if t.name == "cdpm-new-store"]
-    n_written = len(written)
-    time.sleep(0.5)
-    assert len(written) == n_written  # stopped, not finished in the background
-    assert not (store / ".cdpm" / "created").exists()
-    again = workspace_map(paper_robot, axes, workers=1, store=store)
-    xr.testing.assert_identical(again.load(), workspace_map(paper_robot, axes, workers=1))
-
-
 def test_a_run_stopped_while_creating_its_store_is_made_again(paper_robot, tmp_path, monkeypatch):
     """A run stopped while it writes the new store's files (written in
     place, not renamed; here by a full disk) leaves a store without its
@@ -680,26 +604,26 @@ def test_a_run_stopped_while_creating_its_store_is_made_again(paper_robot, tmp_p
     it as not a map."""
     import xarray as xr
 
-    from cdpm.maps import _files
+    from cdpm.maps._filestore import MapFileStore
 
     axes = {"q1": np.linspace(-3, 3, 9), "q2": np.linspace(0, 1, 7)}
     store = tmp_path / "m.zarr"
-    write_new_file, calls = _files.write_new_file, []
+    set_new, calls = MapFileStore.set_new, []
 
-    def full_after_five(path, data):
-        calls.append(path)
+    async def full_after_five(self, key, value):
+        calls.append(key)
         if len(calls) > 5:
             raise OSError(28, "No space left on device")
-        write_new_file(path, data)
+        await set_new(self, key, value)
 
-    monkeypatch.setattr(_files, "write_new_file", full_after_five)
+    monkeypatch.setattr(MapFileStore, "set_new", full_after_five)
     with pytest.raises(OSError, match="No space left"):
         workspace_map(paper_robot, axes, workers=1, store=store)
     assert (store / ".cdpm").is_dir() and not (store / ".cdpm" / "created").exists()
     assert sum(p.is_file() for p in store.rglob("*") if ".cdpm" not in p.parts) == 5
     with pytest.raises(InputError, match="incomplete cdpm map .* run the same `cdpm map"):
         open_map(store)  # its files may be half written
-    monkeypatch.setattr(_files, "write_new_file", write_new_file)
+    monkeypatch.setattr(MapFileStore, "set_new", set_new)
     again = workspace_map(paper_robot, axes, workers=1, store=store)
     xr.testing.assert_identical(again.load(), workspace_map(paper_robot, axes, workers=1))
 

@@ -275,33 +275,29 @@ def workspace_map(
     owner = nullcontext() if store is None else store_lock(store)
     with owner:
         sink = MemorySink(robot, plan) if store is None else ZarrSink(store, robot, plan, overwrite)
+        done = sink.done()
+        todo = [k for k in range(plan.n_chunks) if k not in done]
+        if progress is True:
+            if announce is None:
+                announce = _print_to_stderr
+            progress = ProgressPrinter(sum(plan.chunk_size(k) for k in todo)) if todo else None
+        elif progress is False:
+            progress = None
+        job = MapJob(
+            setting,
+            bool(margin),
+            float(tol),
+            tuple(plan.settings["variables"]),
+            reach,
+            None if search is None else (search, reach_settings(robot, horizon, tension_budget)),
+        )
         try:
-            done = sink.done()
-            todo = [k for k in range(plan.n_chunks) if k not in done]
-            if progress is True:
-                if announce is None:
-                    announce = _print_to_stderr
-                progress = ProgressPrinter(sum(plan.chunk_size(k) for k in todo)) if todo else None
-            elif progress is False:
-                progress = None
-            job = MapJob(
-                setting,
-                bool(margin),
-                float(tol),
-                tuple(plan.settings["variables"]),
-                reach,
-                None
-                if search is None
-                else (search, reach_settings(robot, horizon, tension_budget)),
-            )
             run_chunks(robot, plan, job, todo, sink, workers, scheduler, progress, announce, source)
-            ds = sink.dataset()
-        except BaseException as exc:
-            sink.stop()  # a store still being created: before its lock is released
-            if isinstance(exc, KeyboardInterrupt) and isinstance(progress, ProgressPrinter):
+        except KeyboardInterrupt:
+            if isinstance(progress, ProgressPrinter):
                 progress.stopped()
             raise
-        return attach_new_regions(ds, store, sink.group)
+        return attach_new_regions(sink.dataset(), store, sink.group)
 
 
 def _print_to_stderr(info: MapRunInfo) -> None:
