@@ -20,6 +20,11 @@ def kernel(*args, **options):
     Used as ``@kernel``, ``@kernel(fastmath=...)`` or
     ``@kernel(signature, ...)``; ``args`` and ``options`` go to
     ``numba.njit``.
+
+    numba's disk cache is keyed on each kernel's own module file, not on
+    these options: after changing them here, delete the caches
+    (``__pycache__/*.nbi`` and ``*.nbc`` beside the kernel modules), or
+    the kernels compiled with the old options are loaded again.
     """
     import numba
 

@@ -401,4 +401,12 @@ def test_every_compiled_kernel_is_cached_and_releases_the_gil():
     assert len(kernels) >= 30
     loose = [k for k, d in kernels.items() if not d.targetoptions.get("nogil")]
     uncached = [k for k, d in kernels.items() if type(d._cache).__name__ != "FunctionCache"]
-    assert not loose and not uncached
+    assert (loose, uncached) == ([], [])
+    # and no kernel is declared any other way: no other module uses numba
+    elsewhere = [
+        str(path.relative_to(ROOT))
+        for path in sorted(PACKAGE.rglob("*.py"))
+        if path.name != "_kernel.py"
+        and any(s in path.read_text() for s in ("njit", "import numba", "from numba"))
+    ]
+    assert elsewhere == []

@@ -574,6 +574,46 @@ def test_a_stored_map_reads_back_identical_to_the_map_in_memory(paper_robot, tmp
     assert not [p for p in (tmp_path / "m.zarr").rglob("*") if p.name.endswith(".partial")]
 
 
+def test_the_regions_chunks_lie_side_by_side_also_in_stores_of_earlier_versions(
+    paper_robot, tmp_path
+):
+    """The regions' chunk files lie side by side (c.i.j, as every data
+    variable's: no folder per chunk); a store whose regions were written
+    in nested folders (c/i/j, by earlier versions) reads, and writing its
+    regions again leaves no nested folder."""
+    import zarr
+
+    from cdpm.maps.regions import attach_regions
+
+    axes = {"q1": np.linspace(-3, 3, 64), "q2": np.linspace(0, 1, 40)}  # 2 chunks
+    store = tmp_path / "m.zarr"
+    ds = workspace_map(paper_robot, axes, workers=1, store=store, chunk_size=1280)
+    assert sorted(os.listdir(store / "poc_region")) == ["c.0.0", "c.1.0", "zarr.json"]
+    labels = ds["poc_region"].values
+    assert labels.max() > 0
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # consolidated metadata: not in the v3 spec yet
+        group = zarr.open_group(str(store), mode="r+")
+        old = group.create_array(
+            "poc_region",
+            shape=labels.shape,
+            chunks=group["poc"].chunks,
+            dtype=labels.dtype,
+            fill_value=0,
+            dimension_names=list(ds["poc_region"].dims),
+            attributes=dict(ds["poc_region"].attrs),
+            chunk_key_encoding={"name": "default", "separator": "/"},
+            overwrite=True,
+        )
+        old[...] = labels
+        zarr.consolidate_metadata(str(store))
+    assert sorted(os.listdir(store / "poc_region")) == ["c", "zarr.json"]
+    np.testing.assert_array_equal(open_map(store)["poc_region"].values, labels)
+    attach_regions(open_map(store), store)
+    assert sorted(os.listdir(store / "poc_region")) == ["c.0.0", "c.1.0", "zarr.json"]
+    np.testing.assert_array_equal(open_map(store)["poc_region"].values, labels)
+
+
 def test_a_map_to_a_store_silences_only_zarrs_warnings(paper_robot, tmp_path, monkeypatch):
     """zarr's warnings about a map store's string coordinates and
     consolidated metadata are silenced; a warning from anywhere else (here

@@ -5,8 +5,10 @@ its own (``asyncio.to_thread``). A map store's files are small (a
 metadata document of a few kB, a chunk of at most a few MB), so the hop to
 and from the thread costs more than the file operation: a map writes two
 dozen files per chunk and reads as many when it is opened. This store does
-whole-file reads and writes directly in zarr's event loop; everything else
-(listing, deleting, byte-range reads, exclusive creation) is zarr's own.
+whole-file reads and writes directly in zarr's event loop, and looks for
+a file before zarr's exclusive creation of it (which zarr asks for the
+parent group's metadata of every array it creates, there already);
+everything else (listing, deleting, byte-range reads) is zarr's own.
 
 Imported only where zarr is (maps to a store, ``open_map``).
 """
@@ -57,6 +59,9 @@ class MapFileStore(LocalStore):
         # zarr calls this for each parent group of an array it creates,
         # whose metadata is there already: looked for first, without
         # LocalStore's temporary file and thread hop
+        if not self._is_open:
+            await self._open()
+        self._check_writable()
         if not (self.root / key).exists():
             await super().set_if_not_exists(key, value)
 

@@ -474,8 +474,9 @@ def _write_metadata(coro):
     import zarr
 
     with warnings.catch_warnings(), zarr.config.set({"json_indent": None}):
-        warnings.simplefilter("ignore", UserWarning)
-        warnings.simplefilter("ignore", FutureWarning)
+        # only zarr's own: other threads of the process may warn meanwhile
+        warnings.filterwarnings("ignore", category=UserWarning, module=r"zarr\.")
+        warnings.filterwarnings("ignore", category=FutureWarning, module=r"zarr\.")
         return _sync(coro)
 
 
