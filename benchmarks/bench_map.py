@@ -21,9 +21,10 @@ Prints, in one run (the machine's load average at its start and end):
    (65536 poses; ``--quick``: 32768), workers=1, per pose: while chunks run
    and end to end (the call, spec loading and store creation included), in
    a fresh process warmed by a 64-pose map first (imports and compiled kernels
-   are a process's cost, not a map's); and what creating a file costs in
-   the temporary folder where the stores go, before and after (a
-   2048-pose map creates about 75 files and folders);
+   are a process's cost, not a map's); what creating a file costs in the
+   temporary folder where the stores go, right after these maps (a
+   2048-pose map creates about 75 files and folders); and, with no target,
+   the same maps end to end with their stores on a RAM disk (/dev/shm);
 3. throughput of a map written to zarr with 1 and 2 local processes, each
    in a fresh Python process as a user's script or the CLI runs it (a
    10^6-pose paper map, and a two_link_vertical map of about 10 s of one
@@ -76,6 +77,8 @@ PER_POSE_ROWS = [
 
 #: most a 2048-pose map may cost per pose, as a multiple of a large map's
 SMALL_MAP_TARGET = 1.5
+#: a RAM disk (Linux), where section 2 also times its maps (no target)
+RAM_DISK = "/dev/shm"
 #: one process's work on the gravity map of the throughput runs [s]
 GRAVITY_MAP_SECONDS = 10.0
 #: least speed-up of 2 local processes over 1 (gravity map; paper map)
@@ -283,7 +286,9 @@ print(n1 * n2 / (end - t), n1 * n2 / (marks[-1] - marks[0]), t - start, again)
 """
 
 
-def map_rates(path: Path, shape: tuple[int, int], workers: int, warm: bool = False) -> tuple:
+def map_rates(
+    path: Path, shape: tuple[int, int], workers: int, warm: bool = False, folder: str | None = None
+) -> tuple:
     """Poses per second of a ``shape`` grid map (axes q1, q2 in [-3.1, 3.1])
     written to a zarr store with ``workers`` local processes, in a fresh
     Python process: (end to end, from the call to the returned dataset;
@@ -291,8 +296,9 @@ def map_rates(path: Path, shape: tuple[int, int], workers: int, warm: bool = Fal
     written; seconds before the call: imports, and with ``warm`` a 64-pose
     map first, so that the timed map finds everything imported and the
     compiled kernels loaded; with ``warm``, end to end for the same map
-    made once more in that process, else 0)."""
-    with tempfile.TemporaryDirectory() as tmp:
+    made once more in that process, else 0). The store goes in a new
+    folder of ``folder`` (default: the temporary directory)."""
+    with tempfile.TemporaryDirectory(dir=folder) as tmp:
         out = subprocess.run(
             [
                 sys.executable,
@@ -421,22 +427,29 @@ def per_pose_section(args, targets: list) -> dict[tuple[str, bool], float]:
     return costs
 
 
-def file_creation_cost(n: int = 100) -> float:
-    """Cost [s] of creating one small file in a new folder of the
-    temporary directory (where the maps' stores go), the least of three
-    rounds of ``n``: on some disks it grows twentyfold right after many
-    files were created or deleted, and a 2048-pose map creates about 75
-    files and folders."""
-    rounds = []
+def file_creation_cost(n: int = 200) -> float:
+    """Mean cost [s] of creating ``n`` small files one after another in
+    a new folder of the temporary directory (where the maps' stores go):
+    on some disks (ext4 without a journal) it grows twentyfold while many
+    files were created or deleted there in the last seconds, and a
+    2048-pose map creates about 75 files and folders."""
     with tempfile.TemporaryDirectory() as tmp:
-        for r in range(3):
-            folder = Path(tmp) / str(r)
-            folder.mkdir()
-            start = time.perf_counter()
-            for i in range(n):
-                (folder / str(i)).write_bytes(b"x" * 500)
-            rounds.append((time.perf_counter() - start) / n)
-    return min(rounds)
+        start = time.perf_counter()
+        for i in range(n):
+            (Path(tmp) / str(i)).write_bytes(b"x" * 500)
+        return (time.perf_counter() - start) / n
+
+
+def _best_map_rates(shapes, rounds: int, folder: str | None = None) -> dict:
+    """{shape: best (end to end, while chunks run, made again) [poses/s]}
+    of ``rounds`` interleaved runs of map_rates (load affects all alike)."""
+    best = {shape: (0.0, 0.0, 0.0) for shape in shapes}
+    for _ in range(rounds):
+        for shape in shapes:
+            whole, running, _, again = map_rates(VERTICAL, shape, 1, warm=True, folder=folder)
+            runs = (whole, running, again)
+            best[shape] = tuple(max(b, r) for b, r in zip(best[shape], runs, strict=True))
+    return best
 
 
 def small_map_section(args, targets: list) -> None:
@@ -445,16 +458,9 @@ def small_map_section(args, targets: list) -> None:
         f"2. a {small[0] * small[1]}-pose two_link_vertical map against a "
         f"{large[0] * large[1]:,}-pose one, to zarr, workers=1 [us/pose]"
     )
-    files_before = file_creation_cost()
-    best = {small: (0.0, 0.0, 0.0), large: (0.0, 0.0, 0.0)}
-    for _ in range(1 if args.quick else 3):  # interleaved: load affects both alike
-        for shape in (small, large):
-            whole, running, _, again = map_rates(VERTICAL, shape, 1, warm=True)
-            best[shape] = (
-                max(best[shape][0], whole),
-                max(best[shape][1], running),
-                max(best[shape][2], again),
-            )
+    rounds = 1 if args.quick else 3
+    best = _best_map_rates((small, large), rounds)
+    files_after = file_creation_cost()
     for what, k in (("while chunks run", 1), ("end to end", 0)):
         s_cost, l_cost = 1e6 / best[small][k], 1e6 / best[large][k]
         ratio = s_cost / l_cost
@@ -478,10 +484,18 @@ def small_map_section(args, targets: list) -> None:
         "more in the process, which finds the allocator's memory and zarr's threads warm)"
     )
     print(
-        f"  creating a file in {tempfile.gettempdir()} (where the stores go): "
-        f"{files_before * 1e3:.2f} ms before these maps, {file_creation_cost() * 1e3:.2f} ms "
-        "after (about 0.05 on a quiet disk; a 2048-pose map creates about 75 files and folders)"
+        f"  creating a file in {tempfile.gettempdir()} (where the stores go), right after these "
+        f"maps: {files_after * 1e3:.2f} ms (mean of 200; about 0.05 on a quiet disk, and a "
+        "2048-pose map creates about 75 files and folders)"
     )
+    if os.access(RAM_DISK, os.W_OK):
+        ram = _best_map_rates((small, large), rounds, folder=RAM_DISK)
+        s_cost, l_cost = 1e6 / ram[small][0], 1e6 / ram[large][0]
+        print(
+            f"  {'end to end, stores in ' + RAM_DISK:<17} {small[0] * small[1]} poses "
+            f"{s_cost:8.1f}, {large[0] * large[1]:,} poses {l_cost:8.1f}: {s_cost / l_cost:.2f}x "
+            "(no target: a RAM disk, where creating a file costs the same at any time)"
+        )
     print()
 
 
