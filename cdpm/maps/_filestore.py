@@ -59,9 +59,7 @@ class MapFileStore(LocalStore):
         # zarr calls this for each parent group of an array it creates,
         # whose metadata is there already: looked for first, without
         # LocalStore's temporary file and thread hop
-        if not self._is_open:
-            await self._open()
-        self._check_writable()
+        await self._open_writable()
         if not (self.root / key).exists():
             await super().set_if_not_exists(key, value)
 
@@ -89,11 +87,15 @@ class MapFileStore(LocalStore):
     async def _path_to_write(self, key: str, value: Buffer):
         """The file of ``key``, its folder made; refuses a read-only store
         and a value that is not a zarr Buffer."""
-        if not self._is_open:
-            await self._open()
-        self._check_writable()
+        await self._open_writable()
         if not isinstance(value, Buffer):
             raise TypeError(f"MapFileStore.set(): value must be a zarr Buffer, got {type(value)}")
         path = self.root / key
         path.parent.mkdir(parents=True, exist_ok=True)
         return path
+
+    async def _open_writable(self) -> None:
+        """Open the store if it is not yet; refuse a read-only one."""
+        if not self._is_open:
+            await self._open()
+        self._check_writable()

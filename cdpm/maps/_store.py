@@ -14,6 +14,7 @@ the arrays, in ``<store>/.cdpm/`` (zarr ignores it):
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import shutil
@@ -468,16 +469,25 @@ def _write_metadata(coro):
     Metadata documents are written without indentation: zarr indents them
     by default, and Python encodes indented JSON in pure Python, several
     times slower (a map store's root document, with the consolidated
-    metadata of every array, is 15-30 kB). zarr's warnings that string
-    coordinates and consolidated metadata are not in the v3 specification
-    yet are silenced: xarray and zarr-python read both."""
+    metadata of every array, is 15-30 kB). zarr's warnings about them are
+    silenced (:func:`_zarr_warnings_silenced`)."""
     import zarr
 
-    with warnings.catch_warnings(), zarr.config.set({"json_indent": None}):
-        # only zarr's own: other threads of the process may warn meanwhile
+    with _zarr_warnings_silenced(), zarr.config.set({"json_indent": None}):
+        return _sync(coro)
+
+
+@contextlib.contextmanager
+def _zarr_warnings_silenced():
+    """Silence, while the context lasts, zarr's warnings that a map
+    store's string coordinates and consolidated metadata are not in the
+    zarr v3 specification yet (xarray and zarr-python read both): only
+    warnings raised in zarr's modules, since other threads of the process
+    may warn meanwhile."""
+    with warnings.catch_warnings():
         warnings.filterwarnings("ignore", category=UserWarning, module=r"zarr\.")
         warnings.filterwarnings("ignore", category=FutureWarning, module=r"zarr\.")
-        return _sync(coro)
+        yield
 
 
 def _sync(coro):
@@ -566,9 +576,7 @@ def _open_map(path, index_values: dict | None = None):
         # its files are written in place (MapFileStore.set_new): maybe not all, or half
         raise incomplete()
     try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", UserWarning)
-            warnings.simplefilter("ignore", FutureWarning)
+        with _zarr_warnings_silenced():
             # a store without consolidated metadata reads as well, only slower
             warnings.filterwarnings("ignore", "Failed to open Zarr", RuntimeWarning)
             ds = xr.open_zarr(
