@@ -107,6 +107,14 @@ def float_scalar(value) -> float:
     return float(arr.reshape(-1)[0])
 
 
+def is_integer(value) -> bool:
+    """Whether ``value`` is an integer (Python's or numpy's), not a bool
+    (True is no count) nor a float with an integral value."""
+    import numpy as np
+
+    return isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_))
+
+
 def positive_number(value, message: str, largest: float = 1.7976931348623157e308) -> float:
     """``value`` (a number, a numpy scalar or an arithmetic string such as
     ``"pi/20"``: :func:`cdpm.expressions.parse_number`) as a float in

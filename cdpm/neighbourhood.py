@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from cdpm.errors import InputError
+from cdpm.errors import InputError, is_integer
 from cdpm.numerics import SPAN_TOL, SUSPECT_LIPSCHITZ_SAFETY
 from cdpm.verdicts import NOT_ANALYSED, STATUS_CODES, STATUS_LABELS, VERDICT_CODES, YES, verdict_key
 
@@ -337,7 +337,7 @@ def _check_radius(radius: Any) -> float:
 
 
 def _check_points(points: Any, k: int) -> int:
-    if isinstance(points, bool) or not isinstance(points, (int, np.integer)):
+    if not is_integer(points):
         raise InputError(f"points must be an odd integer >= 1 (points per axis), got {points!r}")
     n = int(points)
     if n < 1 or n % 2 == 0:

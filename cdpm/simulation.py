@@ -33,7 +33,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from cdpm.errors import InputError, float_array, positive_number, short_repr
+from cdpm.errors import InputError, float_array, is_integer, positive_number, short_repr
 from cdpm.numerics import MAX_TIME_SPAN
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -47,6 +47,14 @@ SIM_ATOL = 1e-12
 #: default output samples per second of simulated time, at least this many in all
 SAMPLES_PER_SECOND = 200
 MIN_SAMPLES = 50
+#: most output samples of one simulation (the default count is clipped to it)
+MAX_SAMPLES = 1_000_000
+#: default budget of evaluations of the dynamics (right-hand sides of the
+#: ODE) of one simulation (about 25 s on a two-link robot here;
+#: a simulated second of ordinary motion takes a few thousand); a motion too
+#: fast for the tolerances (huge speeds or tensions) stops with an error
+#: instead of running for hours
+MAX_EVALUATIONS = 500_000
 
 Feedback = Callable[[float, np.ndarray, np.ndarray], Any]
 
@@ -295,6 +303,34 @@ class _Dynamics:
         return rhs
 
 
+class _BudgetSpent(Exception):
+    """The integrator asked for more evaluations than its budget."""
+
+
+class _Budget:
+    """Counts the evaluations of the dynamics of one simulation (over all
+    its pieces); past ``limit`` the next one raises _BudgetSpent, with the
+    time [s] and the largest speed [rad/s or m/s] of the state it was asked
+    at recorded."""
+
+    def __init__(self, limit: int, nv: int):
+        self.limit, self.nv = limit, nv
+        self.count, self.t, self.speed = 0, 0.0, 0.0
+
+    def counted(self, rhs, t0: float):
+        """``rhs(t, state)`` of the piece starting at ``t0`` [s], counted."""
+
+        def counted_rhs(t, state):
+            self.count += 1
+            if self.count > self.limit:
+                self.t = t0 + t
+                self.speed = float(np.abs(state[self.nv :]).max(initial=0.0))
+                raise _BudgetSpent
+            return rhs(t, state)
+
+        return counted_rhs
+
+
 def checked_duration(duration) -> float:
     """A steering or simulation time [s] as a float in (0, MAX_TIME_SPAN],
     or an InputError."""
@@ -312,6 +348,7 @@ def simulate(
     samples: int | None = None,
     rtol: float = SIM_RTOL,
     atol: float = SIM_ATOL,
+    max_evaluations: int = MAX_EVALUATIONS,
 ) -> Trajectory:
     """Simulate the nonlinear robot from (q0, v0) under cable tensions.
 
@@ -324,16 +361,23 @@ def simulate(
             law ``f(t, q, v) -> (m,)`` [N].
         duration: simulated time [s]; default the profile's last knot
             (required for constants and feedback laws).
-        samples: output samples (default 200 per second, at least 50); a
-            profile's knots are always samples too.
+        samples: output samples (default 200 per second, at least 50 and
+            at most MAX_SAMPLES = 1,000,000); a profile's knots are always
+            samples too.
         rtol, atol: the integrator's error tolerances (relative; absolute
             in rad, m, rad/s, m/s).
+        max_evaluations: the most evaluations of the dynamics the
+            integrator may make (default MAX_EVALUATIONS = 500,000); a
+            motion that needs more (speeds or tensions far too large for
+            the tolerances, or a very long span) stops with an InputError
+            that says how far it got.
 
     Returns:
         :class:`Trajectory`.
 
     Raises:
-        InputError: bad start state, tensions, duration or tolerances.
+        InputError: bad start state, tensions, duration, tolerances or
+            samples, or the budget of evaluations is spent.
         ModelError: a cable reaches zero length on the way.
     """
     from scipy.integrate import solve_ivp
@@ -357,11 +401,18 @@ def simulate(
     if not (0 < rtol < 1 and 0 < atol):
         raise InputError(f"rtol must be in (0, 1) and atol > 0, got {rtol}, {atol}")
     t_end = t_start + duration
-    if samples is not None and not (
-        isinstance(samples, (int, np.integer)) and not isinstance(samples, bool) and samples >= 2
-    ):
-        raise InputError(f"samples must be an integer >= 2 (start and end), got {samples!r}")
-    n = samples or max(MIN_SAMPLES, int(math.ceil(SAMPLES_PER_SECOND * duration)) + 1)
+    if samples is not None and not (is_integer(samples) and 2 <= samples <= MAX_SAMPLES):
+        raise InputError(
+            f"samples must be an integer from 2 (start and end) to {MAX_SAMPLES:,}, got {samples!r}"
+        )
+    if not (is_integer(max_evaluations) and max_evaluations >= 1):
+        raise InputError(
+            f"max_evaluations must be a positive integer (default {MAX_EVALUATIONS:,}), got "
+            f"{max_evaluations!r}"
+        )
+    n = samples or min(
+        MAX_SAMPLES, max(MIN_SAMPLES, int(math.ceil(SAMPLES_PER_SECOND * duration)) + 1)
+    )
     times = np.linspace(t_start, t_end, n)
     if profile is not None:
         inside = profile.time[(profile.time > t_start) & (profile.time < t_end)]
@@ -390,6 +441,7 @@ def simulate(
             return constant
 
     dyn = _Dynamics(robot)
+    budget = _Budget(int(max_evaluations), nv)
     qs, vs, fs = [q.copy()], [v.copy()], [value(times[0], q, v)]
     # pieces integrated in one go: a profile's intervals (its jumps never
     # inside a step) or the whole span; on a manifold, one chart per sample
@@ -407,17 +459,27 @@ def simulate(
                 return held
         else:
             piece = value
-        rhs = dyn.chart_rhs(q, piece, t0)
+        rhs = budget.counted(dyn.chart_rhs(q, piece, t0), t0)
         out_t = times[(times > t0) & (times <= t1)]
-        sol = solve_ivp(
-            rhs,
-            (0.0, t1 - t0),
-            np.concatenate([np.zeros(nv), v]),
-            method="DOP853",
-            t_eval=out_t - t0,
-            rtol=rtol,
-            atol=atol,
-        )
+        try:
+            sol = solve_ivp(
+                rhs,
+                (0.0, t1 - t0),
+                np.concatenate([np.zeros(nv), v]),
+                method="DOP853",
+                t_eval=out_t - t0,
+                rtol=rtol,
+                atol=atol,
+            )
+        except _BudgetSpent:
+            raise InputError(
+                f"the simulation needs more than max_evaluations = {budget.limit:,} "
+                f"evaluations of the dynamics: it got to t = {budget.t:.6g} s of "
+                f"[{t_start:g}, {t_end:g}] s, with speeds of up to {budget.speed:.3g} rad/s "
+                f"or m/s there; the motion is too fast or too long for rtol = {rtol:g}, atol = "
+                f"{atol:g}: lower v0 or the tensions, shorten the duration, loosen rtol and "
+                "atol, or raise max_evaluations"
+            ) from None
         if not sol.success:
             raise InputError(f"the integrator stopped at t = {t0:g} s: {sol.message}")
         for j, t in enumerate(out_t):

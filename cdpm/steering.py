@@ -31,7 +31,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from cdpm.errors import InputError, float_array, positive_number
+from cdpm.errors import InputError, float_array, is_integer, positive_number
 from cdpm.simulation import TensionProfile, Trajectory, checked_duration, simulate
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -301,13 +301,11 @@ def steer(
             f"target must be finite numbers, one per output "
             f"({', '.join(robot.output_names)}); got {target!r}"
         )
-    if not (isinstance(intervals, (int, np.integer)) and not isinstance(intervals, bool)) or not (
-        1 <= intervals <= STEER_MAX_INTERVALS
-    ):
+    if not (is_integer(intervals) and 1 <= intervals <= STEER_MAX_INTERVALS):
         raise InputError(
             f"intervals must be an integer from 1 to {STEER_MAX_INTERVALS}, got {intervals!r}"
         )
-    if not (isinstance(max_iterations, (int, np.integer)) and max_iterations >= 1):
+    if not (is_integer(max_iterations) and max_iterations >= 1):
         raise InputError(f"max_iterations must be a positive integer, got {max_iterations!r}")
     T = default_duration(lin) if duration is None else checked_duration(duration)
     y0 = lin.output.copy()

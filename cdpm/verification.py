@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from cdpm.errors import InputError, positive_number
+from cdpm.errors import InputError, is_integer, positive_number
 from cdpm.steering import SteerResult, steer
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -268,7 +268,7 @@ def verify_pose(
             f"(targets near the pose: the check is local), got {radius!r}"
         )
         R = positive_number(radius, message, largest=size)
-    if not (isinstance(random_directions, (int, np.integer)) and random_directions >= 0):
+    if not (is_integer(random_directions) and random_directions >= 0):
         raise InputError(f"random_directions must be a count >= 0, got {random_directions!r}")
     p = robot.n_outputs
     y0 = lin.output

@@ -177,14 +177,39 @@ def test_bad_simulation_and_steering_input(paper):
         cdpm.steer(paper, "nominal", [0.1, 0.2])
     with pytest.raises(cdpm.InputError, match="radius must be a positive"):
         cdpm.verify_pose(paper, "nominal", radius=-1)
-    with pytest.raises(cdpm.InputError, match="max_iterations must be a positive integer"):
-        cdpm.steer(paper, "nominal", [0.87], max_iterations=0)
+    for count in (0, True, np.True_):  # a bool is no count
+        with pytest.raises(cdpm.InputError, match="max_iterations must be a positive integer"):
+            cdpm.steer(paper, "nominal", [0.87], max_iterations=count)
+    with pytest.raises(cdpm.InputError, match="random_directions must be a count"):
+        cdpm.verify_pose(paper, "nominal", random_directions=True)
     with pytest.raises(cdpm.InputError, match="intervals must be an integer from 1"):
         cdpm.steer(paper, "nominal", [0.87], intervals=True)
-    with pytest.raises(cdpm.InputError, match="samples must be an integer >= 2"):
-        cdpm.simulate(paper, "nominal", tension=np.zeros(4), duration=1, samples=1)
+    for samples in (1, 10**7, 2.0):
+        with pytest.raises(cdpm.InputError, match="samples must be an integer from 2"):
+            cdpm.simulate(paper, "nominal", tension=np.zeros(4), duration=1, samples=samples)
+    for budget in (0, 1.5, True):
+        with pytest.raises(cdpm.InputError, match="max_evaluations must be a positive integer"):
+            cdpm.simulate(paper, "nominal", tension=np.zeros(4), duration=1, max_evaluations=budget)
     with pytest.raises(cdpm.InputError, match="time has 2 knots and values shape"):
         cdpm.TensionProfile([0, 1], [[1, 2], [3, 4]])
+
+
+def test_a_motion_too_fast_for_the_tolerances_stops_with_how_far_it_got(paper):
+    # 1e6 rad/s needs about a million evaluations per simulated millisecond at
+    # the default tolerances: without a budget this ran for hours
+    budget = 20_000
+    with pytest.raises(cdpm.InputError, match="raise max_evaluations") as info:
+        cdpm.simulate(
+            paper, "nominal", [1e6, 0], tension=np.zeros(4), duration=1, max_evaluations=budget
+        )
+    message = str(info.value)
+    assert f"more than max_evaluations = {budget:,}" in message
+    reached = float(message.split("got to t = ")[1].split(" s")[0])
+    assert 0 < reached < 1e-3  # far from the 1 s asked for
+    speed = float(message.split("speeds of up to ")[1].split(" rad/s")[0])
+    assert 1e5 < speed < 1e7
+    # an ordinary motion stays far within the default budget
+    assert cdpm.simulate(paper, "nominal", tension=np.zeros(4), duration=0.2).t[-1] == 0.2
 
 
 def test_verify_and_steer_commands(capsys, tmp_path):

@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from cdpm.configuration import MAX_COORDINATE
-from cdpm.errors import InputError, float_array, float_scalar
+from cdpm.errors import InputError, float_array, float_scalar, is_integer
 from cdpm.maps.criteria import CRITERIA
 from cdpm.numerics import MAX_EXTERNAL_LOAD, MAX_GRAVITY, SPAN_TOL
 
@@ -76,9 +76,9 @@ def sample_axes(
     Returns:
         :class:`SampledAxes` for :func:`cdpm.workspace_map`.
     """
-    if not isinstance(n, (int, np.integer)) or n < 1:
+    if not is_integer(n) or n < 1:
         raise InputError(f"samples must be a positive integer, got {n!r}")
-    if seed is not None and not (isinstance(seed, (int, np.integer)) and 0 <= seed < 2**63):
+    if seed is not None and not (is_integer(seed) and 0 <= seed < 2**63):
         raise InputError(f"seed must be an integer from 0 to 2**63 - 1, got {seed!r}")
     if not ranges:
         raise InputError("give at least one coordinate range to sample, e.g. {'q1': (-3.14, 3.14)}")
@@ -263,7 +263,7 @@ def make_plan(
     ``tension_search`` (the search's settings as plain data, with ``tension="best"``)
     enters them likewise only when the map asks for the search.
     """
-    if not isinstance(chunk_size, (int, np.integer)) or chunk_size < 1:
+    if not is_integer(chunk_size) or chunk_size < 1:
         raise InputError(f"chunk_size must be a positive integer, got {chunk_size!r}")
     coords = list(robot.coordinate_names)
     if isinstance(axes, SampledAxes):

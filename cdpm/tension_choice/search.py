@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from cdpm.errors import InputError
+from cdpm.errors import InputError, is_integer
 from cdpm.numerics import MIN_SEGMENT_LENGTH, SPAN_TOL
 from cdpm.tension_choice._polytope import LPFailure, polish, solve_lp
 from cdpm.tension_choice.range import (
@@ -127,10 +127,10 @@ def tension_search(
         ("refine_rounds", refine_rounds),
         ("refine_samples", refine_samples),
     ):
-        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
+        if not is_integer(value) or value < 0:
             raise InputError(f"{name} must be an integer >= 0, got {value!r}")
         counts[name] = int(value)
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)):
+    if not is_integer(seed):
         raise InputError(f"seed must be an integer, got {seed!r}")
     cap = None if tension_cap is None else checked_cap(tension_cap)
     return TensionSearch(objective, **counts, seed=int(seed), tension_cap=cap)
