@@ -105,6 +105,12 @@ HORIZON_MAX = 2e3
 SEE_PERIODS = 6 * math.pi
 #: margin horizon requests beyond this many time units are tapered
 HORIZON_MAX_UNITS = 1e3
+#: longest margin horizon a caller may give, in the same time units (the
+#: responses, sampled at a fixed number of times, overflow some way beyond)
+HORIZON_GIVEN_MAX_UNITS = 1e6
+#: a given horizon passes its bounds within this relative round-off (the
+#: default horizon lies on the growth bound, computed in other coordinates)
+HORIZON_BOUND_RTOL = 1e-9
 #: margin horizon: growth of the impulse response allowed, by output count p
 LOG_GROWTH = {1: math.log(1e8), 2: math.log(1e8), 3: math.log(1e6)}
 #: ... and for p >= 4

@@ -4,6 +4,7 @@ signed inradius of the sampled hull, known values and its bracket."""
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -311,3 +312,30 @@ def test_bracket_contains_a_dense_estimate():
         assert lo <= dense + tol and dense <= hi + tol, (seed, lo, dense, hi)
         checked += 1
     assert checked >= 3
+
+
+def test_a_given_horizon_beyond_what_the_margin_resolves_is_refused_with_the_longest():
+    # x' = 0.5 x grows by e^500 within 1000: the margin used to come out NaN
+    # through numpy's overflow warnings
+    A = np.diag([0.5, -1.0])
+    B = np.array([[1.0, -1.0], [1.0, 1.0]])
+    longest = math.log(1e8) / 0.5  # growth 1e8 with two outputs
+    with pytest.raises(cdpm.InputError, match=r"at most 36\.84"):
+        positive_output_controllability(A, B, np.eye(2), horizon=1e3)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        at_bound = positive_output_controllability(A, B, np.eye(2), horizon=longest)
+        assert np.isfinite(at_bound.margin)
+    # a system that does not grow: at most 1e6 of its time units (here 1:
+    # |A|_2 = 1 and A^2 = 0), where a horizon of 1e200 overflowed
+    A = np.array([[0.0, 1.0], [0.0, 0.0]])
+    B = np.array([[0.0, 0.0], [1.0, -1.0]])
+    with pytest.raises(cdpm.InputError, match=r"at most 1e\+06"):
+        positive_output_controllability(A, B, np.eye(2), horizon=1e200)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert np.isfinite(positive_output_controllability(A, B, np.eye(2), horizon=1e6).margin)
+    # A = 0: the responses are constant, any horizon is fine
+    assert positive_output_controllability(
+        np.zeros((1, 1)), np.array([[1.0, -1.0]]), np.eye(1), horizon=1e300
+    ).margin == pytest.approx(1.0)

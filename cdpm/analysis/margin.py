@@ -39,6 +39,7 @@ from cdpm.analysis._span_hull import cross_polytope_radius, min_norm_separator
 from cdpm.numerics import (
     GRID_POINTS,
     GRID_POINTS_HIGH,
+    HORIZON_GIVEN_MAX_UNITS,
     HORIZON_MAX_UNITS,
     LOG_GROWTH,
     LOG_GROWTH_HIGH,
@@ -123,7 +124,7 @@ def margin_horizons(
         A, norm, norm2 = A[live], norm[live], norm2[live]
         B = None if B is None else B[live]
         C = None if C is None else C[live]
-    tau = 1.0 / np.maximum(np.sqrt(norm2), np.sqrt(norm))
+    tau = _time_units(norm, norm2)
     lam = np.linalg.eigvals(A * tau[:, None, None])  # (k, n)
     r = np.abs(lam)
     with np.errstate(divide="ignore"):
@@ -141,10 +142,37 @@ def margin_horizons(
     Tl = np.minimum(Tl, tau * HORIZON_MAX_UNITS)
     p = 2 if C is None else C.shape[-2]
     with np.errstate(divide="ignore"):
-        cap = tau * LOG_GROWTH.get(p, LOG_GROWTH_HIGH) / grow
+        cap = tau * log_growth_allowed(p) / grow
     Tl = np.where(grow > 0, np.minimum(Tl, cap), Tl)
     T[live] = Tl
     return T
+
+
+def log_growth_allowed(p: int) -> float:
+    """ln of the largest growth e^{Re(lambda) T} of the sampled responses
+    that the margin resolves with ``p`` outputs (LOG_GROWTH, LOG_GROWTH_HIGH)."""
+    return LOG_GROWTH.get(p, LOG_GROWTH_HIGH)
+
+
+def longest_horizon(A: np.ndarray, p: int) -> tuple[float, float, float]:
+    """The longest margin horizon a caller may give for a system with
+    state matrix ``A`` (n, n) and ``p`` outputs [time of A], as two bounds:
+    (HORIZON_GIVEN_MAX_UNITS time units tau of :func:`margin_horizon`, inf
+    when A = 0; the time in which the fastest-growing mode grows by
+    e^{log_growth_allowed(p)}, inf when no mode grows; that mode's rate
+    max Re(lambda) [1/time], 0 if none grows)."""
+    if not A.size or not A.any():
+        return math.inf, math.inf, 0.0
+    A = A[None]
+    units = float(_time_units(_norms2(A), _norms2(A @ A))[0]) * HORIZON_GIVEN_MAX_UNITS
+    rate = float(np.linalg.eigvals(A[0]).real.max(initial=0.0))
+    return units, (log_growth_allowed(p) / rate if rate > 0 else math.inf), rate
+
+
+def _time_units(norm: np.ndarray, norm2: np.ndarray) -> np.ndarray:
+    """tau = 1 / max(|A^2|_2^(1/2), |A|_2^(1/2)) from |A|_2 and |A^2|_2
+    (each (k,), |A|_2 > 0): the time unit of :func:`margin_horizon`."""
+    return 1.0 / np.maximum(np.sqrt(norm2), np.sqrt(norm))
 
 
 def _norms2(X: np.ndarray) -> np.ndarray:

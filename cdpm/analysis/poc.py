@@ -29,6 +29,8 @@ samples, the output-rank check, the reduction); the paths live in
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from scipy.linalg import expm
 
@@ -47,12 +49,21 @@ from cdpm.analysis._nilpotent import nilpotent_path, scalar_nilpotent
 from cdpm.analysis._poc_margin import poc_margins as poc_margins
 from cdpm.analysis._reduced import Reduced, lift_yes, output_rank_defect
 from cdpm.analysis.certificate import POCCertificate
+from cdpm.analysis.margin import log_growth_allowed, longest_horizon
 from cdpm.analysis.poc_result import POCResult
 from cdpm.analysis.poc_result import poc_margin as poc_margin
 from cdpm.analysis.rank import output_reachable_basis
 from cdpm.analysis.span import independent_columns
 from cdpm.errors import InputError, check_tol, positive_number
-from cdpm.numerics import FREE_SAMPLE_ZERO_RTOL, FREE_SPAN_RATIO, ROW_ZERO_RTOL, SPAN_TOL
+from cdpm.numerics import (
+    FREE_SAMPLE_ZERO_RTOL,
+    FREE_SPAN_RATIO,
+    HORIZON_BOUND_RTOL,
+    HORIZON_GIVEN_MAX_UNITS,
+    HORIZON_MAX_UNITS,
+    ROW_ZERO_RTOL,
+    SPAN_TOL,
+)
 
 # poc_margin, poc_margins and POCResult are re-exported: other code (cdpm.maps,
 # cdpm.analysis.batch, tests) imports them, and _poc, from this module
@@ -102,6 +113,7 @@ def positive_output_controllability(
     if horizon is not None:
         message = f"horizon must be a positive finite time, got {horizon!r}"
         horizon = positive_number(horizon, message)
+        _check_margin_horizon(A, C.shape[0], horizon)
     if input_scale is not None:
         input_scale = as_positive_vector("input_scale", input_scale, B.shape[1], "m (columns of B)")
     if output_weight is not None:
@@ -109,6 +121,30 @@ def positive_output_controllability(
             "output_weight", output_weight, C.shape[0], "p (rows of C)"
         )
     return _poc(A, B, C, mask, horizon, input_scale, output_weight, tol)
+
+
+def _check_margin_horizon(A: np.ndarray, p: int, horizon: float) -> None:
+    """Refuse a horizon over which the system's responses grow beyond
+    what the margin resolves (the margin would be NaN, through overflow)."""
+    units, longest, rate = longest_horizon(A, p)
+    slack = 1.0 + HORIZON_BOUND_RTOL
+    if horizon > units * slack:
+        raise InputError(
+            f"horizon {horizon:g} is too long for this system: at most {units:.6g}, "
+            f"{HORIZON_GIVEN_MAX_UNITS:g} of its time units (1 / max(|A^2|^(1/2), "
+            "|A|^(1/2))), beyond which its sampled responses overflow; give a shorter "
+            f"horizon, or none (the default horizon is at most {HORIZON_MAX_UNITS:g} of these "
+            "units)"
+        )
+    if horizon > longest * slack:
+        raise InputError(
+            f"horizon {horizon:g} is too long for this system: its fastest-growing mode "
+            f"(Re lambda = {rate:.4g}) grows by a factor of e^{rate * horizon:.4g} within it, "
+            f"and the margin resolves growths of at most {math.exp(log_growth_allowed(p)):.0e} "
+            f"with {p} output(s); "
+            f"give a horizon of at most {longest:.6g}, or none (the default horizon stays "
+            "within that bound)"
+        )
 
 
 def _poc(A, B, C, mask, horizon=None, input_scale=None, output_weight=None, tol=SPAN_TOL):
