@@ -158,6 +158,10 @@ REACH_SIZE_FRACTION = 0.1
 #: [N or N m] a spec or an override may give (beyond, the dynamics overflow)
 MAX_GRAVITY = 1e6
 MAX_EXTERNAL_LOAD = 1e12
+#: largest tension [N] a spec, an override or a caller may give: a cable's
+#: bounds (a maximum may also be inf: no upper bound), a pretension, given,
+#: simulated or capped tensions (beyond, sums of squares overflow)
+MAX_TENSION = 1e12
 #: longest time a reach horizon, a steering or a simulation may span [s]
 #: (about 12 days; T^2 and the time grids stay far from overflow)
 MAX_TIME_SPAN = 1e6

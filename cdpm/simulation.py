@@ -34,7 +34,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from cdpm.errors import InputError, float_array, is_integer, positive_number, short_repr
-from cdpm.numerics import MAX_TIME_SPAN
+from cdpm.numerics import MAX_TENSION, MAX_TIME_SPAN
 
 if TYPE_CHECKING:  # pragma: no cover
     from cdpm.robot import CableRobot
@@ -85,8 +85,12 @@ class TensionProfile:
                 f"tension profile: time has {t.shape[0]} knots and values shape {f.shape}; "
                 "give K+1 knot times [s] and (K, m) tensions [N] (one row per interval)"
             )
-        if not (np.all(np.isfinite(t)) and np.all(np.isfinite(f))):
-            raise InputError("tension profile: time and values must be finite")
+        if not np.all(np.isfinite(t)):
+            raise InputError("tension profile: knot times must be finite")
+        if not np.all(np.abs(f) <= MAX_TENSION):
+            raise InputError(
+                f"tension profile: values must be finite tensions of at most {MAX_TENSION:g} N"
+            )
         if np.any(np.diff(t) <= 0):
             raise InputError("tension profile: knot times must be strictly increasing")
         object.__setattr__(self, "time", t)
@@ -257,8 +261,11 @@ def _as_tension(robot: CableRobot, tension: Any) -> TensionProfile | Feedback | 
             "tension must be a TensionProfile, (time, values), a constant (m,) [N] of real "
             f"numbers or a callable f(t, q, v); got {short_repr(tension)}"
         ) from exc
-    if f.shape != (m,) or not np.all(np.isfinite(f)):
-        raise InputError(f"a constant tension needs {m} finite values [N], got {tension!r}")
+    if f.shape != (m,) or not np.all(np.abs(f) <= MAX_TENSION):
+        raise InputError(
+            f"a constant tension needs {m} finite values [N] of at most {MAX_TENSION:g} N, got "
+            f"{tension!r}"
+        )
     return f
 
 
@@ -427,10 +434,10 @@ def simulate(
 
         def value(t, q_, v_):
             f = np.asarray(law(t, q_, v_), dtype=float).reshape(-1)
-            if f.shape != (m,) or not np.all(np.isfinite(f)):
+            if f.shape != (m,) or not np.all(np.abs(f) <= MAX_TENSION):
                 raise InputError(
                     f"the feedback law returned {f!r} at t = {t:g} s; it must return "
-                    f"{m} finite tensions [N]"
+                    f"{m} finite tensions [N] of at most {MAX_TENSION:g} N"
                 )
             return f
 

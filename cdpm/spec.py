@@ -64,7 +64,12 @@ from cdpm._spec_urdf import (
 from cdpm.equilibrium import EQUILIBRIUM_METHODS
 from cdpm.errors import SpecError
 from cdpm.expressions import parse_number
-from cdpm.numerics import MAX_EXTERNAL_LOAD, MAX_GRAVITY, SPEC_COINCIDENT_POINT_ATOL
+from cdpm.numerics import (
+    MAX_EXTERNAL_LOAD,
+    MAX_GRAVITY,
+    MAX_TENSION,
+    SPEC_COINCIDENT_POINT_ATOL,
+)
 from cdpm.outputs import (
     OUTPUT_COMPONENTS,
     POSITION_COMPONENTS,
@@ -312,7 +317,8 @@ def load_spec(path: str | os.PathLike) -> CableSpec:
 
 def tension_bound_problems(fmin: float, fmax: float, number=str) -> list[str]:
     """What is wrong with a cable's tension bounds [N] (none: an empty list):
-    the minimum must be finite and >= 0, the maximum >= the minimum and > 0.
+    the minimum must be finite and >= 0, the maximum >= the minimum and > 0,
+    and neither above MAX_TENSION (a maximum of inf: no upper bound).
 
     Args:
         fmin, fmax: the bounds [N].
@@ -321,6 +327,12 @@ def tension_bound_problems(fmin: float, fmax: float, number=str) -> list[str]:
     problems = []
     if not (math.isfinite(fmin) and fmin >= 0):
         problems.append(f"minimum {number(fmin)} must be finite and >= 0 (cables only pull)")
+    elif fmin > MAX_TENSION:
+        problems.append(f"minimum {number(fmin)} is above {MAX_TENSION:g} N")
+    if math.isfinite(fmax) and fmax > MAX_TENSION:
+        problems.append(
+            f"maximum {number(fmax)} is above {MAX_TENSION:g} N; give inf for no upper bound"
+        )
     if not fmax >= fmin:
         problems.append(f"maximum {number(fmax)} must be >= minimum {number(fmin)}")
     if fmax == 0:
@@ -468,8 +480,10 @@ def _parse_equilibrium(problems: Problems, raw: Any) -> tuple[str, float]:
         except ValueError as exc:
             problems.add("equilibrium.pretension", f"{exc}; expected tension in N")
         else:
-            if not (math.isfinite(pretension) and pretension >= 0):
-                problems.add("equilibrium.pretension", "must be finite and >= 0 N")
+            if not (math.isfinite(pretension) and 0 <= pretension <= MAX_TENSION):
+                problems.add(
+                    "equilibrium.pretension", f"must be finite, >= 0 and <= {MAX_TENSION:g} N"
+                )
     if method == "pretension" and pretension == 0:
         problems.add(
             "equilibrium",

@@ -177,10 +177,31 @@ def test_check_equilibrium_and_linearise_reject_non_equilibrium(vertical):
 def test_bad_arguments(vertical):
     with pytest.raises(cdpm.InputError, match="unknown equilibrium method 'least'"):
         equilibrium_tension(vertical, "horizontal", method="least")
-    with pytest.raises(cdpm.InputError, match="pretension must be finite and >= 0"):
+    with pytest.raises(cdpm.InputError, match="pretension must be finite, >= 0"):
         equilibrium_tension(vertical, "horizontal", method="pretension", pretension=-1)
     with pytest.raises(cdpm.InputError, match="tension has 3 entries"):
         check_equilibrium(vertical, "horizontal", [1, 2, 3])
+    # 1e300 N squared overflowed in the residual (a numpy warning, residual inf)
+    huge = [1e300] * 4
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(cdpm.InputError, match=r"finite tensions of at most 1e\+12 N"):
+            check_equilibrium(vertical, "horizontal", huge)
+        with pytest.raises(cdpm.InputError, match=r"finite tensions of at most 1e\+12 N"):
+            linearise(vertical, "horizontal", tension=huge)
+        for call in (
+            lambda: cdpm.evaluate_poses(vertical, [[0.3, 0.2]], tension=huge),
+            lambda: cdpm.workspace_map(vertical, {"q1": [0.3, 0.4]}, tension=huge),
+        ):
+            with pytest.raises(cdpm.InputError, match=r"4 finite tensions \[N\] of at most 1e\+12"):
+                call()
+        with pytest.raises(cdpm.InputError, match=r"pretension must be finite, >= 0 and <= 1e\+12"):
+            equilibrium_tension(vertical, "horizontal", method="pretension", pretension=1e13)
+        with pytest.raises(cdpm.InputError, match=r"tension_cap must be a positive tension of at"):
+            cdpm.best_tension(vertical, "horizontal", tension_cap=1e300)
+        for tension in ([1e13] * 4, ([0.0, 1.0], [[1e13] * 4]), lambda t, q, v: huge):
+            with pytest.raises(cdpm.InputError, match=r"of at most 1e\+12 N"):
+                cdpm.simulate(vertical, "horizontal", tension=tension, duration=0.1)
 
 
 def test_result_presentation(vertical):

@@ -245,7 +245,7 @@ def test_poses_outside_the_joint_limits_are_counted(paper_robot):
         ({"scale": {"q1": 0}}, "scale of 'q1' must be a positive"),
         ({"scale": [1, 1]}, "scale must be a mapping"),
         ({"tension": "taut"}, "unknown equilibrium method"),
-        ({"tension": "min_norm", "pretension": -1}, "pretension must be finite and >= 0"),
+        ({"tension": "min_norm", "pretension": -1}, "pretension must be finite, >= 0"),
         ({"tol": 2}, "tol must be an angle"),
     ],
 )

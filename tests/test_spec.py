@@ -129,6 +129,15 @@ def test_bad_tension_bounds(write_spec):
     text = GOOD.replace("  - name: c1\n", "  - name: c1\n    tension: [-1, 5]\n")
     with pytest.raises(cdpm.SpecError, match=r"minimum -1.0 must be finite and >= 0"):
         load_spec(write_spec(text))
+    # beyond MAX_TENSION (1e12 N) the statics overflow; inf stays "no upper bound"
+    text = GOOD.replace("  - name: c1\n", "  - name: c1\n    tension: [0, 1e300]\n")
+    with pytest.raises(cdpm.SpecError, match=r"maximum 1e\+300 is above 1e\+12 N; give inf"):
+        load_spec(write_spec(text))
+    text = GOOD.replace("  - name: c1\n", "  - name: c1\n    tension: [2e12, inf]\n")
+    with pytest.raises(cdpm.SpecError, match=r"minimum 2000000000000.0 is above 1e\+12 N"):
+        load_spec(write_spec(text))
+    text = GOOD.replace("  - name: c1\n", "  - name: c1\n    tension: [0, inf]\n")
+    assert math.isinf(load_spec(write_spec(text)).cables[0].tension_max)
 
 
 def test_com_on_massless_link_is_refused(write_spec):

@@ -59,7 +59,7 @@ from cdpm.equilibrium.result import (
     ZeroPretensionWarning,
 )
 from cdpm.errors import InputError, float_array, float_scalar
-from cdpm.numerics import STATICS_RTOL
+from cdpm.numerics import MAX_TENSION, STATICS_RTOL
 
 if TYPE_CHECKING:  # pragma: no cover
     from cdpm.kinematics import BatchKinematics
@@ -106,17 +106,19 @@ def resolve_method(robot: CableRobot, method: str | None, pretension: float | No
 
 
 def checked_pretension(pretension: Any) -> float:
-    """A pretension [N] as a float, finite and >= 0.
+    """A pretension [N] as a float in [0, MAX_TENSION].
 
     Raises:
-        InputError: not a number, negative or not finite.
+        InputError: not a number, negative, too large or not finite.
     """
     try:
         value = float_scalar(pretension)
     except (TypeError, ValueError) as exc:
         raise InputError(f"pretension must be a number of newtons, got {pretension!r}") from exc
-    if not (math.isfinite(value) and value >= 0):
-        raise InputError(f"pretension must be finite and >= 0 N, got {pretension}")
+    if not (math.isfinite(value) and 0 <= value <= MAX_TENSION):
+        raise InputError(
+            f"pretension must be finite, >= 0 and <= {MAX_TENSION:g} N, got {pretension}"
+        )
     return value
 
 
@@ -181,7 +183,8 @@ def check_equilibrium(robot: CableRobot, q: Any, tension: Any) -> EquilibriumRes
         tension: cable tensions [N], shape (m,).
 
     Raises:
-        InputError: the tension has the wrong length or non-finite entries.
+        InputError: the tension has the wrong length, or entries that are
+            not finite or larger than MAX_TENSION in magnitude.
     """
     try:
         f = float_array(tension, copy=True).reshape(-1)
@@ -192,8 +195,10 @@ def check_equilibrium(robot: CableRobot, q: Any, tension: Any) -> EquilibriumRes
             f"tension has {f.shape[0]} entries, expected one per cable "
             f"({robot.n_cables}: {', '.join(robot.cable_names)})"
         )
-    if not np.all(np.isfinite(f)):
-        raise InputError(f"tension has non-finite entries: {f}")
+    if not np.all(np.abs(f) <= MAX_TENSION):
+        raise InputError(
+            f"tension entries must be finite tensions of at most {MAX_TENSION:g} N, got {f}"
+        )
     q, LT, load = _statics(robot, q)
     batch = solve_equilibria(LT, load, robot.tension_min, robot.tension_max, f)
     if batch.feasible[0]:

@@ -127,6 +127,7 @@ def resolve_tension(robot: CableRobot, tension: Any) -> str | list[float]:
     """
     from cdpm.equilibrium import EQUILIBRIUM_METHODS
     from cdpm.errors import InputError, float_array
+    from cdpm.numerics import MAX_TENSION
 
     if tension is None:
         tension = str(robot.spec.equilibrium_method)
@@ -152,10 +153,10 @@ def resolve_tension(robot: CableRobot, tension: Any) -> str | list[float]:
         f = float_array(tension).reshape(-1)
     except (TypeError, ValueError):
         f = None  # not numbers: the message below
-    if f is None or f.shape != (robot.n_cables,) or not np.all(np.isfinite(f)):
+    if f is None or f.shape != (robot.n_cables,) or not np.all(np.abs(f) <= MAX_TENSION):
         raise InputError(
-            f"tension must be a method name or {robot.n_cables} finite tensions [N] "
-            f"(cables {', '.join(robot.cable_names)}), got {tension!r}"
+            f"tension must be a method name or {robot.n_cables} finite tensions [N] of at "
+            f"most {MAX_TENSION:g} N (cables {', '.join(robot.cable_names)}), got {tension!r}"
         )
     outside = (f < robot.tension_min) | (f > robot.tension_max)
     if outside.any():

@@ -46,13 +46,15 @@ def default_tension_cap(robot: CableRobot, tension_budget: Any = None) -> float:
 
 
 def checked_cap(cap: Any) -> float:
-    """A tension cap [N] as a positive finite float, or an InputError."""
+    """A tension cap [N] as a float in (0, MAX_TENSION], or an InputError."""
     from cdpm.errors import positive_number
+    from cdpm.numerics import MAX_TENSION
 
     return positive_number(
         cap,
-        f"tension_cap must be a positive finite tension [N] (the largest tension the search "
-        f"gives a cable without an upper bound), got {cap!r}",
+        f"tension_cap must be a positive tension of at most {MAX_TENSION:g} N (the largest "
+        f"tension the search gives a cable without an upper bound), got {cap!r}",
+        largest=MAX_TENSION,
     )
 
 
