@@ -64,7 +64,9 @@ def float_array(value, copy: bool = False):
     numbers, booleans and None raise: numpy would drop imaginary parts with
     only a ComplexWarning, read True as 1 and None as nan. The TypeError is
     the one numpy raises for other non-numbers, so a caller's message for
-    those (``except (TypeError, ValueError)``) covers these too.
+    those (``except (TypeError, ValueError)``) covers these too. Strings
+    are read as a single number is (:func:`cdpm.expressions.parse_number`:
+    ``["pi/6", "2*pi/3"]``), not only as numpy reads them (``"0.5"``).
 
     Raises:
         TypeError: complex entries (e.g. ``[0.1j, 0.2]``), booleans, None,
@@ -90,6 +92,12 @@ def float_array(value, copy: bool = False):
         raise TypeError(f"booleans are not numbers (got {short_repr(value, 60)})")
     if kind == "O" and any(x is None for x in arr.reshape(-1)):
         raise TypeError(f"None is not a number (got {short_repr(value, 60)})")
+    if kind in "US" or (kind == "O" and any(isinstance(x, str) for x in arr.reshape(-1))):
+        from cdpm.expressions import parse_number
+
+        # numbers beside strings became their repr (exact for floats)
+        flat = [parse_number(x) if isinstance(x, str) else x for x in arr.reshape(-1).tolist()]
+        return float_array(flat).reshape(arr.shape)
     return np.array(arr, dtype=float) if copy else np.asarray(arr, dtype=float)
 
 

@@ -179,6 +179,40 @@ def test_evaluate_poses_checks_its_input(paper_robot):
         cdpm.evaluate_poses(paper_robot, np.zeros((1, 2)), tol=5)
     one = cdpm.evaluate_poses(paper_robot, np.array([0.5, 1.0]))  # one pose, flat
     assert one["poc"].shape == (1,)
+    with pytest.raises(cdpm.InputError, match=r"pose 1: pose 'nope' not in spec"):
+        cdpm.evaluate_poses(paper_robot, ["nominal", "nope"])
+    with pytest.raises(cdpm.InputError, match=r"pose 0: 'q9' is not a joint or coordinate"):
+        cdpm.evaluate_poses(paper_robot, [{"q9": 1.0}])
+
+
+def test_evaluate_poses_takes_poses_as_the_per_pose_functions_do(paper_robot):
+    # pose names, {coordinate: value} (others 0, as in a spec's poses),
+    # natural coordinates and arithmetic strings, in one list: the same
+    # values as the array of their natural coordinates
+    nominal = paper_robot.to_natural(paper_robot.configuration("nominal"))
+    poses = ["nominal", {"q1": 0.5}, [0.5, 1.0], ["pi/6", "pi/3"]]
+    mixed = cdpm.evaluate_poses(paper_robot, poses)
+    array = np.array([nominal, [0.5, 0.0], [0.5, 1.0], [np.pi / 6, np.pi / 3]])
+    plain = cdpm.evaluate_poses(paper_robot, array)
+    for name in plain:
+        np.testing.assert_array_equal(mixed[name], plain[name], err_msg=name)
+    alone = cdpm.evaluate_poses(paper_robot, "nominal")
+    np.testing.assert_array_equal(alone["reach_margin"], plain["reach_margin"][:1])
+
+
+def test_arrays_read_strings_as_single_numbers_are_read():
+    from cdpm.errors import float_array
+
+    np.testing.assert_array_equal(
+        float_array([["pi/2", 0.1], ["2*pi/3", 1.0000000000000002]]),
+        [[np.pi / 2, 0.1], [2 * np.pi / 3, 1.0000000000000002]],  # numbers stay exact
+    )
+    np.testing.assert_array_equal(float_array(np.array(["0.5", "-1e-300"])), [0.5, -1e-300])
+    for bad, message in ((["pi", True], "booleans are not numbers"), (["x"], "'x' is not")):
+        with pytest.raises(ValueError, match=message):
+            float_array(bad)
+    with pytest.raises(cdpm.InputError, match=r"'x' is not a number"):
+        cdpm.analyze_pose(cdpm.load_robot(MODELS / "two_link_vertical"), ["x", 0.2])
 
 
 def test_pretension_method_without_pretension_warns(paper_robot):

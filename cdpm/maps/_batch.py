@@ -70,9 +70,28 @@ def configurations(robot: CableRobot, natural: np.ndarray) -> np.ndarray:
 
 def check_poses(robot: CableRobot, natural) -> np.ndarray:
     """Poses as a float array (N, nv) of finite natural coordinates, or an
-    InputError naming the expected shape."""
+    InputError naming the expected shape. ``natural``: an array (N, nv) or
+    (nv,); or poses one by one, each natural coordinates (nv,), a pose name
+    of the spec or ``{coordinate: value}`` (coordinates not named are 0, as
+    in a spec's poses); or one pose name or mapping alone."""
+    from collections.abc import Mapping
+
     from cdpm.errors import InputError, float_array
 
+    if isinstance(natural, (str, Mapping)):
+        natural = [natural]
+    if isinstance(natural, (list, tuple)) and any(
+        isinstance(pose, (str, Mapping)) for pose in natural
+    ):
+        rows = []
+        for i, pose in enumerate(natural):
+            if isinstance(pose, (str, Mapping)):
+                try:
+                    pose = robot.to_natural(robot.as_q(pose))
+                except InputError as exc:
+                    raise InputError(f"pose {i}: {exc}") from None
+            rows.append(pose)
+        natural = rows
     try:
         arr = float_array(natural)
     except (TypeError, ValueError) as exc:

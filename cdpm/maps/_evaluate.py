@@ -250,7 +250,10 @@ def evaluate_poses(
 
     Args:
         robot: a :class:`~cdpm.robot.CableRobot`.
-        natural: poses, shape (N, nv).
+        natural: poses: natural coordinates, shape (N, nv) [rad or m]; or
+            a sequence of poses, each natural coordinates (nv,), a pose
+            name of the spec or ``{coordinate: value}`` (coordinates not
+            named are 0); or one pose name or mapping.
         tension: equilibrium tension setting (see :func:`resolve_tension`).
         margin: compute the reach margin ``reach_margin`` (else NaN; see
             :func:`cdpm.workspace_map`).
