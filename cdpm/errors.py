@@ -83,6 +83,11 @@ def float_array(value, copy: bool = False):
         raise ValueError(
             f"rows of different lengths (a ragged list: {short_repr(value, 60)})"
         ) from None
+    except OverflowError:  # a Python integer beyond float64 (10**400)
+        raise ValueError(f"a number too large for a float ({short_repr(value, 60)})") from None
+    if isinstance(value, (list, tuple)) and arr.dtype.kind in "fiu" and _holds_bool(value):
+        # numpy reads [True, 0.5] as [1.0, 0.5]
+        raise TypeError(f"booleans are not numbers (got {short_repr(value, 60)})")
     kind = arr.dtype.kind
     if kind == "c":
         raise TypeError(
@@ -92,13 +97,38 @@ def float_array(value, copy: bool = False):
         raise TypeError(f"booleans are not numbers (got {short_repr(value, 60)})")
     if kind == "O" and any(x is None for x in arr.reshape(-1)):
         raise TypeError(f"None is not a number (got {short_repr(value, 60)})")
-    if kind in "US" or (kind == "O" and any(isinstance(x, str) for x in arr.reshape(-1))):
+    if kind == "S" or (kind == "O" and any(isinstance(x, bytes) for x in arr.reshape(-1))):
+        raise TypeError(f"bytes are not numbers (got {short_repr(value, 60)}); give str or numbers")
+    if kind == "U" or (kind == "O" and any(isinstance(x, str) for x in arr.reshape(-1))):
         from cdpm.expressions import parse_number
 
         # numbers beside strings became their repr (exact for floats)
         flat = [parse_number(x) if isinstance(x, str) else x for x in arr.reshape(-1).tolist()]
         return float_array(flat).reshape(arr.shape)
-    return np.array(arr, dtype=float) if copy else np.asarray(arr, dtype=float)
+    try:
+        return np.array(arr, dtype=float) if copy else np.asarray(arr, dtype=float)
+    except OverflowError:  # a Python integer beyond float64 (10**400)
+        raise ValueError(f"a number too large for a float ({short_repr(value, 60)})") from None
+
+
+def _holds_bool(value: list | tuple) -> bool:
+    """Whether the nested lists and tuples ``value`` hold a bool (or a
+    boolean array) anywhere."""
+    import numpy as np
+
+    stack = [value]
+    while stack:
+        for x in stack.pop():
+            kind = type(x)
+            if kind is float or kind is int:  # the common case, first
+                continue
+            if kind is list or kind is tuple:
+                stack.append(x)
+            elif kind is bool or kind is np.bool_:
+                return True
+            elif kind is np.ndarray and x.dtype.kind == "b":
+                return True
+    return False
 
 
 def float_scalar(value) -> float:
@@ -121,6 +151,14 @@ def is_integer(value) -> bool:
     import numpy as np
 
     return isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_))
+
+
+def checked_seed(seed) -> int:
+    """A random seed as an int from 0 to 2**63 - 1 (what
+    ``numpy.random.default_rng`` takes), or an InputError."""
+    if not (is_integer(seed) and 0 <= seed < 2**63):
+        raise InputError(f"seed must be an integer from 0 to 2**63 - 1, got {short_repr(seed)}")
+    return int(seed)
 
 
 def positive_number(value, message: str, largest: float = 1.7976931348623157e308) -> float:

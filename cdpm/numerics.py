@@ -345,6 +345,8 @@ RECHECK_MODAL_RANK_RTOL = 1e-8
 
 #: primal and dual feasibility tolerance of the tension LPs (HiGHS) [N]
 TENSION_LP_TOL = 1e-9
+#: ... or this times the LP's largest right-hand side [N] when that is more
+TENSION_LP_RTOL = 1e-13
 #: a least or greatest feasible tension within this times max(1 N, the
 #: largest |bound| or tension of the pose) of a cable's bound is on it; a
 #: cable whose feasible range is shorter than that is fixed by the statics

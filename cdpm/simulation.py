@@ -47,6 +47,10 @@ SIM_ATOL = 1e-12
 #: default output samples per second of simulated time, at least this many in all
 SAMPLES_PER_SECOND = 200
 MIN_SAMPLES = 50
+#: largest start speed [rad/s or m/s] of a simulation (about 160,000 turns
+#: a second): far beyond, the dynamics overflow, and near it no simulation
+#: ends within its budget of evaluations
+MAX_SPEED = 1e6
 #: most output samples of one simulation (the default count is clipped to it)
 MAX_SAMPLES = 1_000_000
 #: default budget of evaluations of the dynamics (right-hand sides of the
@@ -255,7 +259,7 @@ def _as_tension(robot: CableRobot, tension: Any) -> TensionProfile | Feedback | 
     if isinstance(tension, tuple) and len(tension) == 2 and np.ndim(tension[0]) == 1:
         return TensionProfile.make(tension[0], tension[1], m)
     try:
-        f = float_array(tension, copy=True).reshape(-1)
+        f = float_array(tension, copy=True)
     except (TypeError, ValueError) as exc:
         raise InputError(
             "tension must be a TensionProfile, (time, values), a constant (m,) [N] of real "
@@ -264,7 +268,7 @@ def _as_tension(robot: CableRobot, tension: Any) -> TensionProfile | Feedback | 
     if f.shape != (m,) or not np.all(np.abs(f) <= MAX_TENSION):
         raise InputError(
             f"a constant tension needs {m} finite values [N] of at most {MAX_TENSION:g} N, got "
-            f"{tension!r}"
+            f"{short_repr(tension)}"
         )
     return f
 
@@ -395,8 +399,11 @@ def simulate(
         v = np.zeros(nv) if v0 is None else float_array(v0, copy=True).reshape(-1)
     except (TypeError, ValueError):
         v = None
-    if v is None or v.shape != (nv,) or not np.all(np.isfinite(v)):
-        raise InputError(f"v0 must be {nv} finite real velocities [rad/s or m/s], got {v0!r}")
+    if v is None or v.shape != (nv,) or not np.all(np.abs(v) <= MAX_SPEED):
+        raise InputError(
+            f"v0 must be {nv} finite real velocities [rad/s or m/s] of at most {MAX_SPEED:g} in "
+            f"magnitude, got {short_repr(v0)}"
+        )
     law = _as_tension(robot, tension)
     profile = law if isinstance(law, TensionProfile) else None
     t_start = float(profile.time[0]) if profile is not None else 0.0
@@ -405,8 +412,14 @@ def simulate(
             raise InputError("give duration= [s] for a constant tension or a feedback law")
         duration = float(profile.time[-1] - t_start)
     duration = checked_duration(duration)
-    if not (0 < rtol < 1 and 0 < atol):
-        raise InputError(f"rtol must be in (0, 1) and atol > 0, got {rtol}, {atol}")
+    rtol = positive_number(
+        rtol,
+        f"rtol must be a relative tolerance in (0, 1), got {short_repr(rtol)}",
+        largest=math.nextafter(1.0, 0.0),
+    )
+    atol = positive_number(
+        atol, f"atol must be a positive finite tolerance, got {short_repr(atol)}"
+    )
     t_end = t_start + duration
     if samples is not None and not (is_integer(samples) and 2 <= samples <= MAX_SAMPLES):
         raise InputError(
@@ -421,6 +434,11 @@ def simulate(
         MAX_SAMPLES, max(MIN_SAMPLES, int(math.ceil(SAMPLES_PER_SECOND * duration)) + 1)
     )
     times = np.linspace(t_start, t_end, n)
+    if not np.all(np.diff(times) > 0):
+        raise InputError(
+            f"{n} samples from t = {t_start:g} s to {t_end:.17g} s fall on the same floating-point "
+            "times: give a longer duration or fewer samples"
+        )
     if profile is not None:
         inside = profile.time[(profile.time > t_start) & (profile.time < t_end)]
         times = np.unique(np.concatenate([times, inside]))
@@ -433,10 +451,14 @@ def simulate(
     elif callable(law):
 
         def value(t, q_, v_):
-            f = np.asarray(law(t, q_, v_), dtype=float).reshape(-1)
-            if f.shape != (m,) or not np.all(np.abs(f) <= MAX_TENSION):
+            out = law(t, q_, v_)
+            try:
+                f = float_array(out).reshape(-1)
+            except (TypeError, ValueError):
+                f = None
+            if f is None or f.shape != (m,) or not np.all(np.abs(f) <= MAX_TENSION):
                 raise InputError(
-                    f"the feedback law returned {f!r} at t = {t:g} s; it must return "
+                    f"the feedback law returned {short_repr(out)} at t = {t:g} s; it must return "
                     f"{m} finite tensions [N] of at most {MAX_TENSION:g} N"
                 )
             return f

@@ -31,7 +31,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from cdpm.errors import InputError, float_array, is_integer, positive_number
+from cdpm.configuration import MAX_COORDINATE
+from cdpm.errors import InputError, float_array, is_integer, positive_number, short_repr
 from cdpm.simulation import TensionProfile, Trajectory, checked_duration, simulate
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -162,6 +163,30 @@ class SteerResult:
 
     def _repr_html_(self) -> str:
         return f"<pre>{html.escape(str(self))}</pre>"
+
+
+def _checked_steer_duration(lin: Linearisation, duration: Any) -> float:
+    """A given steering time [s]: :func:`checked_duration`, and at most the
+    longest horizon the linearisation resolves (as a margin horizon:
+    :func:`cdpm.analysis.margin.longest_horizon`), beyond which its
+    exponential overflows in the plan."""
+    from cdpm.analysis.margin import longest_horizon
+
+    T = checked_duration(duration)
+    units, growing, rate = longest_horizon(lin.A, lin.C.shape[0])
+    if T > min(units, growing):
+        why = (
+            f"its fastest-growing mode (Re lambda = {rate:.4g} 1/s) grows by a factor of "
+            f"e^{rate * T:.4g} over it"
+            if growing <= units
+            else "it spans more than 1e6 of the linearisation's time units"
+        )
+        raise InputError(
+            f"duration {T:g} s is too long to plan on the linearisation at this pose: {why}; "
+            f"give at most {min(units, growing):.4g} s, or none (default "
+            f"{default_duration(lin):.4g} s)"
+        )
+    return T
 
 
 def default_duration(lin: Linearisation) -> float:
@@ -296,10 +321,10 @@ def steer(
         raise InputError(
             f"target must be real numbers, one per output ({', '.join(robot.output_names)}): {exc}"
         ) from exc
-    if goal.shape != (p,) or not np.all(np.isfinite(goal)):
+    if goal.shape != (p,) or not np.all(np.abs(goal) <= MAX_COORDINATE):
         raise InputError(
-            f"target must be finite numbers, one per output "
-            f"({', '.join(robot.output_names)}); got {target!r}"
+            f"target must be finite numbers of at most {MAX_COORDINATE:g} in magnitude (m or "
+            f"rad), one per output ({', '.join(robot.output_names)}); got {short_repr(target)}"
         )
     if not (is_integer(intervals) and 1 <= intervals <= STEER_MAX_INTERVALS):
         raise InputError(
@@ -307,7 +332,7 @@ def steer(
         )
     if not (is_integer(max_iterations) and max_iterations >= 1):
         raise InputError(f"max_iterations must be a positive integer, got {max_iterations!r}")
-    T = default_duration(lin) if duration is None else checked_duration(duration)
+    T = default_duration(lin) if duration is None else _checked_steer_duration(lin, duration)
     y0 = lin.output.copy()
     dy = goal - y0
     if tolerance is None:

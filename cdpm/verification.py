@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from cdpm.errors import InputError, is_integer, positive_number
+from cdpm.errors import InputError, checked_seed, is_integer, positive_number
 from cdpm.steering import SteerResult, steer
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -28,6 +28,8 @@ __all__ = ["VerifyReport", "verify_pose", "default_radius"]
 #: default radius of the targets, as a fraction of the robot's size (the
 #: largest distance between two cable anchor points at the pose)
 RADIUS_FRACTION = 2e-3
+#: most random target directions of one verification (each is a steering)
+MAX_RANDOM_DIRECTIONS = 1000
 
 
 @dataclass(frozen=True)
@@ -268,8 +270,12 @@ def verify_pose(
             f"(targets near the pose: the check is local), got {radius!r}"
         )
         R = positive_number(radius, message, largest=size)
-    if not (is_integer(random_directions) and random_directions >= 0):
-        raise InputError(f"random_directions must be a count >= 0, got {random_directions!r}")
+    if not (is_integer(random_directions) and 0 <= random_directions <= MAX_RANDOM_DIRECTIONS):
+        raise InputError(
+            f"random_directions must be a count from 0 to {MAX_RANDOM_DIRECTIONS} (each is a "
+            f"steering, about a second), got {random_directions!r}"
+        )
+    seed = checked_seed(seed)
     p = robot.n_outputs
     y0 = lin.output
     verdict = poc.verdict.value

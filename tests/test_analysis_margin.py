@@ -332,6 +332,9 @@ def test_a_given_horizon_beyond_what_the_margin_resolves_is_refused_with_the_lon
     B = np.array([[0.0, 0.0], [1.0, -1.0]])
     with pytest.raises(cdpm.InputError, match=r"at most 1e\+06"):
         positive_output_controllability(A, B, np.eye(2), horizon=1e200)
+    # both bounds passed: the message names the smaller (what is accepted)
+    with pytest.raises(cdpm.InputError, match=r"at most 36\.84"):
+        positive_output_controllability([[0.5]], [[1.0, -1.0]], [[1.0]], horizon=1e9)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         assert np.isfinite(positive_output_controllability(A, B, np.eye(2), horizon=1e6).margin)

@@ -198,6 +198,7 @@ def test_evaluate_poses_takes_poses_as_the_per_pose_functions_do(paper_robot):
         np.testing.assert_array_equal(mixed[name], plain[name], err_msg=name)
     alone = cdpm.evaluate_poses(paper_robot, "nominal")
     np.testing.assert_array_equal(alone["reach_margin"], plain["reach_margin"][:1])
+    assert cdpm.evaluate_poses(paper_robot, [])["poc"].shape == (0,)  # no poses, as a list
 
 
 def test_arrays_read_strings_as_single_numbers_are_read():
@@ -211,6 +212,16 @@ def test_arrays_read_strings_as_single_numbers_are_read():
     for bad, message in ((["pi", True], "booleans are not numbers"), (["x"], "'x' is not")):
         with pytest.raises(ValueError, match=message):
             float_array(bad)
+    # numpy reads [True, 0.5] as [1.0, 0.5] and bytes as strings; 10**400 overflows
+    for bad, message in (
+        ([True, 0.5], "booleans are not numbers"),
+        ([[0.1, np.True_], [0.2, 0.3]], "booleans are not numbers"),
+        ([b"1"], "bytes are not numbers"),
+    ):
+        with pytest.raises(TypeError, match=message):
+            float_array(bad)
+    with pytest.raises(ValueError, match="too large for a float"):
+        float_array([10**400, 1])
     with pytest.raises(cdpm.InputError, match=r"'x' is not a number"):
         cdpm.analyze_pose(cdpm.load_robot(MODELS / "two_link_vertical"), ["x", 0.2])
 

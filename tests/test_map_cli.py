@@ -178,6 +178,25 @@ def test_map_override_errors_name_the_option(option, message, tmp_path, capsys):
     assert not (tmp_path / "m.zarr").exists()
 
 
+@pytest.mark.parametrize(
+    ("value", "message"),
+    [
+        ("1.5e12", r"--pretension: pretension must be finite, >= 0 and <= 1e\+12 N"),
+        ("x", r"--pretension: --pretension takes a tension in N: 'x' is not a number"),
+    ],
+)
+def test_pretension_is_read_and_checked_as_an_option(value, message, tmp_path, capsys):
+    argv = ["map", str(VERTICAL), *AXES, "--out", str(tmp_path / "m.zarr"), "--quiet"]
+    with pytest.raises(SystemExit) as exit_:  # a usage error, before any work
+        main([*argv, "--tension", "pretension", "--pretension", value])
+    err = capsys.readouterr().err
+    assert exit_.value.code == 2 and re.search(message, err), err
+    assert not (tmp_path / "m.zarr").exists()
+    # arithmetic, as everywhere else (argparse's float refused it)
+    code, out, err = _cli([*argv, "--tension", "pretension", "--pretension", "2*pi"], capsys)
+    assert code == 0, err
+
+
 def test_override_robot_keeps_the_robot_and_workers_rebuild_it(paper_robot):
     from cdpm.maps._runner import RobotSource
 

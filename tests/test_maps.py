@@ -1005,3 +1005,17 @@ def test_poses_evaluated_in_blocks_equal_one_batch(spec, monkeypatch):
         assert value.shape[0] == 23 and value.dtype == blocks[name].dtype, name
         np.testing.assert_array_equal(blocks[name], value, err_msg=name)
     assert (whole["poc"] == 1).any() and np.isfinite(whole["reach_margin"]).any()
+
+
+def test_map_arguments_that_failed_deep_inside_are_refused_first():
+    robot = cdpm.load_robot(MODELS / "two_link_vertical")
+    for kwargs, message in (
+        ({"progress": 5}, "progress must be True"),  # was: 'int' object is not callable
+        ({"announce": 3}, "announce must be a callable"),
+        ({"workers": True}, "workers must be a positive integer"),
+    ):
+        with pytest.raises(cdpm.InputError, match=message):
+            cdpm.workspace_map(robot, {"q1": [0.0, 0.1]}, **kwargs)
+    # drawn before the check: a MemoryError
+    with pytest.raises(cdpm.InputError, match=r"1,000,000,000,000 samples need 7,450\.6 GiB"):
+        cdpm.sample_axes({"q1": (0.0, 1.0)}, 10**12)

@@ -180,8 +180,28 @@ def test_bad_simulation_and_steering_input(paper):
     for count in (0, True, np.True_):  # a bool is no count
         with pytest.raises(cdpm.InputError, match="max_iterations must be a positive integer"):
             cdpm.steer(paper, "nominal", [0.87], max_iterations=count)
-    with pytest.raises(cdpm.InputError, match="random_directions must be a count"):
-        cdpm.verify_pose(paper, "nominal", random_directions=True)
+    for count in (True, 10**5):
+        with pytest.raises(cdpm.InputError, match="random_directions must be a count from 0"):
+            cdpm.verify_pose(paper, "nominal", random_directions=count)
+    for seed in (True, -1, 1.5):
+        with pytest.raises(cdpm.InputError, match=r"seed must be an integer from 0 to 2\*\*63"):
+            cdpm.verify_pose(paper, "nominal", seed=seed, random_directions=1)
+    # start speeds, tolerances, durations and feedback outputs that numpy and
+    # scipy refused with their own errors, or that ran on as NaN
+    for kwargs, message in (
+        ({"v0": [1e300, 0]}, r"v0 must be 2 finite real velocities .* at most 1e\+06"),
+        ({"rtol": None}, "rtol must be a relative tolerance in"),
+        ({"atol": np.array([1e-9, 1e-9])}, "atol must be a positive finite tolerance"),
+        ({"duration": 5e-324}, "fall on the same floating-point times"),
+        ({"tension": lambda t, q, v: None}, "the feedback law returned None"),
+        ({"tension": np.full((2, 2), 1.0)}, "a constant tension needs 4 finite values"),
+    ):
+        call = {"tension": np.zeros(4), "duration": 0.01, **kwargs}
+        with pytest.raises(cdpm.InputError, match=message):
+            cdpm.simulate(paper, "nominal", **call)
+    assert cdpm.simulate(
+        paper, "nominal", tension=lambda t, q, v: ["0"] * 4, duration=0.01, rtol="1e-8"
+    ).t[-1] == pytest.approx(0.01)
     with pytest.raises(cdpm.InputError, match="intervals must be an integer from 1"):
         cdpm.steer(paper, "nominal", [0.87], intervals=True)
     for samples in (1, 10**7, 2.0):
@@ -192,6 +212,19 @@ def test_bad_simulation_and_steering_input(paper):
             cdpm.simulate(paper, "nominal", tension=np.zeros(4), duration=1, max_evaluations=budget)
     with pytest.raises(cdpm.InputError, match="time has 2 knots and values shape"):
         cdpm.TensionProfile([0, 1], [[1, 2], [3, 4]])
+
+
+def test_steering_refuses_durations_and_targets_its_plan_cannot_handle():
+    # two_link_vertical's nominal linearisation grows at 5.15 1/s: over 1000 s
+    # the plan's exponential overflowed (numpy warnings, then a linprog
+    # traceback); over 10 s the plan already missed after 12 simulations
+    robot = cdpm.load_robot(MODELS / "two_link_vertical")
+    with pytest.raises(cdpm.InputError, match=r"grows by a factor of e\^51\.48.*at most 3\.578 s"):
+        cdpm.steer(robot, "nominal", [0.867, 1.5], duration=10)
+    assert cdpm.steer(robot, "nominal", [0.867025, 1.5], duration=3).reached
+    # a target of 1e300 m overflowed into "REACHED" with miss inf
+    with pytest.raises(cdpm.InputError, match=r"at most 100000 in magnitude"):
+        cdpm.steer(robot, "nominal", [1e300, 1.5])
 
 
 def test_a_motion_too_fast_for_the_tolerances_stops_with_how_far_it_got(paper):

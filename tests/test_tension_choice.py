@@ -186,6 +186,12 @@ def test_best_tension_is_the_batch_on_one_pose():
 def test_best_tension_bad_input_names_the_fix(one_joint):
     with pytest.raises(InputError, match=r"objective must be one of 'poc', 'margin'"):
         cdpm.best_tension(one_joint, "straight", objective="x")
+    # a cap of 1e12 N beside tens of newtons: HiGHS stopped with its status
+    # unknown at 1e-9 N of tolerance (the round-off of 1e12 is 1e-4)
+    vertical = cdpm.load_robot(VERTICAL)
+    capped = cdpm.best_tension(vertical, "nominal", tension_cap=1e12)
+    assert capped.poc_possible == 1
+    assert cdpm.check_equilibrium(vertical, "nominal", capped.tension).feasible
     with pytest.raises(InputError, match="tension_cap must be a positive"):
         cdpm.best_tension(one_joint, "straight", tension_cap=-1)
     with pytest.raises(InputError, match="random_points must be an integer"):

@@ -128,7 +128,7 @@ def _check_margin_horizon(A: np.ndarray, p: int, horizon: float) -> None:
     what the margin resolves (the margin would be NaN, through overflow)."""
     units, longest, rate = longest_horizon(A, p)
     slack = 1.0 + HORIZON_BOUND_RTOL
-    if horizon > units * slack:
+    if horizon > units * slack and units <= longest:
         raise InputError(
             f"horizon {horizon:g} is too long for this system: at most {units:.6g}, "
             f"{HORIZON_GIVEN_MAX_UNITS:g} of its time units (1 / max(|A^2|^(1/2), "

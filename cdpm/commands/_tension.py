@@ -16,6 +16,8 @@ def add_tension_arguments(parser: argparse.ArgumentParser, best: bool = False) -
     """Add --tension METHOD|F... and --pretension N; with ``best`` also
     ``--tension best`` (the search over the feasible tensions) and
     ``--objective poc|margin``."""
+    from cdpm.commands.plot import argument_type
+
     search = (
         "; best: the spec's method and also the search over every feasible equilibrium "
         "tension for a POC one of largest reach margin (--objective)"
@@ -39,11 +41,24 @@ def add_tension_arguments(parser: argparse.ArgumentParser, best: bool = False) -
         )
     parser.add_argument(
         "--pretension",
-        type=float,
+        type=argument_type(_pretension),
         metavar="N",
         help="least tension of every cable for the pretension method [N] "
         "(default: the spec's equilibrium.pretension); an error with any other method",
     )
+
+
+def _pretension(text: str) -> float:
+    """--pretension: a number or arithmetic (parse_number: ``10*pi``), in
+    [0, MAX_TENSION] N."""
+    from cdpm.equilibrium import checked_pretension
+    from cdpm.spec import parse_number
+
+    try:
+        value = parse_number(text)
+    except ValueError as exc:
+        raise InputError(f"--pretension takes a tension in N: {exc}") from None
+    return checked_pretension(value)
 
 
 #: how the per-pose commands spell the options that fix an equilibrium

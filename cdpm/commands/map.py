@@ -336,9 +336,13 @@ def robot_from_args(args: argparse.Namespace):
     robot = override_robot(spec_robot, gravity=parse_gravity(args.gravity))
     bounds = parse_tension_bounds(args.tension_bounds, spec_robot)
     try:
-        robot = override_robot(robot, tension_bounds=bounds, pretension=args.pretension)
+        robot = override_robot(robot, tension_bounds=bounds)
     except InputError as exc:
         raise InputError(f"--tension-bounds: {exc}") from None
+    try:
+        robot = override_robot(robot, pretension=args.pretension)
+    except InputError as exc:
+        raise InputError(f"--pretension: {exc}") from None
     return robot, spec_robot, tension
 
 

@@ -56,13 +56,14 @@ _duration = _positive("--duration", "time [s]")
 
 def _count(text: str) -> int:
     from cdpm.errors import InputError
+    from cdpm.verification import MAX_RANDOM_DIRECTIONS
 
     try:
         value = int(text)
     except ValueError:
         value = -1
-    if value < 0:
-        raise InputError(f"--random takes a count >= 0, got {text!r}")
+    if not 0 <= value <= MAX_RANDOM_DIRECTIONS:
+        raise InputError(f"--random takes a count from 0 to {MAX_RANDOM_DIRECTIONS}, got {text!r}")
     return value
 
 

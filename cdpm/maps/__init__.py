@@ -15,7 +15,7 @@ from collections.abc import Callable, Mapping
 from contextlib import nullcontext
 from typing import TYPE_CHECKING, Any
 
-from cdpm.errors import InputError
+from cdpm.errors import InputError, is_integer
 from cdpm.maps._evaluate import (
     STATUS_CODES,
     VERDICT_CODES,
@@ -24,7 +24,14 @@ from cdpm.maps._evaluate import (
     evaluate_poses,
     resolve_tension,
 )
-from cdpm.maps._plan import DEFAULT_CHUNK_SIZE, SampledAxes, override_robot, sample_axes
+from cdpm.maps._plan import (
+    DEFAULT_CHUNK_SIZE,
+    IN_MEMORY_MAX,
+    MAX_MAP_POSES,
+    SampledAxes,
+    override_robot,
+    sample_axes,
+)
 from cdpm.maps._runner import MapRunInfo
 from cdpm.maps._store import StoreSettingsError, open_map, store_path_problem
 from cdpm.numerics import SPAN_TOL
@@ -45,12 +52,6 @@ __all__ = [
     "STATUS_CODES",
 ]
 
-#: largest map kept in memory (without ``store=``) [bytes]
-IN_MEMORY_MAX = 2 * 1024**3
-
-#: most poses one map may have (a grid's product or samples): about a day
-#: of work for a 32-core machine at the cheapest models' speed
-MAX_MAP_POSES = 10**10
 
 #: most points one grid axis may have
 MAX_AXIS_POINTS = 10**7
@@ -198,6 +199,13 @@ def workspace_map(
 
     _refuse_in_worker_bootstrap()
     _check_executor(workers, scheduler)
+    if not (isinstance(progress, bool) or callable(progress)):
+        raise InputError(
+            "progress must be True (a progress bar on stderr), False or a callable "
+            f"progress(done_poses, total_poses, chunk_index), got {progress!r}"
+        )
+    if announce is not None and not callable(announce):
+        raise InputError(f"announce must be a callable announce(info) or None, got {announce!r}")
     if store is not None and store_path_problem(store):
         name = os.fspath(store)
         raise InputError(
@@ -213,7 +221,6 @@ def workspace_map(
     if samples is not None:
         if isinstance(axes, SampledAxes):
             raise InputError("give either samples=N with ranges, or sample_axes(...), not both")
-        _check_samples(samples, len(axes) if isinstance(axes, Mapping) else 1)
         axes = sample_axes(axes, samples, seed)
     n_poses = _n_poses(axes)
     if n_poses > MAX_MAP_POSES:
@@ -266,7 +273,7 @@ def workspace_map(
         _check_in_memory_size(robot, plan)
     if workers is None:
         workers = default_workers()
-    if not isinstance(workers, int) or workers < 1:
+    if not is_integer(workers) or workers < 1:
         raise InputError(f"workers must be a positive integer, got {workers!r}")
     if scheduler is None and workers > 1:
         # their start-up overlaps the store's creation
@@ -375,21 +382,6 @@ def default_workers() -> int:
     except (AttributeError, OSError):  # not Linux
         cpus = os.cpu_count() or 1
     return max(1, min(cpus, DEFAULT_MAX_WORKERS))
-
-
-def _check_samples(samples: Any, n_ranges: int) -> None:
-    """Refuse a sample count whose coordinates alone would not fit in
-    IN_MEMORY_MAX, before drawing them."""
-    import numpy as np
-
-    if isinstance(samples, (int, np.integer)) and samples > 0:
-        need = int(samples) * max(n_ranges, 1) * 8
-        if int(samples) > MAX_MAP_POSES or need > IN_MEMORY_MAX:
-            raise InputError(
-                f"{int(samples):,} samples need {need / 1024**3:,.1f} GiB for their coordinates "
-                f"alone (at most {IN_MEMORY_MAX / 1024**3:g} GiB); sample fewer poses, or map "
-                "several sample sets with different seeds"
-            )
 
 
 def _check_in_memory_size(robot: CableRobot, plan) -> None:

@@ -98,6 +98,8 @@ def check_poses(robot: CableRobot, natural) -> np.ndarray:
         raise InputError(f"poses must be numbers (natural coordinates): {exc}") from exc
     if arr.ndim == 1 and arr.size == robot.nv:
         arr = arr[None]
+    elif arr.shape == (0,):  # no poses, as a list
+        arr = arr.reshape(0, robot.nv)
     if arr.ndim != 2 or arr.shape[1] != robot.nv:
         raise InputError(
             f"poses must have shape (N, {robot.nv}) (natural coordinates "

@@ -17,7 +17,14 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from cdpm.configuration import MAX_COORDINATE
-from cdpm.errors import InputError, float_array, float_scalar, is_integer
+from cdpm.errors import (
+    InputError,
+    checked_seed,
+    float_array,
+    float_scalar,
+    is_integer,
+    short_repr,
+)
 from cdpm.maps.criteria import CRITERIA
 from cdpm.numerics import MAX_EXTERNAL_LOAD, MAX_GRAVITY, SPAN_TOL
 
@@ -62,6 +69,14 @@ class SampledAxes:
         return len(next(iter(self.values.values()))) if self.values else 0
 
 
+#: largest map kept in memory (without ``store=``) [bytes]
+IN_MEMORY_MAX = 2 * 1024**3
+
+#: most poses one map may have (a grid's product or samples): about a day
+#: of work for a 32-core machine at the cheapest models' speed
+MAX_MAP_POSES = 10**10
+
+
 def sample_axes(
     ranges: Mapping[str, tuple[float, float]], n: int, seed: int | None = 0
 ) -> SampledAxes:
@@ -78,8 +93,16 @@ def sample_axes(
     """
     if not is_integer(n) or n < 1:
         raise InputError(f"samples must be a positive integer, got {n!r}")
-    if seed is not None and not (is_integer(seed) and 0 <= seed < 2**63):
-        raise InputError(f"seed must be an integer from 0 to 2**63 - 1, got {seed!r}")
+    need = int(n) * max(len(ranges) if isinstance(ranges, Mapping) else 1, 1) * 8
+    if int(n) > MAX_MAP_POSES or need > IN_MEMORY_MAX:
+        # before drawing them
+        raise InputError(
+            f"{int(n):,} samples need {need / 1024**3:,.1f} GiB for their coordinates alone "
+            f"(at most {IN_MEMORY_MAX / 1024**3:g} GiB and {MAX_MAP_POSES:.0e} poses); sample "
+            "fewer poses, or map several sample sets with different seeds"
+        )
+    if seed is not None:
+        seed = checked_seed(seed)
     if not ranges:
         raise InputError("give at least one coordinate range to sample, e.g. {'q1': (-3.14, 3.14)}")
     rng = np.random.default_rng(seed)
@@ -215,8 +238,8 @@ def _as_axis(name: str, values: Any) -> np.ndarray:
         arr = float_array(values, copy=True).reshape(-1)
     except (TypeError, ValueError) as exc:
         raise InputError(
-            f"axis {name!r}: values must be numbers, got {values!r}: {exc} (expressions such "
-            "as pi/4 are for the command line's --axis)"
+            f"axis {name!r}: values must be numbers or arithmetic such as 'pi/4', got "
+            f"{short_repr(values)}: {exc}"
         ) from exc
     if arr.size == 0:
         raise InputError(f"axis {name!r} has no values")

@@ -20,14 +20,19 @@ import numpy as np
 
 from cdpm.equilibrium.statics import holds, statics_tolerance
 from cdpm.errors import CdpmError
-from cdpm.numerics import STATICS_RANK_RTOL, TENSION_LP_TOL, TENSION_RANGE_RTOL
+from cdpm.numerics import STATICS_RANK_RTOL, TENSION_LP_RTOL, TENSION_LP_TOL, TENSION_RANGE_RTOL
 
 __all__ = ["Polytope", "LPFailure", "polytope", "solve_lp", "polish"]
 
-_OPTIONS = {
-    "primal_feasibility_tolerance": TENSION_LP_TOL,
-    "dual_feasibility_tolerance": TENSION_LP_TOL,
-}
+
+def _options(b: np.ndarray) -> dict:
+    """HiGHS's feasibility tolerances for an LP with right-hand sides
+    ``b`` [N]: TENSION_LP_TOL, or TENSION_LP_RTOL times the largest |b| when
+    that is more (a tension cap of 1e12 N next to a pose's tens of newtons:
+    1e-9 N is below the round-off of 1e12, and HiGHS stopped with its
+    status unknown)."""
+    tol = max(TENSION_LP_TOL, TENSION_LP_RTOL * float(np.abs(b).max(initial=0.0)))
+    return {"primal_feasibility_tolerance": tol, "dual_feasibility_tolerance": tol}
 
 
 class LPFailure(CdpmError):
@@ -145,7 +150,7 @@ def solve_lp(
         ok = bool(np.all(b >= -P.tol))
         return ("optimal", f0.copy(), np.nan) if ok else ("infeasible", None, np.nan)
     res = linprog(
-        c, A_ub=A, b_ub=b, bounds=[(None, None)] * n_var, method="highs", options=_OPTIONS
+        c, A_ub=A, b_ub=b, bounds=[(None, None)] * n_var, method="highs", options=_options(b)
     )
     if res.status == 2:
         return "infeasible", None, np.nan

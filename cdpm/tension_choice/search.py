@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from cdpm.errors import InputError, is_integer
+from cdpm.errors import InputError, checked_seed, is_integer
 from cdpm.numerics import MIN_SEGMENT_LENGTH, SPAN_TOL
 from cdpm.tension_choice._polytope import LPFailure, polish, solve_lp
 from cdpm.tension_choice.range import (
@@ -130,8 +130,7 @@ def tension_search(
         if not is_integer(value) or value < 0:
             raise InputError(f"{name} must be an integer >= 0, got {value!r}")
         counts[name] = int(value)
-    if not is_integer(seed):
-        raise InputError(f"seed must be an integer, got {seed!r}")
+    seed = checked_seed(seed)
     cap = None if tension_cap is None else checked_cap(tension_cap)
     return TensionSearch(objective, **counts, seed=int(seed), tension_cap=cap)
 
