@@ -165,6 +165,16 @@ class SteerResult:
         return f"<pre>{html.escape(str(self))}</pre>"
 
 
+def longest_duration(lin: Linearisation) -> float:
+    """The longest steering time [s] :func:`steer` accepts at the
+    linearisation ``lin``: the longest horizon it resolves as a margin
+    horizon (:func:`cdpm.analysis.margin.longest_horizon`; inf when no mode
+    grows and A = 0)."""
+    from cdpm.analysis.margin import longest_horizon
+
+    return min(longest_horizon(lin.A, lin.C.shape[0])[:2])
+
+
 def _checked_steer_duration(lin: Linearisation, duration: Any) -> float:
     """A given steering time [s]: :func:`checked_duration`, and at most the
     longest horizon the linearisation resolves (as a margin horizon:
@@ -174,7 +184,7 @@ def _checked_steer_duration(lin: Linearisation, duration: Any) -> float:
 
     T = checked_duration(duration)
     units, growing, rate = longest_horizon(lin.A, lin.C.shape[0])
-    if T > min(units, growing):
+    if T > longest_duration(lin):
         why = (
             f"its fastest-growing mode (Re lambda = {rate:.4g} 1/s) grows by a factor of "
             f"e^{rate * T:.4g} over it"

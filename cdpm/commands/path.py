@@ -250,7 +250,8 @@ def _steer_legs(robot: CableRobot, ds, path, legs: int, out) -> list[dict]:
 
     A leg that misses with steering's default duration (made for small
     moves) is steered again with LEG_DURATION_FACTORS times it, longer
-    durations first reaching far targets.
+    durations first reaching far targets; at most the longest duration
+    steering accepts at the waypoint (:func:`cdpm.steering.longest_duration`).
 
     Returns:
         One dict per leg: from, to (waypoint numbers), distance |y_to - y_from|
@@ -258,7 +259,8 @@ def _steer_legs(robot: CableRobot, ds, path, legs: int, out) -> list[dict]:
     """
     import numpy as np
 
-    from cdpm.steering import steer
+    from cdpm.linearisation import linearise
+    from cdpm.steering import longest_duration, steer
 
     k = path.n_waypoints
     if k == 1:
@@ -289,7 +291,12 @@ def _steer_legs(robot: CableRobot, ds, path, legs: int, out) -> list[dict]:
         for factor in LEG_DURATION_FACTORS[1:]:
             if result.reached:
                 break
-            result = steer(robot, q_from, y_to, tension=tension, duration=factor * first)
+            # within what the plan resolves at this waypoint (steer refuses more)
+            longest = longest_duration(linearise(robot, q_from, tension=tension))
+            T = min(factor * first, longest)
+            if T <= result.duration:
+                break
+            result = steer(robot, q_from, y_to, tension=tension, duration=T)
         distance = float(np.linalg.norm(y_to - result.y0))
         rows.append(
             {
