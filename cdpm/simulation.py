@@ -51,6 +51,8 @@ MIN_SAMPLES = 50
 #: a second): far beyond, the dynamics overflow, and near it no simulation
 #: ends within its budget of evaluations
 MAX_SPEED = 1e6
+#: shortest steering or simulation [s] (shorter ones sample round-off)
+MIN_DURATION = 1e-6
 #: most output samples of one simulation (the default count is clipped to it)
 MAX_SAMPLES = 1_000_000
 #: default budget of evaluations of the dynamics (right-hand sides of the
@@ -343,10 +345,16 @@ class _Budget:
 
 
 def checked_duration(duration) -> float:
-    """A steering or simulation time [s] as a float in (0, MAX_TIME_SPAN],
-    or an InputError."""
-    message = f"duration must be a positive time of at most {MAX_TIME_SPAN:g} s, got {duration!r}"
-    return positive_number(duration, message, largest=MAX_TIME_SPAN)
+    """A steering or simulation time [s] as a float in [MIN_DURATION,
+    MAX_TIME_SPAN], or an InputError."""
+    message = (
+        f"duration must be a time from {MIN_DURATION:g} to {MAX_TIME_SPAN:g} s, got "
+        f"{short_repr(duration)}"
+    )
+    T = positive_number(duration, message, largest=MAX_TIME_SPAN)
+    if T < MIN_DURATION:
+        raise InputError(message)
+    return T
 
 
 def simulate(

@@ -479,6 +479,7 @@ def _parse_equilibrium(problems: Problems, raw: Any) -> tuple[str, float]:
             pretension = parse_number(raw["pretension"])
         except ValueError as exc:
             problems.add("equilibrium.pretension", f"{exc}; expected tension in N")
+            pretension = math.nan  # reported: not also as a missing one below
         else:
             if not (math.isfinite(pretension) and 0 <= pretension <= MAX_TENSION):
                 problems.add(

@@ -28,6 +28,9 @@ __all__ = ["VerifyReport", "verify_pose", "default_radius"]
 #: default radius of the targets, as a fraction of the robot's size (the
 #: largest distance between two cable anchor points at the pose)
 RADIUS_FRACTION = 2e-3
+#: least radius of the targets, as a fraction of the robot's size (y0 + R
+#: must differ from y0 by more than its round-off)
+RADIUS_MIN_FRACTION = 1e-9
 #: most random target directions of one verification (each is a steering)
 MAX_RANDOM_DIRECTIONS = 1000
 
@@ -266,10 +269,13 @@ def verify_pose(
     R = RADIUS_FRACTION * size
     if radius is not None:
         message = (
-            f"radius must be a positive distance of at most the robot's size, {size:.3g} "
-            f"(targets near the pose: the check is local), got {radius!r}"
+            f"radius must be a distance from {RADIUS_MIN_FRACTION:g} times the robot's size "
+            f"to its size, {size:.3g} (targets near the pose: the check is local; closer ones "
+            f"are the outputs' round-off), got {radius!r}"
         )
         R = positive_number(radius, message, largest=size)
+        if R < RADIUS_MIN_FRACTION * size:
+            raise InputError(message)
     if not (is_integer(random_directions) and 0 <= random_directions <= MAX_RANDOM_DIRECTIONS):
         raise InputError(
             f"random_directions must be a count from 0 to {MAX_RANDOM_DIRECTIONS} (each is a "

@@ -244,3 +244,8 @@ def test_pretension_method_needs_a_pretension(write_spec):
             load_spec(write_spec(GOOD + f"equilibrium: {equilibrium}\n"))
     spec = load_spec(write_spec(GOOD + "equilibrium: {method: pretension, pretension: 5}\n"))
     assert (spec.equilibrium_method, spec.pretension) == ("pretension", 5.0)
+    # a pretension that is no number is one problem, not also a missing pretension
+    with pytest.raises(cdpm.SpecError) as info:
+        load_spec(write_spec(GOOD + "equilibrium: {method: pretension, pretension: true}\n"))
+    assert "equilibrium.pretension" in str(info.value)
+    assert "needs pretension" not in str(info.value)

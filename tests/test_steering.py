@@ -175,7 +175,7 @@ def test_bad_simulation_and_steering_input(paper):
         cdpm.simulate(paper, "nominal", tension=lambda t, q, v: [1.0], duration=0.1)
     with pytest.raises(cdpm.InputError, match="one per output"):
         cdpm.steer(paper, "nominal", [0.1, 0.2])
-    with pytest.raises(cdpm.InputError, match="radius must be a positive"):
+    with pytest.raises(cdpm.InputError, match="radius must be a distance from 1e-09 times"):
         cdpm.verify_pose(paper, "nominal", radius=-1)
     for count in (0, True, np.True_):  # a bool is no count
         with pytest.raises(cdpm.InputError, match="max_iterations must be a positive integer"):
@@ -192,7 +192,9 @@ def test_bad_simulation_and_steering_input(paper):
         ({"v0": [1e300, 0]}, r"v0 must be 2 finite real velocities .* at most 1e\+06"),
         ({"rtol": None}, "rtol must be a relative tolerance in"),
         ({"atol": np.array([1e-9, 1e-9])}, "atol must be a positive finite tolerance"),
-        ({"duration": 5e-324}, "fall on the same floating-point times"),
+        ({"duration": 5e-324}, r"duration must be a time from 1e-06 to 1e\+06 s"),
+        # a profile late in time: 50 samples within 2e-6 s of t = 1e9 s collapse
+        ({"tension": ([1e9, 1e9 + 2e-6], [[0.0] * 4]), "duration": None}, "same floating-point"),
         ({"tension": lambda t, q, v: None}, "the feedback law returned None"),
         ({"tension": np.full((2, 2), 1.0)}, "a constant tension needs 4 finite values"),
     ):
