@@ -109,7 +109,7 @@ TABLE = [
     (["analyze", "{d}/nothing.yaml"], "not found"),
     (["analyze", "a\0b"], "NUL"),
     (["path", "{d}/m.zarr", "--from", "0", "0", "--to", "1e300", "1"], "off the map"),
-    (["verify", PLANAR, "--radius", "1e300"], "at most the robot's size"),
+    (["verify", PLANAR, "--radius", "1e300"], "to its size"),
     (["find", PLANAR, "--tries", "100000000"], "at most 1,000,000 poses"),
     (
         ["plot", "{d}/m.zarr", "-o", "{d}/p.png", "--variable", "poc_some_tension"],
