@@ -464,7 +464,7 @@ def test_out_of_range_arguments_are_refused_by_name(paper_robot):
         (lambda: cdpm.analyze_pose(robot, q, horizon=1e300), "at most 1e\\+06 s"),
         (lambda: cdpm.analyze_pose(robot, q, tension_budget=1e300), "at most 1e\\+12 N"),
         (lambda: cdpm.steer(robot, q, target=[0.1], duration=1e300), "from 1e-06 to 1e\\+06 s"),
-        (lambda: cdpm.simulate(robot, q, tension=[1.0] * 4, duration=1e300), "from 1e-06 to 1e\\+06 s"),
+        (lambda: cdpm.simulate(robot, q, tension=[1.0] * 4, duration=1e300), "to 1e\\+06 s"),
         (lambda: cdpm.positively_spans(B, tol=np.nan), "tol must be an angle in \\(0, 1\\)"),
         (lambda: cdpm.positively_spans(B, tol=10), "tol must be an angle"),
         (lambda: positive_output_controllability(I2, B, I2, tol=-1), "tol must be an angle"),
