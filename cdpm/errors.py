@@ -75,6 +75,8 @@ def float_array(value, copy: bool = False):
     """
     import numpy as np
 
+    if isinstance(value, _BYTES):  # numpy reads their byte codes as numbers
+        raise TypeError(f"bytes are not numbers (got {short_repr(value, 60)}); give str or numbers")
     try:
         arr = np.asarray(value)
     except ValueError as exc:
@@ -85,9 +87,13 @@ def float_array(value, copy: bool = False):
         ) from None
     except OverflowError:  # a Python integer beyond float64 (10**400)
         raise ValueError(f"a number too large for a float ({short_repr(value, 60)})") from None
-    if isinstance(value, (list, tuple)) and arr.dtype.kind in "fiu" and _holds_bool(value):
-        # numpy reads [True, 0.5] as [1.0, 0.5]
-        raise TypeError(f"booleans are not numbers (got {short_repr(value, 60)})")
+    hidden = (
+        _hidden_non_number(value)
+        if isinstance(value, (list, tuple)) and arr.dtype.kind in "fiu"
+        else None
+    )
+    if hidden:  # numpy reads [True, 0.5] as [1.0, 0.5]
+        raise TypeError(f"{hidden} are not numbers (got {short_repr(value, 60)})")
     kind = arr.dtype.kind
     if kind == "c":
         raise TypeError(
@@ -97,7 +103,9 @@ def float_array(value, copy: bool = False):
         raise TypeError(f"booleans are not numbers (got {short_repr(value, 60)})")
     if kind == "O" and any(x is None for x in arr.reshape(-1)):
         raise TypeError(f"None is not a number (got {short_repr(value, 60)})")
-    if kind == "S" or (kind == "O" and any(isinstance(x, bytes) for x in arr.reshape(-1))):
+    if kind == "O" and any(isinstance(x, (bool, np.bool_)) for x in arr.reshape(-1)):
+        raise TypeError(f"booleans are not numbers (got {short_repr(value, 60)})")
+    if kind == "S" or (kind == "O" and any(isinstance(x, _BYTES) for x in arr.reshape(-1))):
         raise TypeError(f"bytes are not numbers (got {short_repr(value, 60)}); give str or numbers")
     if kind == "U" or (kind == "O" and any(isinstance(x, str) for x in arr.reshape(-1))):
         from cdpm.expressions import parse_number
@@ -111,24 +119,33 @@ def float_array(value, copy: bool = False):
         raise ValueError(f"a number too large for a float ({short_repr(value, 60)})") from None
 
 
-def _holds_bool(value: list | tuple) -> bool:
-    """Whether the nested lists and tuples ``value`` hold a bool (or a
-    boolean array) anywhere."""
+def _hidden_non_number(value: list | tuple) -> str | None:
+    """What the nested lists and tuples ``value`` hold that numpy reads
+    as numbers but is none (``"booleans"``, also in boolean or object
+    arrays, or ``"bytes"``), or None."""
     import numpy as np
 
     stack = [value]
     while stack:
         for x in stack.pop():
             kind = type(x)
-            if kind is float or kind is int:  # the common case, first
+            if kind is float or kind is int or kind is np.float64:  # the common cases
                 continue
             if kind is list or kind is tuple:
                 stack.append(x)
             elif kind is bool or kind is np.bool_:
-                return True
+                return "booleans"
+            elif isinstance(x, _BYTES):
+                return "bytes"
             elif kind is np.ndarray and x.dtype.kind == "b":
-                return True
-    return False
+                return "booleans"
+            elif kind is np.ndarray and x.dtype.kind == "O":
+                stack.append(x.tolist())
+    return None
+
+
+#: buffers whose bytes numpy would read as numbers
+_BYTES = (bytes, bytearray, memoryview)
 
 
 def float_scalar(value) -> float:
@@ -151,6 +168,19 @@ def is_integer(value) -> bool:
     import numpy as np
 
     return isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_))
+
+
+def round_down(x: float, digits: int = 6) -> float:
+    """``x`` > 0 rounded down to ``digits`` significant digits: a bound a
+    message names, which the bound's own check then accepts (``:.6g``
+    may round it up, past the bound)."""
+    import math
+
+    if not (math.isfinite(x) and x > 0):
+        return x
+    step = 10.0 ** (math.floor(math.log10(x)) - digits + 1)
+    down = math.floor(x / step) * step
+    return float(f"{down:.{digits}g}") if float(f"{down:.{digits}g}") <= x else down
 
 
 def checked_seed(seed) -> int:

@@ -32,7 +32,15 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from cdpm.configuration import MAX_COORDINATE
-from cdpm.errors import InputError, float_array, is_integer, positive_number, short_repr
+from cdpm.errors import (
+    InputError,
+    float_array,
+    is_integer,
+    positive_number,
+    round_down,
+    short_repr,
+)
+from cdpm.numerics import HORIZON_BOUND_RTOL, HORIZON_GIVEN_MAX_UNITS
 from cdpm.simulation import TensionProfile, Trajectory, checked_duration, simulate
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -51,6 +59,10 @@ STEER_ITERATIONS = 12
 STEER_MAX_INTERVALS = 1000
 #: default duration [s] when the linearisation has no time scale (A^2 = 0)
 STEER_DURATION = 1.0
+#: largest growth e^{Re(lambda) T} of the linearisation over a steering
+#: time: beyond, the plan's entries span more than double precision's 16
+#: digits (over 1000 s on two_link_vertical, numpy overflowed and the LP failed)
+STEER_MAX_GROWTH = 1e16
 
 
 @dataclass(frozen=True)
@@ -165,35 +177,42 @@ class SteerResult:
         return f"<pre>{html.escape(str(self))}</pre>"
 
 
-def longest_duration(lin: Linearisation) -> float:
-    """The longest steering time [s] :func:`steer` accepts at the
-    linearisation ``lin``: the longest horizon it resolves as a margin
-    horizon (:func:`cdpm.analysis.margin.longest_horizon`; inf when no mode
-    grows and A = 0)."""
+def _duration_bounds(lin: Linearisation) -> tuple[float, float, float]:
+    """(the longest steering time [s] in the linearisation's time units,
+    HORIZON_GIVEN_MAX_UNITS of them as for a margin horizon; the time in
+    which its fastest-growing mode grows by STEER_MAX_GROWTH, inf when none
+    grows; that mode's rate Re lambda [1/s])."""
     from cdpm.analysis.margin import longest_horizon
 
-    return min(longest_horizon(lin.A, lin.C.shape[0])[:2])
+    units, _, rate = longest_horizon(lin.A, lin.C.shape[0])
+    growing = math.log(STEER_MAX_GROWTH) / rate if rate > 0 else math.inf
+    return units, growing, rate
+
+
+def longest_duration(lin: Linearisation) -> float:
+    """The longest steering time [s] :func:`steer` accepts at the
+    linearisation ``lin`` (inf when A = 0): its modes grow by at most
+    STEER_MAX_GROWTH within it, and it spans at most
+    HORIZON_GIVEN_MAX_UNITS of the linearisation's time units."""
+    return min(_duration_bounds(lin)[:2])
 
 
 def _checked_steer_duration(lin: Linearisation, duration: Any) -> float:
-    """A given steering time [s]: :func:`checked_duration`, and at most the
-    longest horizon the linearisation resolves (as a margin horizon:
-    :func:`cdpm.analysis.margin.longest_horizon`), beyond which its
-    exponential overflows in the plan."""
-    from cdpm.analysis.margin import longest_horizon
-
+    """A given steering time [s]: :func:`checked_duration`, and at most
+    :func:`longest_duration` (within HORIZON_BOUND_RTOL)."""
     T = checked_duration(duration)
-    units, growing, rate = longest_horizon(lin.A, lin.C.shape[0])
-    if T > longest_duration(lin):
+    units, growing, rate = _duration_bounds(lin)
+    longest = min(units, growing)
+    if T > longest * (1.0 + HORIZON_BOUND_RTOL):
         why = (
             f"its fastest-growing mode (Re lambda = {rate:.4g} 1/s) grows by a factor of "
-            f"e^{rate * T:.4g} over it"
+            f"e^{rate * T:.4g} over it, more than the {STEER_MAX_GROWTH:.0e} a plan resolves"
             if growing <= units
-            else "it spans more than 1e6 of the linearisation's time units"
+            else f"it spans more than {HORIZON_GIVEN_MAX_UNITS:g} of the linearisation's time units"
         )
         raise InputError(
             f"duration {T:g} s is too long to plan on the linearisation at this pose: {why}; "
-            f"give at most {min(units, growing):.4g} s, or none (default "
+            f"give at most {round_down(longest):g} s, or none (default "
             f"{default_duration(lin):.4g} s)"
         )
     return T

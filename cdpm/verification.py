@@ -236,7 +236,7 @@ def verify_pose(
     radius: float | None = None,
     *,
     random_directions: int = 0,
-    seed: int = 0,
+    seed: int | None = 0,
     tension: Any = None,
     pretension: float | None = None,
     duration: float | None = None,
@@ -246,10 +246,13 @@ def verify_pose(
     Args:
         robot: the robot.
         pose: a pose name, configuration (nq,) or natural coordinates (nv,).
-        radius: R, the distance of the targets [output units]; default
-            :func:`default_radius`.
-        random_directions: extra targets in random unit directions (YES).
-        seed: their random seed.
+        radius: R, the distance of the targets [output units], from
+            RADIUS_MIN_FRACTION = 1e-9 times the robot's size to its size;
+            default :func:`default_radius`.
+        random_directions: extra targets in random unit directions (YES),
+            at most MAX_RANDOM_DIRECTIONS = 1000.
+        seed: their random seed (an integer from 0 to 2**63 - 1, or None
+            for fresh entropy).
         tension, pretension: the equilibrium tension (as for
             :func:`cdpm.linearise`).
         duration: the steering time T [s] (default per pose).
@@ -281,7 +284,7 @@ def verify_pose(
             f"random_directions must be a count from 0 to {MAX_RANDOM_DIRECTIONS} (each is a "
             f"steering, about a second), got {random_directions!r}"
         )
-    seed = checked_seed(seed)
+    seed = None if seed is None else checked_seed(seed)
     p = robot.n_outputs
     y0 = lin.output
     verdict = poc.verdict.value

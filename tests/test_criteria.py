@@ -217,6 +217,10 @@ def test_arrays_read_strings_as_single_numbers_are_read():
         ([True, 0.5], "booleans are not numbers"),
         ([[0.1, np.True_], [0.2, 0.3]], "booleans are not numbers"),
         ([b"1"], "bytes are not numbers"),
+        (bytearray(b"12"), "bytes are not numbers"),  # numpy read [49, 50]
+        ([memoryview(b"1")], "bytes are not numbers"),
+        (np.array([True, 0.5], dtype=object), "booleans are not numbers"),
+        ([np.array([True, 0.5], dtype=object)], "booleans are not numbers"),
     ):
         with pytest.raises(TypeError, match=message):
             float_array(bad)

@@ -1016,6 +1016,8 @@ def test_map_arguments_that_failed_deep_inside_are_refused_first():
     ):
         with pytest.raises(cdpm.InputError, match=message):
             cdpm.workspace_map(robot, {"q1": [0.0, 0.1]}, **kwargs)
+    for quiet in (None, np.False_):  # as False
+        assert cdpm.workspace_map(robot, {"q1": [0.0, 0.1]}, progress=quiet).poc.size == 2
     # drawn before the check: a MemoryError
     with pytest.raises(cdpm.InputError, match=r"1,000,000,000,000 samples need 7,450\.6 GiB"):
         cdpm.sample_axes({"q1": (0.0, 1.0)}, 10**12)

@@ -183,6 +183,7 @@ def test_bad_simulation_and_steering_input(paper):
     for count in (True, 10**5):
         with pytest.raises(cdpm.InputError, match="random_directions must be a count from 0"):
             cdpm.verify_pose(paper, "nominal", random_directions=count)
+    assert cdpm.verify_pose(paper, "nominal", random_directions=1, seed=None).runs  # entropy
     for seed in (True, -1, 1.5):
         with pytest.raises(cdpm.InputError, match=r"seed must be an integer from 0 to 2\*\*63"):
             cdpm.verify_pose(paper, "nominal", seed=seed, random_directions=1)
@@ -219,10 +220,17 @@ def test_bad_simulation_and_steering_input(paper):
 def test_steering_refuses_durations_and_targets_its_plan_cannot_handle():
     # two_link_vertical's nominal linearisation grows at 5.15 1/s: over 1000 s
     # the plan's exponential overflowed (numpy warnings, then a linprog
-    # traceback); over 10 s the plan already missed after 12 simulations
+    # traceback); beyond 7.16 s it grows by more than 1e16
     robot = cdpm.load_robot(MODELS / "two_link_vertical")
-    with pytest.raises(cdpm.InputError, match=r"grows by a factor of e\^51\.48.*at most 3\.578 s"):
+    with pytest.raises(cdpm.InputError, match=r"e\^51\.48.*at most 7\.15618 s"):
         cdpm.steer(robot, "nominal", [0.867, 1.5], duration=10)
+    # the bound the message names is accepted (rounded down: 4.158686 s at
+    # elbow_up, which :.4g named 4.159, a value then refused)
+    lin = cdpm.linearise(robot, "elbow_up")
+    with pytest.raises(cdpm.InputError, match=r"at most 8\.31737 s") as info:
+        cdpm.steering._checked_steer_duration(lin, 9.0)
+    named = float(str(info.value).split("at most ")[1].split(" s")[0])
+    assert cdpm.steering._checked_steer_duration(lin, named) == named
     assert cdpm.steer(robot, "nominal", [0.867025, 1.5], duration=3).reached
     # a target of 1e300 m overflowed into "REACHED" with miss inf
     with pytest.raises(cdpm.InputError, match=r"at most 100000 in magnitude"):

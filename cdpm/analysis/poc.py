@@ -54,7 +54,7 @@ from cdpm.analysis.poc_result import POCResult
 from cdpm.analysis.poc_result import poc_margin as poc_margin
 from cdpm.analysis.rank import output_reachable_basis
 from cdpm.analysis.span import independent_columns
-from cdpm.errors import InputError, check_tol, positive_number
+from cdpm.errors import InputError, check_tol, positive_number, round_down
 from cdpm.numerics import (
     FREE_SAMPLE_ZERO_RTOL,
     FREE_SPAN_RATIO,
@@ -130,7 +130,7 @@ def _check_margin_horizon(A: np.ndarray, p: int, horizon: float) -> None:
     slack = 1.0 + HORIZON_BOUND_RTOL
     if horizon > units * slack and units <= longest:
         raise InputError(
-            f"horizon {horizon:g} is too long for this system: at most {units:.6g}, "
+            f"horizon {horizon:g} is too long for this system: at most {round_down(units):g}, "
             f"{HORIZON_GIVEN_MAX_UNITS:g} of its time units (1 / max(|A^2|^(1/2), "
             "|A|^(1/2))), beyond which its sampled responses overflow; give a shorter "
             f"horizon, or none (the default horizon is at most {HORIZON_MAX_UNITS:g} of these "
@@ -141,9 +141,8 @@ def _check_margin_horizon(A: np.ndarray, p: int, horizon: float) -> None:
             f"horizon {horizon:g} is too long for this system: its fastest-growing mode "
             f"(Re lambda = {rate:.4g}) grows by a factor of e^{rate * horizon:.4g} within it, "
             f"and the margin resolves growths of at most {math.exp(log_growth_allowed(p)):.0e} "
-            f"with {p} output(s); "
-            f"give a horizon of at most {longest:.6g}, or none (the default horizon stays "
-            "within that bound)"
+            f"with {p} output(s); give a horizon of at most {round_down(longest):g}, or none "
+            "(the default horizon stays within that bound)"
         )
 
 

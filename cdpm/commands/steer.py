@@ -68,7 +68,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--duration",
         type=argument_type(_duration),
         metavar="T",
-        help="steering time [s], at most 1e6 (default: per pose, from its dynamics)",
+        help="steering time [s], from 1e-6 to 1e6 and at most what the pose's linearisation "
+        "resolves (the error names it; default: per pose, from its dynamics)",
     )
     parser.add_argument(
         "--intervals", type=int, default=20, metavar="K", help="piecewise-constant intervals"

@@ -88,13 +88,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=argument_type(_count),
         default=0,
         metavar="N",
-        help="also steer to N random directions at distance R (YES poses)",
+        help="also steer to N random directions at distance R (YES poses), at most 1000",
     )
     parser.add_argument(
         "--duration",
         type=argument_type(_duration),
         metavar="T",
-        help="steering time [s], at most 1e6 (default: per pose, from its dynamics)",
+        help="steering time [s], from 1e-6 to 1e6 and at most what the pose's linearisation "
+        "resolves (the error names it; default: per pose, from its dynamics)",
     )
     parser.add_argument("--json", action="store_true", help="print the report as JSON")
     parser.add_argument(

@@ -199,9 +199,13 @@ def workspace_map(
 
     _refuse_in_worker_bootstrap()
     _check_executor(workers, scheduler)
+    from numpy import bool_
+
+    if progress is None or isinstance(progress, bool_):
+        progress = bool(progress)
     if not (isinstance(progress, bool) or callable(progress)):
         raise InputError(
-            "progress must be True (a progress bar on stderr), False or a callable "
+            "progress must be True (a progress bar on stderr), False (or None) or a callable "
             f"progress(done_poses, total_poses, chunk_index), got {progress!r}"
         )
     if announce is not None and not callable(announce):
