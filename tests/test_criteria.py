@@ -199,6 +199,9 @@ def test_evaluate_poses_takes_poses_as_the_per_pose_functions_do(paper_robot):
     alone = cdpm.evaluate_poses(paper_robot, "nominal")
     np.testing.assert_array_equal(alone["reach_margin"], plain["reach_margin"][:1])
     assert cdpm.evaluate_poses(paper_robot, [])["poc"].shape == (0,)  # no poses, as a list
+    # strings that are numbers are coordinates: one pose, not two pose names
+    one = cdpm.evaluate_poses(paper_robot, ["pi/6", "pi/3"])
+    np.testing.assert_array_equal(one["reach_margin"], plain["reach_margin"][3:])
 
 
 def test_arrays_read_strings_as_single_numbers_are_read():

@@ -77,15 +77,25 @@ def check_poses(robot: CableRobot, natural) -> np.ndarray:
     from collections.abc import Mapping
 
     from cdpm.errors import InputError, float_array
+    from cdpm.expressions import parse_number
 
-    if isinstance(natural, (str, Mapping)):
+    def named(pose) -> bool:  # a pose name or mapping, not a number such as "pi/6"
+        if isinstance(pose, Mapping):
+            return True
+        if not isinstance(pose, str):
+            return False
+        try:
+            parse_number(pose)
+        except ValueError:
+            return True
+        return False
+
+    if named(natural):
         natural = [natural]
-    if isinstance(natural, (list, tuple)) and any(
-        isinstance(pose, (str, Mapping)) for pose in natural
-    ):
+    if isinstance(natural, (list, tuple)) and any(named(pose) for pose in natural):
         rows = []
         for i, pose in enumerate(natural):
-            if isinstance(pose, (str, Mapping)):
+            if named(pose):
                 try:
                     pose = robot.to_natural(robot.as_q(pose))
                 except InputError as exc:
