@@ -53,7 +53,7 @@ def parse_number(value: Any) -> float:
             raise ValueError(f"{str(value)[:40]!r} is not a real number")
         value = value.item()
     if isinstance(value, bool):
-        raise ValueError(f"{value!r} is a boolean, expected a number")
+        raise ValueError(f"{value!r} is a boolean, not a number")
     if isinstance(value, (numbers.Real, decimal.Decimal)):
         try:
             return float(value)
@@ -91,6 +91,10 @@ def parse_number(value: Any) -> float:
     if isinstance(result, complex):
         raise ValueError(f"{value!r} is not a real number (its value is complex)")
     result = float(result)
+    if math.isinf(result) and not any(
+        isinstance(node, ast.Name) and node.id == "inf" for node in ast.walk(tree)
+    ):  # finite numbers past the largest float: 1e400, 1e308 * 10
+        raise ValueError(f"{value!r} is too large for a number (beyond 1.8e308)")
     if math.isnan(result):
         raise ValueError(f"{value!r} is not a number (its value is undefined, NaN)")
     return result

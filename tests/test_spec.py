@@ -138,6 +138,13 @@ def test_bad_tension_bounds(write_spec):
         load_spec(write_spec(text))
     text = GOOD.replace("  - name: c1\n", "  - name: c1\n    tension: [0, inf]\n")
     assert math.isinf(load_spec(write_spec(text)).cables[0].tension_max)
+    text = GOOD.replace("  - name: c1\n", "  - name: c1\n    tension: [0, 1e400]\n")
+    with pytest.raises(cdpm.SpecError, match=r"'1e400' is too large for a number"):
+        load_spec(write_spec(text))
+    text = GOOD.replace("  - name: c1\n", "  - name: c1\n    tension: [true, 10]\n")
+    with pytest.raises(cdpm.SpecError) as info:
+        load_spec(write_spec(text))
+    assert "True is a boolean, not a number; expected a number" in str(info.value)
 
 
 def test_com_on_massless_link_is_refused(write_spec):
@@ -182,8 +189,14 @@ def test_parse_number():
     assert parse_number(3) == 3.0
     with pytest.raises(ValueError, match="only numbers, pi, e, inf"):
         parse_number("__import__('os').getcwd()")
-    with pytest.raises(ValueError, match="is a boolean"):
+    with pytest.raises(ValueError, match="is a boolean, not a number"):
         parse_number(True)
+    # finite literals past the largest float are no silent inf (a spec bound
+    # [0, 1e400] read as "no upper bound"); inf itself stays
+    for text in ("1e400", "1e308*10", "-1e400"):
+        with pytest.raises(ValueError, match=r"too large for a number \(beyond 1.8e308\)"):
+            parse_number(text)
+    assert parse_number("2*inf") == parse_number("inf") == math.inf
 
 
 def test_parse_number_is_one_function_under_its_public_names():
