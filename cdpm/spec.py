@@ -367,7 +367,7 @@ def _parse_cables(problems: Problems, raw: Any, frames: FrameTable | None) -> li
         if "tension" in item:
             bounds = read_vector(problems, f"{where}.tension", item["tension"], 2, infinite=True)
             if bounds is not None:
-                fmin, fmax = bounds
+                fmin, fmax = (b + 0.0 for b in bounds)  # -0 N is 0 N
                 for problem in tension_bound_problems(fmin, fmax):
                     problems.add(f"{where}.tension", problem)
         route = _parse_route(problems, where, item.get("route"), frames)

@@ -1018,6 +1018,11 @@ def test_map_arguments_that_failed_deep_inside_are_refused_first():
             cdpm.workspace_map(robot, {"q1": [0.0, 0.1]}, **kwargs)
     for quiet in (None, np.False_):  # as False
         assert cdpm.workspace_map(robot, {"q1": [0.0, 0.1]}, progress=quiet).poc.size == 2
+    # override bounds are read as the spec's: no bools, -0 N is 0 N (printed "-0")
+    with pytest.raises(cdpm.InputError, match=r"must be \(min, max\) in N, got \(True, 10\)"):
+        cdpm.maps.override_robot(robot, tension_bounds=(True, 10))
+    low = cdpm.maps.override_robot(robot, tension_bounds=(-0.0, 10)).tension_min
+    assert np.all(np.copysign(1.0, low) == 1.0)
     # drawn before the check: a MemoryError
     with pytest.raises(cdpm.InputError, match=r"1,000,000,000,000 samples need 7,450\.6 GiB"):
         cdpm.sample_axes({"q1": (0.0, 1.0)}, 10**12)

@@ -435,17 +435,17 @@ def _bound_pair(cable: str, value: Any) -> tuple[float, float]:
     """(min, max) [N] of one cable, checked as the spec loader checks
     ``tension: [min, max]``."""
     try:
-        low, high = (float(v) for v in value)
+        low, high = float_array(value).reshape(-1) + 0.0  # -0 N is 0 N
     except (TypeError, ValueError) as exc:
         raise InputError(
-            f"tension bounds of cable {cable!r} must be (min, max) in N, got {value!r}"
+            f"tension bounds of cable {cable!r} must be (min, max) in N, got {short_repr(value)}"
         ) from exc
     from cdpm.spec import tension_bound_problems
 
     problems = tension_bound_problems(low, high, "{:g} N".format)
     if problems:
         raise InputError(f"tension bounds of cable {cable!r}: {problems[0]}")
-    return low, high
+    return float(low), float(high)
 
 
 def _bounds_by_cable(robot: CableRobot, tension_bounds: Any) -> dict[str, tuple[float, float]]:
