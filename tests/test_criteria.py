@@ -199,6 +199,8 @@ def test_evaluate_poses_takes_poses_as_the_per_pose_functions_do(paper_robot):
     alone = cdpm.evaluate_poses(paper_robot, "nominal")
     np.testing.assert_array_equal(alone["reach_margin"], plain["reach_margin"][:1])
     assert cdpm.evaluate_poses(paper_robot, [])["poc"].shape == (0,)  # no poses, as a list
+    names = cdpm.evaluate_poses(paper_robot, np.array(["nominal", "nominal"]))  # numpy strings
+    np.testing.assert_array_equal(names["reach_margin"], plain["reach_margin"][[0, 0]])
     # strings that are numbers are coordinates: one pose, not two pose names
     one = cdpm.evaluate_poses(paper_robot, ["pi/6", "pi/3"])
     np.testing.assert_array_equal(one["reach_margin"], plain["reach_margin"][3:])

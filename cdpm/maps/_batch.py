@@ -90,6 +90,8 @@ def check_poses(robot: CableRobot, natural) -> np.ndarray:
             return True
         return False
 
+    if isinstance(natural, np.ndarray) and natural.dtype.kind == "U":
+        natural = natural.tolist()  # names or numbers as numpy strings
     if named(natural):
         natural = [natural]
     if isinstance(natural, (list, tuple)) and any(named(pose) for pose in natural):
