@@ -100,7 +100,7 @@ TABLE = [
     (["view", PLANAR, "--seconds", "nan"], "--seconds"),
     (["view", PLANAR, "--port", "99999"], "not a TCP port"),
     (["import-caspr", "--out", "/proc/imp", "x", "y"], "not found"),
-    (["analyze", PLANAR, "--q", "1e400", "0"], "must be finite"),
+    (["analyze", PLANAR, "--q", "1e400", "0"], "too large for a number"),
     (["analyze", PLANAR, "--q", "(-1)**0.5", "0"], "not a real number"),
     (["analyze", PLANAR, "--q", "+".join(["1"] * 3000), "0"], "at most 200"),
     (["analyze", PLANAR, "--tension", "nan", "nan", "nan", "nan"], "not a number"),
