@@ -76,7 +76,7 @@ def float_array(value, copy: bool = False):
     import numpy as np
 
     if isinstance(value, _BYTES):  # numpy reads their byte codes as numbers
-        raise TypeError(f"bytes are not numbers (got {short_repr(value, 60)}); give str or numbers")
+        raise _not_numbers("bytes", value)
     try:
         arr = np.asarray(value)
     except ValueError as exc:
@@ -87,26 +87,23 @@ def float_array(value, copy: bool = False):
         ) from None
     except OverflowError:  # a Python integer beyond float64 (10**400)
         raise ValueError(f"a number too large for a float ({short_repr(value, 60)})") from None
-    hidden = (
-        _hidden_non_number(value)
-        if isinstance(value, (list, tuple)) and arr.dtype.kind in "fiu"
-        else None
-    )
-    if hidden:  # numpy reads [True, 0.5] as [1.0, 0.5]
-        raise TypeError(f"{hidden} are not numbers (got {short_repr(value, 60)})")
     kind = arr.dtype.kind
+    hidden = None
+    if kind == "S":
+        hidden = "bytes"
+    elif kind == "O" or (kind in "fiu" and isinstance(value, (list, tuple))):
+        # numpy reads [True, 0.5] as [1.0, 0.5]; object arrays hold anything
+        hidden = _hidden_non_number([arr] if kind == "O" else value)
+    if hidden:
+        raise _not_numbers(hidden, value)
     if kind == "c":
         raise TypeError(
             f"complex numbers are not accepted (got {short_repr(value, 60)}); give real numbers"
         )
     if kind == "b":
-        raise TypeError(f"booleans are not numbers (got {short_repr(value, 60)})")
+        raise _not_numbers("booleans", value)
     if kind == "O" and any(x is None for x in arr.reshape(-1)):
         raise TypeError(f"None is not a number (got {short_repr(value, 60)})")
-    if kind == "O" and any(isinstance(x, (bool, np.bool_)) for x in arr.reshape(-1)):
-        raise TypeError(f"booleans are not numbers (got {short_repr(value, 60)})")
-    if kind == "S" or (kind == "O" and any(isinstance(x, _BYTES) for x in arr.reshape(-1))):
-        raise TypeError(f"bytes are not numbers (got {short_repr(value, 60)}); give str or numbers")
     if kind == "U" or (kind == "O" and any(isinstance(x, str) for x in arr.reshape(-1))):
         from cdpm.expressions import parse_number
 
@@ -117,6 +114,12 @@ def float_array(value, copy: bool = False):
         return np.array(arr, dtype=float) if copy else np.asarray(arr, dtype=float)
     except OverflowError:  # a Python integer beyond float64 (10**400)
         raise ValueError(f"a number too large for a float ({short_repr(value, 60)})") from None
+
+
+def _not_numbers(what: str, value) -> TypeError:
+    """The error for ``what`` ("booleans", "bytes") given as numbers."""
+    fix = "; give str or numbers" if what == "bytes" else ""
+    return TypeError(f"{what} are not numbers (got {short_repr(value, 60)}){fix}")
 
 
 def _hidden_non_number(value: list | tuple) -> str | None:
@@ -140,7 +143,7 @@ def _hidden_non_number(value: list | tuple) -> str | None:
             elif kind is np.ndarray and x.dtype.kind == "b":
                 return "booleans"
             elif kind is np.ndarray and x.dtype.kind == "O":
-                stack.append(x.tolist())
+                stack.append(x.reshape(-1).tolist())  # 0-d too
     return None
 
 
@@ -179,8 +182,9 @@ def round_down(x: float, digits: int = 6) -> float:
     if not (math.isfinite(x) and x > 0):
         return x
     step = 10.0 ** (math.floor(math.log10(x)) - digits + 1)
-    down = math.floor(x / step) * step
-    return float(f"{down:.{digits}g}") if float(f"{down:.{digits}g}") <= x else down
+    k = math.floor(x / step + 1e-9)  # x / step of an exact k may be just below it
+    down = float(f"{k * step:.{digits}g}")  # printed as it reads
+    return down if down <= x else float(f"{(k - 1) * step:.{digits}g}")
 
 
 def checked_seed(seed) -> int:
@@ -191,19 +195,22 @@ def checked_seed(seed) -> int:
     return int(seed)
 
 
-def positive_number(value, message: str, largest: float = 1.7976931348623157e308) -> float:
+def positive_number(
+    value, message: str, largest: float = 1.7976931348623157e308, smallest: float = 0.0
+) -> float:
     """``value`` (a number, a numpy scalar or an arithmetic string such as
     ``"pi/20"``: :func:`cdpm.expressions.parse_number`) as a float in
-    (0, ``largest``] (by default: positive and finite), or an InputError
-    with ``message`` (which names the argument, its unit and its range)
-    when it is not one real number in that range."""
+    (0, ``largest``] (by default: positive and finite), and at least
+    ``smallest``, or an InputError with ``message`` (which names the
+    argument, its unit and its range) when it is not one real number in
+    that range."""
     from cdpm.expressions import parse_number
 
     try:
         x = parse_number(value)
     except ValueError:
         x = float("nan")
-    if not (0 < x <= largest):
+    if not (0 < x <= largest and x >= smallest):
         raise InputError(message)
     return x
 

@@ -351,10 +351,7 @@ def checked_duration(duration) -> float:
         f"duration must be a time from {MIN_DURATION:g} to {MAX_TIME_SPAN:g} s, got "
         f"{short_repr(duration)}"
     )
-    T = positive_number(duration, message, largest=MAX_TIME_SPAN)
-    if T < MIN_DURATION:
-        raise InputError(message)
-    return T
+    return positive_number(duration, message, largest=MAX_TIME_SPAN, smallest=MIN_DURATION)
 
 
 def simulate(

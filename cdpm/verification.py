@@ -276,9 +276,7 @@ def verify_pose(
             f"to its size, {size:.3g} (targets near the pose: the check is local; closer ones "
             f"are the outputs' round-off), got {radius!r}"
         )
-        R = positive_number(radius, message, largest=size)
-        if R < RADIUS_MIN_FRACTION * size:
-            raise InputError(message)
+        R = positive_number(radius, message, largest=size, smallest=RADIUS_MIN_FRACTION * size)
     if not (is_integer(random_directions) and 0 <= random_directions <= MAX_RANDOM_DIRECTIONS):
         raise InputError(
             f"random_directions must be a count from 0 to {MAX_RANDOM_DIRECTIONS} (each is a "
