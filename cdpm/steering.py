@@ -178,15 +178,13 @@ class SteerResult:
 
 
 def _duration_bounds(lin: Linearisation) -> tuple[float, float, float]:
-    """(the longest steering time [s] in the linearisation's time units,
-    HORIZON_GIVEN_MAX_UNITS of them as for a margin horizon; the time in
-    which its fastest-growing mode grows by STEER_MAX_GROWTH, inf when none
-    grows; that mode's rate Re lambda [1/s])."""
+    """:func:`cdpm.analysis.margin.longest_horizon` of the linearisation
+    with steering's growth, STEER_MAX_GROWTH: (HORIZON_GIVEN_MAX_UNITS of
+    its time units [s]; the time [s] in which it grows by STEER_MAX_GROWTH;
+    the rate Re lambda [1/s] of its fastest-growing mode)."""
     from cdpm.analysis.margin import longest_horizon
 
-    units, _, rate = longest_horizon(lin.A, lin.C.shape[0])
-    growing = math.log(STEER_MAX_GROWTH) / rate if rate > 0 else math.inf
-    return units, growing, rate
+    return longest_horizon(lin.A, lin.C.shape[0], math.log(STEER_MAX_GROWTH))
 
 
 def longest_duration(lin: Linearisation) -> float:

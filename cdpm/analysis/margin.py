@@ -154,19 +154,23 @@ def log_growth_allowed(p: int) -> float:
     return LOG_GROWTH.get(p, LOG_GROWTH_HIGH)
 
 
-def longest_horizon(A: np.ndarray, p: int) -> tuple[float, float, float]:
+def longest_horizon(
+    A: np.ndarray, p: int, log_growth: float | None = None
+) -> tuple[float, float, float]:
     """The longest margin horizon a caller may give for a system with
     state matrix ``A`` (n, n) and ``p`` outputs [time of A], as two bounds:
     (HORIZON_GIVEN_MAX_UNITS time units tau of :func:`margin_horizon`, inf
     when A = 0; the time in which the fastest-growing mode grows by
-    e^{log_growth_allowed(p)}, inf when no mode grows; that mode's rate
-    max Re(lambda) [1/time], 0 if none grows)."""
+    e^{log_growth} (default log_growth_allowed(p)), inf when no mode grows;
+    that mode's rate max Re(lambda) [1/time], 0 if none grows)."""
     if not A.size or not A.any():
         return math.inf, math.inf, 0.0
+    if log_growth is None:
+        log_growth = log_growth_allowed(p)
     A = A[None]
     units = float(_time_units(_norms2(A), _norms2(A @ A))[0]) * HORIZON_GIVEN_MAX_UNITS
     rate = float(np.linalg.eigvals(A[0]).real.max(initial=0.0))
-    return units, (log_growth_allowed(p) / rate if rate > 0 else math.inf), rate
+    return units, (log_growth / rate if rate > 0 else math.inf), rate
 
 
 def _time_units(norm: np.ndarray, norm2: np.ndarray) -> np.ndarray:

@@ -288,11 +288,12 @@ def _steer_legs(robot: CableRobot, ds, path, legs: int, out) -> list[dict]:
         y_to = robot.output(robot.from_natural(path.natural[j]))
         result = steer(robot, q_from, y_to, tension=tension)
         first = result.duration
+        longest = None  # what the plan resolves at this waypoint (steer refuses more)
         for factor in LEG_DURATION_FACTORS[1:]:
             if result.reached:
                 break
-            # within what the plan resolves at this waypoint (steer refuses more)
-            longest = longest_duration(linearise(robot, q_from, tension=tension))
+            if longest is None:
+                longest = longest_duration(linearise(robot, q_from, tension=tension))
             T = min(factor * first, longest)
             if T <= result.duration:
                 break
