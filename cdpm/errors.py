@@ -152,16 +152,18 @@ _BYTES = (bytes, bytearray, memoryview)
 
 
 def float_scalar(value) -> float:
-    """One real number as a float: :func:`float_array` of a single value.
+    """One real number as a float: :func:`float_array` of a single value
+    (a number, a numeric string or a 0-d array; not a list of one).
 
     Raises:
-        TypeError: complex numbers, arrays of more than one value, None and
-            other non-numbers.
+        TypeError: complex numbers, lists and arrays (even of one value),
+            None and other non-numbers.
         ValueError: strings that are not numbers.
     """
     arr = float_array(value)
-    if arr.size != 1:
-        raise TypeError(f"expected one number, got {arr.size} values")
+    if arr.ndim:
+        many = f"{arr.size} values" if arr.size != 1 else "a sequence of one"
+        raise TypeError(f"expected one number, got {many} (shape {arr.shape})")
     return float(arr.reshape(-1)[0])
 
 

@@ -179,6 +179,11 @@ def test_bad_arguments(vertical):
         equilibrium_tension(vertical, "horizontal", method="least")
     with pytest.raises(cdpm.InputError, match="pretension must be finite, >= 0"):
         equilibrium_tension(vertical, "horizontal", method="pretension", pretension=-1)
+    # one pretension for every cable: a list of one is a mistake, not a number
+    for given in ([5.0], np.array([5.0])):
+        with pytest.raises(cdpm.InputError, match=r"pretension must be a number of newtons"):
+            cdpm.maps.override_robot(vertical, pretension=given)
+    assert cdpm.maps.override_robot(vertical, pretension=np.float64(5)).spec.pretension == 5.0
     with pytest.raises(cdpm.InputError, match="tension has 3 entries"):
         check_equilibrium(vertical, "horizontal", [1, 2, 3])
     # 1e300 N squared overflowed in the residual (a numpy warning, residual inf)
