@@ -247,7 +247,7 @@ def load_spec(path: str | os.PathLike) -> CableSpec:
         size = spec_path.stat().st_size
         if size > MAX_YAML_CHARS * 4:  # UTF-8 has at most 4 bytes per character
             raise YamlLimitError(f"the file has {size:,} bytes; a cable spec is a few kilobytes")
-        data, duplicates = load_yaml(spec_path.read_text(encoding="utf-8"))
+        data, read_problems = load_yaml(spec_path.read_text(encoding="utf-8"))
     except YamlLimitError as exc:
         raise SpecError(f"refused: {exc}", path=str(spec_path)) from None
     except yaml.YAMLError as exc:
@@ -258,8 +258,8 @@ def load_spec(path: str | os.PathLike) -> CableSpec:
         ) from None
     except UnicodeDecodeError as exc:
         raise SpecError(f"not a UTF-8 text file: {exc}", path=str(spec_path)) from exc
-    if duplicates:
-        raise SpecError(duplicates, path=str(spec_path))
+    if read_problems:
+        raise SpecError(read_problems, path=str(spec_path))
     if not isinstance(data, dict):
         raise SpecError(
             "a cable spec is a YAML mapping with keys urdf, gravity, cables, outputs, poses",

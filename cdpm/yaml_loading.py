@@ -2,7 +2,8 @@
 
 Cable specs are read with a :class:`yaml.SafeLoader` (nothing in the file is
 executed). PyYAML keeps the last of two equal keys in a mapping without a
-word; :func:`load_yaml` lists them so the spec loader can refuse the file.
+word, and reads a number too large for a float (``1.0e+400``) as infinity;
+:func:`load_yaml` lists both so the spec loader can refuse the file.
 Before anything is built, the parser's event stream (read without
 recursion) is checked against size limits: the text's length, the nesting
 depth, and the number of values after aliases (``*anchor``) are expanded,
@@ -18,6 +19,7 @@ error shows the offending line, so errors read the same either way.
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 __all__ = ["load_yaml", "YamlLimitError", "MAX_YAML_CHARS", "MAX_YAML_DEPTH", "MAX_YAML_VALUES"]
@@ -101,7 +103,8 @@ def check_yaml_limits(text: str, fast: bool = True) -> None:
 
 
 def load_yaml(text: str) -> tuple[Any, list[str]]:
-    """``yaml.safe_load`` that also lists keys given twice in one mapping.
+    """``yaml.safe_load`` that also lists keys given twice in one mapping
+    and numbers that overflow to infinity.
 
     YAML parsers keep the last of two equal keys without a word, so a spec
     with ``cables:`` twice would silently lose the first list. Merge keys
@@ -109,7 +112,9 @@ def load_yaml(text: str) -> tuple[Any, list[str]]:
 
     Returns:
         (data, problems): the loaded document and one line per repeated key
-        with its line numbers (1-based).
+        (with its line numbers, 1-based) or overflowing number (a finite
+        literal such as ``1.0e+400``, which YAML reads as infinity; ``.inf``
+        is infinity as meant), in line order.
 
     Raises:
         YamlLimitError: the text exceeds a size limit (:func:`check_yaml_limits`).
@@ -158,6 +163,22 @@ def _load_yaml(text: str, fast: bool) -> tuple[Any, list[str]]:
                 )
         return base.construct_mapping(loader, node, deep=deep)
 
+    def construct_float(loader, node):
+        # YAML reads 1.0e+400 as infinity without a word: only .inf means it
+        value = base.construct_yaml_float(loader, node)
+        if math.isinf(value) and node.value.lstrip("+-").lower() != ".inf":
+            line = node.start_mark.line + 1
+            problems.append(
+                (
+                    line,
+                    f"line {line}: {node.value} is too large for a number (beyond about "
+                    "1.8e308) and would be read as infinity: write a finite number, or .inf "
+                    "where no bound is meant",
+                )
+            )
+        return value
+
     _Loader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, construct_mapping)
+    _Loader.add_constructor("tag:yaml.org,2002:float", construct_float)
     data = yaml.load(text, Loader=_Loader)  # noqa: S506 - a SafeLoader subclass
     return data, [message for _, message in sorted(problems)]

@@ -7,6 +7,7 @@ import shutil
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 import cdpm
@@ -155,6 +156,17 @@ def test_extreme_magnitudes_are_model_errors(tmp_path, old, new, match):
     shutil.copy(SPATIAL / "spatial_8cable.yaml", tmp_path)
     with pytest.raises(cdpm.ModelError, match=match):
         cdpm.load_robot(tmp_path / "spatial_8cable.yaml")
+
+
+def test_numbers_that_overflow_to_infinity_are_refused(tmp_path):
+    """YAML reads a finite literal beyond the float range as infinity: a
+    cable bound of 1.0e+400 N would silently mean no bound. It is refused
+    with its line; .inf, infinity as meant, still loads."""
+    bounded = _base().replace("  - name: c1\n", "  - name: c1\n    tension: [0, 1.0e+400]\n")
+    with pytest.raises(SpecError, match=r"line 10: 1.0e\+400 is too large for a number .* \.inf"):
+        cdpm.load_robot(_spec(tmp_path, bounded))
+    unbounded = bounded.replace("1.0e+400", ".inf")
+    assert cdpm.load_robot(_spec(tmp_path, unbounded)).tension_max[0] == np.inf
 
 
 def test_far_output_point_is_a_model_error(tmp_path):
