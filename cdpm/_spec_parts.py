@@ -39,7 +39,7 @@ def read_vector(
         try:
             number = parse_number(item)
         except ValueError as exc:
-            problems.add(f"{where}[{k}]", f"{exc}; expected a number")
+            problems.add(f"{where}[{k}]", str(exc))
             return None
         if math.isnan(number) or (math.isinf(number) and not infinite):
             problems.add(f"{where}[{k}]", f"{short_repr(item)} is not a finite number")

@@ -283,7 +283,7 @@ def _parse_term(
         try:
             weight = parse_number(item["weight"])
         except ValueError as exc:
-            problems.add(f"{where}.weight", f"{exc}; expected a number")
+            problems.add(f"{where}.weight", str(exc))
             return None
         if not math.isfinite(weight) or weight == 0:
             problems.add(f"{where}.weight", f"must be finite and nonzero, got {weight!r}")

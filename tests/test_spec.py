@@ -90,7 +90,9 @@ def test_cable_with_one_point(write_spec):
 def test_non_numeric_point(write_spec):
     path = write_spec(GOOD.replace("point: [0, 0.5, 0]", "point: [0, half, 0]"))
     with pytest.raises(
-        cdpm.SpecError, match=r"route\[0\]\.point\[1\]: 'half' is not a number .*expected a number"
+        cdpm.SpecError,
+        match=r"route\[0\]\.point\[1\]: 'half' is not a number \(only numbers, pi, e, inf and "
+        r"\+ - \* / \*\* are allowed \(found 'half'\)\)$",
     ):
         load_spec(path)
 
@@ -131,7 +133,7 @@ def test_all_problems_in_one_error(write_spec):
         ("[0, 1e300]", r"maximum 1e\+300 is above 1e\+12 N; give inf"),
         ("[2e12, inf]", r"minimum 2000000000000.0 is above 1e\+12 N"),
         ("[0, 1e400]", r"'1e400' is too large for a number"),
-        ("[true, 10]", r"True is a boolean, not a number; expected a number"),
+        ("[true, 10]", r"True is a boolean, not a number$"),
     ],
 )
 def test_bad_tension_bounds(write_spec, bounds, message):
