@@ -876,7 +876,10 @@ def test_this_process_computes_while_its_worker_processes_start(paper_map, monke
     modules (about a second): the map's own process computes chunks
     meanwhile instead of waiting in its first submit. Here a pool of
     threads stands for the processes, and its first submit waits until
-    the map's process has finished two chunks: waiting in it would time out."""
+    the map's process has finished two chunks: waiting in it would time out.
+    Once released, the map's process waits for the thread that starts the
+    workers to end, so that the remaining chunks are handed out (on a busy
+    machine the map's process finished them all before that thread ran)."""
     import concurrent.futures
     import threading
 
@@ -905,14 +908,23 @@ def test_this_process_computes_while_its_worker_processes_start(paper_map, monke
                 lambda: (index, self.job.evaluate(robot, self.plan.natural(index)))
             )
 
+    starters: list[threading.Thread] = []
+    start_workers = _runner._start_worker_processes
+
+    def recorded_start(*args):
+        starters.append(start_workers(*args))
+        return starters[-1]
+
     def progress(done, total, index):
         if index >= 0:
             order.append("here" if len(order) == order.count("here") else "done")
-        if order.count("here") >= 2:
+        if order.count("here") >= 2 and not released.is_set():
             released.set()
+            starters[0].join(timeout=10)
 
     monkeypatch.setattr(concurrent.futures, "ProcessPoolExecutor", SlowToStart)
     monkeypatch.setattr(_runner, "_start_fork_server", lambda ctx: None)  # none here
+    monkeypatch.setattr(_runner, "_start_worker_processes", recorded_start)
     ds = workspace_map(PAPER_SPEC, PAPER_AXES, workers=2, chunk_size=148, progress=progress)
     _same(ds, paper_map)
     assert order[:2] == ["here", "here"] and "worker" in order
