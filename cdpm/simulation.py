@@ -248,6 +248,14 @@ class Trajectory:
         ]
         return "\n".join(lines)
 
+    def __repr__(self) -> str:
+        # a few numbers: the arrays are thousands of samples (print shows the summary)
+        return (
+            f"Trajectory(samples={self.t.size}, t=[{self.t[0]:.4g}, {self.t[-1]:.4g}] s, "
+            f"cables={self.cable_names}, outputs={self.output_names}, "
+            f"within_bounds={self.within_bounds})"
+        )
+
     def _repr_html_(self) -> str:
         return f"<pre>{html.escape(str(self))}</pre>"
 

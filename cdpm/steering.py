@@ -173,6 +173,15 @@ class SteerResult:
             )
         return "\n".join(lines)
 
+    def __repr__(self) -> str:
+        # a few numbers: the profile and its simulation are arrays of many rows
+        return (
+            f"SteerResult(reached={self.reached}, miss={self.miss:.3g}, "
+            f"tolerance={self.tolerance:.3g}, duration={self.duration:.4g} s, "
+            f"intervals={self.tension.shape[0]}, iterations={self.iterations}, "
+            f"peak_tension={self.peak_tension:.4g} N)"
+        )
+
     def _repr_html_(self) -> str:
         return f"<pre>{html.escape(str(self))}</pre>"
 

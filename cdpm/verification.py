@@ -176,6 +176,15 @@ class VerifyReport:
             lines.append(f"  on the robot: {outcome}")
         return "\n".join(lines)
 
+    def __repr__(self) -> str:
+        # a few numbers: each run holds a whole simulation (print shows the table)
+        reached = sum(r.reached for r in self.runs)
+        return (
+            f"VerifyReport(model_name={self.model_name!r}, pose_name={self.pose_name!r}, "
+            f"verdict={self.verdict!r}, radius={self.radius:.4g}, runs={len(self.runs)}, "
+            f"reached={reached}, demonstrated={self.demonstrated})"
+        )
+
     def _repr_html_(self) -> str:
         return f"<pre>{html.escape(str(self))}</pre>"
 

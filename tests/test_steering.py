@@ -110,6 +110,29 @@ def test_no_pose_cannot_move_toward_its_blocked_direction():
     assert back.reached
 
 
+def test_results_holding_simulations_have_a_short_repr():
+    """A REPL shows a result's repr: the key numbers, not the tens of
+    kilobytes of its arrays (a VerifyReport's repr was 90 kB)."""
+    robot = cdpm.load_robot(TWO_CABLES)
+    report = cdpm.verify_pose(robot, "nominal", radius=0.005)
+    (run,) = report.runs
+    assert repr(report) == (
+        "VerifyReport(model_name='two_link_two_cables.yaml', pose_name='nominal', "
+        "verdict='no', radius=0.005, runs=1, reached=0, demonstrated=True)"
+    )
+    assert repr(run) == (
+        f"SteerResult(reached=False, miss={run.miss:.3g}, tolerance={run.tolerance:.3g}, "
+        f"duration={run.duration:.4g} s, intervals={run.tension.shape[0]}, "
+        f"iterations={run.iterations}, peak_tension={run.peak_tension:.4g} N)"
+    )
+    traj = run.trajectory
+    assert repr(traj) == (
+        f"Trajectory(samples={traj.t.size}, t=[0, {traj.t[-1]:.4g}] s, cables=('c2', 'c3'), "
+        "outputs=('tip_x',), within_bounds=True)"
+    )
+    assert traj.t.size > 10 and run.tension.shape[0] > 5  # arrays a full repr would print
+
+
 def test_free_flyer_stays_on_the_manifold_and_energy_is_kept():
     spatial = cdpm.load_robot(SPATIAL)
     eq = cdpm.equilibrium_tension(spatial, "centre")
