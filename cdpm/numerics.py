@@ -179,6 +179,13 @@ PROGRESS_LOG_INTERVAL = 10.0
 #: distances: in 2-D about 7 neighbours per sample, so that a uniform region
 #: stays connected, while NO bands a few samples wide still separate regions
 REGION_RADIUS_FACTOR = 3.0
+#: default neighbourhood radius of a sampled map over one axis, in largest
+#: gaps between consecutive samples: there only consecutive samples are
+#: neighbours (so one NO sample separates), and random samples leave gaps
+#: of several times their mean (about ln n times), which the mean-distance
+#: radius above split into many false regions; twice the largest gap lets
+#: an angle axis sampled over a full turn join across its seam
+REGION_GAP_FACTOR = 2.0
 #: relative tolerance (to the step) of "evenly spaced" and of a full turn
 REGION_WRAP_RTOL = 1e-3
 #: tolerance [rad or m] of a pose's coordinates that are not on a map axis

@@ -261,6 +261,54 @@ def test_sampled_radius_is_a_parameter(sampled_map):
         label_regions(_synthetic(np.full((5, 3), YES)), radius=0.1)
 
 
+def _one_axis_samples(low, high, n=500, seed=1):
+    """The paper's arm sampled along q1 only (q2 at its base value): YES at
+    every sample, so any split is the rule's."""
+    ds = cdpm.workspace_map(PAPER_SPEC, {"q1": (low, high)}, samples=n, seed=seed, workers=1)
+    assert np.all(ds.poc.values == YES)
+    return ds
+
+
+def _with_no_at(ds, samples):
+    poc = ds.poc.values.copy()
+    poc[samples] = NO
+    return ds.assign(poc=(ds.poc.dims, poc, ds.poc.attrs))
+
+
+def test_one_axis_samples_join_consecutive_samples_only():
+    """Over one axis, random samples leave gaps several times their mean:
+    the mean-distance radius split 500 YES samples into about 100 regions.
+    There only consecutive samples are neighbours, within twice the largest
+    gap: one region, across the seam of a full turn; a NO sample always
+    separates (the samples either side of it are often closer than the
+    radius), and a turn sampled only in part does not close."""
+    full = _one_axis_samples(-math.pi, math.pi)
+    labels = label_regions(full)
+    q1 = full.q1.values
+    gaps = np.diff(np.sort(q1))
+    assert labels.attrs["adjacency"] == "consecutive" and labels.attrs["n_regions"] == 1
+    assert labels.attrs["radius"] == pytest.approx(2 * gaps.max(), rel=1e-12)
+    assert gaps.max() > 4 * gaps.mean()  # what the old radius, 3 mean distances, cut at
+    assert "full-turn seam" not in labels.attrs["description"]
+    order = np.argsort(q1)
+    # two NO samples cut the turn into two arcs, whose sizes are the samples between them
+    cut = _with_no_at(full, [order[100], order[300]])
+    sizes = sorted(r["size"] for r in _regions(label_regions(cut)))
+    assert sizes == [199, 299]
+    # one NO sample leaves one arc, joined across the seam at +-pi
+    one = label_regions(_with_no_at(full, [order[250]]))
+    assert one.attrs["n_regions"] == 1 and _regions(one)[0]["wraps"] == ["q1"]
+    # a part of a turn: the first and last samples are not neighbours
+    part = _one_axis_samples(-1.0, 2.0, n=300)
+    order = np.argsort(part.q1.values)
+    assert label_regions(part).attrs["n_regions"] == 1
+    assert label_regions(_with_no_at(part, [order[120]])).attrs["n_regions"] == 2
+    # a path from one end of the turn to the other goes the short way, across the seam
+    path = cdpm.poc_path(full, {"q1": -3.0}, {"q1": 3.0})
+    steps = np.abs(np.diff(path.coordinates["q1"]))
+    assert path.n_waypoints < 40 and steps.max() > 6.0  # one step across the seam
+
+
 # ------------------------------------------------------- stored variable
 
 

@@ -455,8 +455,9 @@ def _some_tension_line(ds) -> str:
     return f"positive output controllable for some feasible tension (tension search): {words}"
 
 
-def _regions_line(labels) -> str:
-    """``POC regions: 4 (sizes 1191, 1034, ...)`` from a map's poc_region."""
+def _regions_line(labels, seams: bool) -> str:
+    """``POC regions: 4 (sizes 1191, 1034, ...)`` from a map's poc_region;
+    ``seams``: the map has full-turn seams, whose poses the sizes count once."""
     import json
 
     listed = json.loads(labels.attrs.get("regions", "[]"))
@@ -464,9 +465,8 @@ def _regions_line(labels) -> str:
     sizes = ", ".join(str(r["size"]) for r in listed[:5]) + (", ..." if n > 5 else "")
     if not n:
         return "POC regions: none (no YES poses)"
-    return (
-        f"POC regions (connected YES poses): {n}; sizes {sizes} "
-        "(a pose on a full-turn seam counts once)"
+    return f"POC regions (connected YES poses): {n}; sizes {sizes}" + (
+        " (a pose on a full-turn seam counts once)" if seams else ""
     )
 
 
@@ -536,7 +536,9 @@ def run(args: argparse.Namespace) -> int:
     if tension == "best":
         print(_some_tension_line(ds))
     if "poc_region" in ds:
-        print(_regions_line(ds["poc_region"]))
+        from cdpm.maps.regions import map_layout
+
+        print(_regions_line(ds["poc_region"], "closed" in map_layout(ds).wrap))
     flagged = {n: int((status == c).sum()) for n, c in STATUS_CODES.items() if c > 0}
     flagged = {n: k for n, k in flagged.items() if k}
     if flagged:

@@ -23,7 +23,12 @@ from typing import Any
 import numpy as np
 
 from cdpm.errors import InputError, float_scalar
-from cdpm.numerics import REGION_BASE_ATOL, REGION_RADIUS_FACTOR, REGION_WRAP_RTOL
+from cdpm.numerics import (
+    REGION_BASE_ATOL,
+    REGION_GAP_FACTOR,
+    REGION_RADIUS_FACTOR,
+    REGION_WRAP_RTOL,
+)
 from cdpm.verdicts import YES
 
 __all__ = ["label_regions", "attach_regions", "region_of", "REGION_VARIABLE"]
@@ -321,12 +326,17 @@ def sample_distance(layout: MapLayout, a: np.ndarray, b: np.ndarray) -> np.ndarr
 
 
 def default_radius(layout: MapLayout) -> float:
-    """REGION_RADIUS_FACTOR times the mean nearest-neighbour distance of the samples."""
+    """The default neighbourhood radius of a sampled map: REGION_RADIUS_FACTOR
+    times the mean nearest-neighbour distance of the samples; over one axis,
+    REGION_GAP_FACTOR times the largest gap between consecutive samples (the
+    seam of an angle not counted)."""
     from scipy.spatial import cKDTree
 
     points, box = sample_points(layout)
     if points.shape[0] < 2:
         return 0.0
+    if points.shape[1] == 1:
+        return float(REGION_GAP_FACTOR * np.max(np.diff(np.sort(points[:, 0]))))
     dist, _ = cKDTree(points, boxsize=box).query(points, k=2)
     return float(REGION_RADIUS_FACTOR * np.mean(dist[:, 1]))
 
@@ -343,10 +353,15 @@ def check_radius(radius: Any) -> float:
 
 def sample_edges(layout: MapLayout, yes: np.ndarray, radius: float) -> tuple:
     """Edges (i, j) (sample indices, i < j) between the samples where
-    ``yes`` holds (e.g. the YES ones) at most ``radius`` apart, and their lengths."""
+    ``yes`` holds (e.g. the YES ones) at most ``radius`` apart, and their
+    lengths. Over one axis only consecutive samples (no other sample
+    between them; around the turn for an angle) are joined, so that a
+    sample where ``yes`` fails always separates."""
     from scipy.spatial import cKDTree
 
     points, box = sample_points(layout)
+    if points.shape[1] == 1:
+        return _consecutive_edges(points[:, 0], float(box[0]), layout.wrap[0], yes, radius)
     nodes = np.flatnonzero(yes)
     if nodes.size < 2:
         return np.zeros((2, 0), dtype=np.intp), np.zeros(0)
@@ -355,6 +370,22 @@ def sample_edges(layout: MapLayout, yes: np.ndarray, radius: float) -> tuple:
     i, j = nodes[pairs[:, 0]], nodes[pairs[:, 1]]
     values = np.stack(layout.values, axis=1)
     return np.stack([i, j]), sample_distance(layout, values[i], values[j])
+
+
+def _consecutive_edges(
+    x: np.ndarray, period: float, wrap: str | None, yes: np.ndarray, radius: float
+) -> tuple:
+    """:func:`sample_edges` over one axis: samples at ``x`` (n,) [shifted to
+    start at 0], an angle (``wrap``) closing the turn after ``period``."""
+    order = np.argsort(x, kind="stable")
+    i, j = order[:-1], order[1:]
+    gaps = x[j] - x[i]
+    if wrap is not None and order.size > 2:  # the seam: the last sample, then the first
+        i, j = np.append(i, order[-1]), np.append(j, order[0])
+        gaps = np.append(gaps, x[order[0]] + period - x[order[-1]])
+    keep = (gaps <= radius) & yes[i] & yes[j]
+    i, j = i[keep], j[keep]
+    return np.stack([np.minimum(i, j), np.maximum(i, j)]), gaps[keep]
 
 
 def _label_samples(ds, layout: MapLayout, radius: float) -> tuple[np.ndarray, list]:
@@ -399,16 +430,20 @@ def label_regions(ds, *, radius: float | None = None):
             :func:`cdpm.open_map`).
         radius: sampled maps only: the neighbourhood radius, in the sampled
             coordinates [rad or m, as numbers]; default :data:`REGION_RADIUS_FACTOR`
-            times the mean nearest-neighbour distance of the samples.
+            times the mean nearest-neighbour distance of the samples (over
+            one axis, :data:`REGION_GAP_FACTOR` times the largest gap between
+            consecutive samples, which alone are neighbours there).
 
     Returns:
         ``xarray.DataArray`` ``poc_region`` (int32) over the map's pose
         dimensions: 0 for a pose in no region, 1..K by decreasing size.
         Attributes: ``long_name``, ``description`` (the adjacency rule, the
-        axes that wrap, the radius, how sizes count), ``adjacency`` (``"face"``
-        or ``"radius"``), ``wrapped_axes`` (comma separated), ``radius``
-        (sampled maps), ``n_regions`` (K) and ``regions``: JSON of a list (the
-        REGIONS_LISTED largest) of ``{"label", "size", "bbox": {axis: [lo,
+        axes that wrap, the radius, how sizes count), ``adjacency`` (``"face"``,
+        ``"radius"``, or ``"consecutive"`` for samples over one axis: only
+        samples with no other between them, within the radius),
+        ``wrapped_axes`` (comma separated), ``radius`` (sampled maps),
+        ``n_regions`` (K) and ``regions``: JSON of a list (the REGIONS_LISTED
+        largest) of ``{"label", "size", "bbox": {axis: [lo,
         hi]}, "wraps": [axes]}``; ``size`` counts distinct poses (a pose on a
         full-turn seam once); along an axis in ``wraps`` lo > hi: the region
         runs from lo to the end of the turn and on from its start to hi.
@@ -434,24 +469,32 @@ def label_regions(ds, *, radius: float | None = None):
         attrs["adjacency"] = "face"
     else:
         r = default_radius(layout) if radius is None else check_radius(radius)
-        how = (
-            f"{REGION_RADIUS_FACTOR:g} times the mean nearest-neighbour distance"
-            if radius is None
-            else "given"
-        )
+        one_axis = len(layout.axes) == 1
+        if radius is not None:
+            how = "given"
+        elif one_axis:
+            how = f"{REGION_GAP_FACTOR:g} times the largest gap between consecutive samples"
+        else:
+            how = f"{REGION_RADIUS_FACTOR:g} times the mean nearest-neighbour distance"
         labels, regions = _label_samples(ds, layout, r)
         rule = (
             f"samples adjacent when their distance in ({', '.join(layout.axes)}) is at "
-            f"most radius = {r:.6g} ({how}); angles compared modulo 2 pi: {wrapped}"
+            f"most radius = {r:.6g} ({how})"
+            + (" and no other sample lies between them" if one_axis else "")
+            + f"; angles compared modulo 2 pi: {wrapped}"
         )
-        attrs["adjacency"] = "radius"
+        attrs["adjacency"] = "consecutive" if one_axis else "radius"
         attrs["radius"] = r
     attrs["description"] = (
         "connected components of the POC poses (poc = yes; marginal, no and not analysed "
-        f"poses are in no region, label 0), numbered 1..K by decreasing size; {rule}; sizes "
-        "count distinct poses: a pose on a full-turn seam (the first and last value of an "
-        "axis from -pi to pi) is counted once, so they can sum to fewer than the YES poses"
+        f"poses are in no region, label 0), numbered 1..K by decreasing size; {rule}"
     )
+    if "closed" in layout.wrap:
+        attrs["description"] += (
+            "; sizes count distinct poses: a pose on a full-turn seam (the first and last "
+            "value of an axis from -pi to pi) is counted once, so they can sum to fewer than "
+            "the YES poses"
+        )
     n = int(labels.max(initial=0))
     if n > REGIONS_LISTED:
         attrs["description"] += f"; regions lists the {REGIONS_LISTED} largest of {n}"
