@@ -24,8 +24,11 @@ from cdpm.verdicts import (
 
 #: legends list yes, no, marginal, not analysed (the order of VERDICT_CODES)
 LEGEND_ORDER = tuple(VERDICT_CODES.values())
-#: scatter plots draw the rarer verdicts on top
-DRAW_ORDER = (YES, NOT_ANALYSED, MARGINAL, NO)
+#: scatter plots draw poses not analysed first (they carry no verdict), then
+#: the rarer verdicts on top: where poses fall on one point (a map of more
+#: coordinates than the panel shows), it is grey only if none was analysed,
+#: and red if any is NO
+DRAW_ORDER = (NOT_ANALYSED, YES, MARGINAL, NO)
 
 #: panel titles of the verdict variables
 VERDICT_TITLES = {

@@ -180,8 +180,9 @@ def _describe(ds, name: str) -> str:
 
 
 def output_panel(ax, ds, variable: str, choice: OutputChoice, first_axis: str) -> None:
-    """Scatter every pose at the chosen outputs, coloured by ``variable``,
-    rarer verdicts on top; the legend goes below the axes."""
+    """Scatter every pose at the chosen outputs, coloured by ``variable``
+    (in DRAW_ORDER: rarer verdicts on top; the title says when poses fall
+    on the same points); the legend goes below the axes."""
     verdict = ds[variable]
     codes = np.asarray(verdict.values).reshape(-1)
     y_values, y_label = _values(ds, choice.names[-1], verdict.dims)
@@ -203,6 +204,9 @@ def output_panel(ax, ds, variable: str, choice: OutputChoice, first_axis: str) -
             what = f"{_describe(ds, choice.names[0])} and {_describe(ds, choice.names[1])}"
     if choice.note:
         what += f" ({choice.note})"
+    points = np.unique(np.stack([x_values, y_values], axis=1).round(9), axis=0).shape[0]
+    if points < codes.size:
+        what += f";\n{codes.size} poses on {points} points (not analysed under yes under no)"
     size = max(1.0, min(30.0, 12000.0 / max(codes.size, 1)))
     for c in DRAW_ORDER:
         sel = codes == c

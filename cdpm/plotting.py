@@ -289,12 +289,14 @@ def plot_map(
         _suptitle(fig, ds, title, axes_names, missing)
         return fig
     slices: list[dict] = [{}]
+    drawn = ""
     if not sample and len(dims) > 2:
         third = dims[2]
         n3 = ds.sizes[third]
         picks = np.unique(np.linspace(0, n3 - 1, min(max_slices, n3)).round().astype(int))
         rest = {d: ds.sizes[d] // 2 for d in dims[3:]}
         slices = [{third: int(k), **rest} for k in picks]
+        drawn = _slices_text(ds, third, picks, rest)
     panels = ["verdict"] * len(slices)
     if scale is not None:
         panels.append("margin")
@@ -313,8 +315,22 @@ def plot_map(
             _margin_grid_panel(ax, fig, ds, variable, dims, slices, scale, path)
         else:
             _verdict_grid_panel(ax, ds, variable, dims, slices, k, path, regions)
-    _suptitle(fig, ds, title, axes_names, missing)
+    _suptitle(fig, ds, title, axes_names, missing, drawn)
     return fig
+
+
+def _slices_text(ds, third: str, picks: np.ndarray, rest: dict) -> str:
+    """What the slices of a map of more than two axes leave out, or "":
+    ``"slices: 6 of the 8 values of q3 (every other left out); q4 = 0 rad
+    only (the middle of its 3 values)"``."""
+    parts = []
+    n3 = ds.sizes[third]
+    if picks.size < n3:
+        parts.append(f"slices: {picks.size} of the {n3} values of {third}")
+    for d, i in rest.items():
+        value = coordinate_value(ds, d, float(ds[d].values[i]))
+        parts.append(f"{value} only (the middle of its {ds.sizes[d]} values)")
+    return "; ".join(parts)
 
 
 def _period(ds, name: str) -> float | None:
@@ -324,7 +340,11 @@ def _period(ds, name: str) -> float | None:
 
 
 def _where(ds, index: dict) -> str:
-    return ", ".join(coordinate_value(ds, d, float(ds[d].values[i])) for d, i in index.items())
+    """The slice's value of the map's third axis (``"q3 = 0.5 rad"``), or "";
+    further axes are at their middle value, which the figure title says."""
+    return ", ".join(
+        coordinate_value(ds, d, float(ds[d].values[i])) for d, i in list(index.items())[:1]
+    )
 
 
 def _verdict_grid_panel(ax, ds, variable, dims, slices, k, path, regions) -> None:
@@ -481,9 +501,12 @@ def _poses_text(ds, axes_names: Sequence[str]) -> str:
     return f"{poses}, {base}" if base else poses
 
 
-def _suptitle(fig, ds, title: str | None, axes_names, missing: MarginScale | None) -> None:
+def _suptitle(
+    fig, ds, title: str | None, axes_names, missing: MarginScale | None, drawn: str = ""
+) -> None:
     """The figure title: ``title``, else the spec, the poses, the base pose
-    and the tension, and a line when the margin was asked for but the map
+    and the tension, a line ``drawn`` on the slices left out (maps of more
+    than two axes), and a line when the margin was asked for but the map
     has none."""
     if title is None:
         tension = ds.attrs.get("tension", "?")
@@ -500,6 +523,8 @@ def _suptitle(fig, ds, title: str | None, axes_names, missing: MarginScale | Non
         width = int(12 * fig.get_figwidth())
         fits = len(head) + len(tail) + 2 <= width
         title = f"{head}, {tail}" if fits else f"{textwrap.fill(head, width)}\n{tail}"
+        if drawn:
+            title += "\n" + textwrap.fill(drawn, width)
         if missing is not None:
             what = "reach margin" if missing.variable == "reach_margin" else "POC margin"
             title += f"\n{what} not computed (map made with --no-margin): no margin panel"

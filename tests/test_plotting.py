@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 
@@ -98,6 +100,26 @@ def test_plot_of_more_than_two_axes(tmp_path):
     fig = plot_map(stacked, max_slices=3)
     titles = [ax.get_title() for ax in fig.axes]
     assert sum("z = " in t for t in titles) >= 3
+    assert "\n" not in fig.get_suptitle()  # every slice drawn: nothing to say
+    # the output panel (tip_x against q1): the poses fall on fewer points
+    # (q2 and -q2 give one tip_x), the three copies on the points of one
+    one = re.search(r"441 poses on (\d+) points", plot_map(ds).axes[-1].get_title())
+    assert one and int(one.group(1)) < 441
+    assert (
+        f"1323 poses on {one.group(1)} points (not analysed under yes under no)"
+        in fig.axes[-1].get_title()
+    )
+    # four axes: 2 of the 3 slices of z, and w at its middle value only, said in
+    # the figure title; the panels name their z only (their titles ran off the figure)
+    four = xr.concat(
+        [stacked, stacked, stacked], dim=xr.DataArray([-1.0, 0.0, 1.0], dims="w", name="w")
+    ).transpose("q1", "q2", "z", "w", ...)
+    fig = plot_map(four, max_slices=2, output_view=False)
+    assert fig.get_suptitle().endswith(
+        "\nslices: 2 of the 3 values of z; w = 0 only (the middle of its 3 values)"
+    )
+    titles = [ax.get_title() for ax in fig.axes if ax.get_title().startswith("POC verdict")]
+    assert titles == ["POC verdict (z = 0)", "POC verdict (z = 2)"]
 
 
 def test_plot_rejects_unknown_variable(paper_robot):

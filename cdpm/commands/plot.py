@@ -9,8 +9,9 @@ HELP = "draw a workspace map (zarr store) into an image"
 DESCRIPTION = """\
 Read a map written by `cdpm map ... --out STORE` and draw it, the map's first
 axis horizontal:
-  - the verdict over the first two axes (slices along the third for more
-    axes), with the outlines and numbers of the POC regions when the map has
+  - the verdict over the first two axes (for more axes: slices along the
+    third, further axes at their middle value; the title says what is left
+    out), with the outlines and numbers of the POC regions when the map has
     them (for --variable poc only);
   - the reach margin r_T [the outputs' unit: m, rad, or m and rad counted one
     to one] within the map's horizon T on a log
@@ -19,10 +20,12 @@ axis horizontal:
     says so); zero margins in red, poses not analysed in greys by reason;
     no panel for a map made with --no-margin;
   - the poses in output space, coloured by verdict: by default the map's
-    outputs (one output: against the first axis; two or more: the first two),
-    or those named with --outputs; each axis says the output's unit ([rad]
-    for rotations and revolute joints) and the formula of a joint, cable or
-    sum output (docs/outputs.md).
+    outputs (one output: against the first axis; two or more: the two that
+    vary most over the map), or those named with --outputs; where poses fall
+    on one point, NO is drawn over YES over not analysed (the title says
+    so); each axis says the output's unit ([rad] for rotations and revolute
+    joints) and the formula of a joint, cable or sum output
+    (docs/outputs.md).
 A map over one axis is drawn as a verdict band along that axis above a line
 of the margin. Maps of random samples are drawn as scatter plots. `cdpm path
 ... --plot` draws a path over the verdict and margin panels."""
