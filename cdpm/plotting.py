@@ -501,13 +501,27 @@ def _poses_text(ds, axes_names: Sequence[str]) -> str:
     return f"{poses}, {base}" if base else poses
 
 
+def _overrides_text(ds) -> str:
+    """``"overrides of the spec: gravity [0, 0, -5] m/s^2; ..."``: what the
+    map's robot changed of its spec (attribute ``overrides``), or ""."""
+    from cdpm.maps._plan import describe_overrides
+
+    try:
+        overrides = json.loads(ds.attrs.get("overrides", "{}"))
+    except (TypeError, ValueError):
+        return ""
+    if not isinstance(overrides, dict) or not overrides:
+        return ""
+    return f"overrides of the spec: {describe_overrides(overrides)}"
+
+
 def _suptitle(
     fig, ds, title: str | None, axes_names, missing: MarginScale | None, drawn: str = ""
 ) -> None:
     """The figure title: ``title``, else the spec, the poses, the base pose
-    and the tension, a line ``drawn`` on the slices left out (maps of more
-    than two axes), and a line when the margin was asked for but the map
-    has none."""
+    and the tension, a line on the spec's values the map overrode, a line
+    ``drawn`` on the slices left out (maps of more than two axes), and a
+    line when the margin was asked for but the map has none."""
     if title is None:
         tension = ds.attrs.get("tension", "?")
         try:
@@ -523,6 +537,9 @@ def _suptitle(
         width = int(12 * fig.get_figwidth())
         fits = len(head) + len(tail) + 2 <= width
         title = f"{head}, {tail}" if fits else f"{textwrap.fill(head, width)}\n{tail}"
+        overrides = _overrides_text(ds)
+        if overrides:
+            title += "\n" + textwrap.fill(overrides, width)
         if drawn:
             title += "\n" + textwrap.fill(drawn, width)
         if missing is not None:

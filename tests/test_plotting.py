@@ -122,6 +122,22 @@ def test_plot_of_more_than_two_axes(tmp_path):
     assert titles == ["POC verdict (z = 0)", "POC verdict (z = 2)"]
 
 
+def test_plot_title_names_the_maps_overrides_of_its_spec(paper_robot):
+    """A map of a robot whose gravity, bounds or pretension differ from its
+    spec says so in the figure title, as `cdpm map` printed it."""
+    from cdpm.maps import override_robot
+    from cdpm.plotting import plot_map
+
+    axes = {"q1": np.linspace(-3, 3, 5), "q2": np.linspace(-3, 3, 5)}
+    robot = override_robot(paper_robot, gravity=[0, 0, -5], tension_bounds=(0, 60))
+    title = plot_map(workspace_map(robot, axes, workers=1)).get_suptitle()
+    assert title.splitlines()[1] == (
+        "overrides of the spec: gravity [0, 0, -5] m/s^2; tension bounds [N] c1 [0, 60], "
+        "c2 [0, 60], c3 [0, 60], c4 [0, 60]"
+    )
+    assert "overrides" not in plot_map(workspace_map(paper_robot, axes, workers=1)).get_suptitle()
+
+
 def test_plot_rejects_unknown_variable(paper_robot):
     from cdpm.errors import InputError
     from cdpm.plotting import plot_map
