@@ -34,7 +34,7 @@ DRAW_ORDER = (NOT_ANALYSED, YES, MARGINAL, NO)
 VERDICT_TITLES = {
     "poc": "POC verdict",
     "wrench_closure": "wrench closure verdict",
-    "positive_controllable": "positive controllability (Brammer)",
+    "positive_controllable": "positive controllability verdict (Brammer)",
     "output_controllable": "output controllability verdict",
     "static_feasible": "static feasibility verdict",
     "poc_some_tension": "POC for some feasible tension",

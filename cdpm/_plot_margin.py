@@ -105,7 +105,9 @@ def margin_scale(ds, verdict: str = "poc") -> MarginScale | None:
         budget = _attr(ds, "reach_margin", "tension_budget")
         within = f" within $T$ = {horizon:.3g} s" if horizon is not None else ""
         what = "at the chosen tension " if name != "reach_margin" else ""
-        title = f"reach margin $r_T$ {what}[{units}]{within} (log scale)"
+        # beside another criterion's verdicts: the margin is still POC's
+        of = "" if verdict in ("poc", "poc_some_tension") else "POC "
+        title = f"{of}reach margin $r_T$ {what}[{units}]{within} (log scale)"
         if budget is not None and _budget_used(ds):
             # bounded cables use their own bounds (docs/analysis.md)
             title += f"\ntension changes up to ±{budget:.3g} N\nfor cables without an upper bound"

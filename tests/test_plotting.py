@@ -1002,6 +1002,11 @@ def test_region_outlines_only_over_the_poc_verdict(kind, vertical_map):
         assert _gids(verdict, "region outlines") is None, variable
         labels = [t.get_text() for t in verdict.get_legend().get_texts()]
         assert not any("POC regions" in t for t in labels), labels
+    # beside another criterion's verdicts, the margin panel says whose margin it is
+    panels = plot_map(ds, variable="wrench_closure", output_view=False).axes
+    assert any(ax.get_title().startswith("POC reach margin $r_T$ [m]") for ax in panels)
+    panels = plot_map(ds, output_view=False).axes
+    assert any(ax.get_title().startswith("reach margin $r_T$ [m]") for ax in panels)
 
 
 def test_one_axis_margin_line_marks_stragglers_off_the_scale(paper_robot):
