@@ -205,8 +205,11 @@ def output_panel(ax, ds, variable: str, choice: OutputChoice, first_axis: str) -
     if choice.note:
         what += f" ({choice.note})"
     points = np.unique(np.stack([x_values, y_values], axis=1).round(9), axis=0).shape[0]
-    if points < codes.size:
-        what += f";\n{codes.size} poses on {points} points (not analysed under yes under no)"
+    overlap = (
+        f";\n{codes.size} poses on {points} points,\nno drawn over yes over not analysed"
+        if points < codes.size
+        else ""
+    )
     size = max(1.0, min(30.0, 12000.0 / max(codes.size, 1)))
     for c in DRAW_ORDER:
         sel = codes == c
@@ -225,5 +228,5 @@ def output_panel(ax, ds, variable: str, choice: OutputChoice, first_axis: str) -
     ax.set_ylabel(y_label)
     if len(choice.names) == 2 and _unit(ds, choice.names[0]) == _unit(ds, choice.names[1]):
         ax.set_aspect("equal", adjustable="datalim")  # the same unit on both axes
-    ax.set_title(f"{what},\ncoloured by {verdict_title(variable)}", fontsize=10)
+    ax.set_title(f"{what},\ncoloured by {verdict_title(variable)}{overlap}", fontsize=10)
     legend_below(ax, verdict_handles(codes), ncol=4)

@@ -30,7 +30,10 @@ SMALL_HOLE_POSES = 4
 
 OUTLINE_COLOR = "black"
 OUTLINE_WIDTH = 0.7
-PATH_COLOR = "black"
+PATH_COLOR = "#1f3fd6"
+#: steps of a path that may cross a NO set thinner than the map's resolution
+#: (POCPath.suspect_steps): magenta, apart from the verdicts' and margins' colours
+SUSPECT_COLOR = "#d000c8"
 
 
 # ------------------------------------------------------------------ regions
@@ -251,11 +254,21 @@ def region_handle(count: int, all_numbered: bool = True):
 # --------------------------------------------------------------------- path
 
 
-def check_path(path, available: list[str], required: list[str]) -> dict[str, np.ndarray]:
+class PathCoordinates(dict):
+    """:func:`check_path`'s path: coordinate name -> values (k,), and
+    ``suspect``: the steps i (waypoint i to i + 1) to mark as possibly
+    crossing a thin NO set."""
+
+    suspect: tuple[int, ...] = ()
+
+
+def check_path(path, available: list[str], required: list[str]) -> PathCoordinates:
     """A path as float arrays of equal length (k,), by coordinate name.
 
     Args:
-        path: mapping coordinate name -> (k,) values along the path.
+        path: mapping coordinate name -> (k,) values along the path, or a
+            :class:`cdpm.paths.POCPath` (its coordinates, and its suspect
+            steps marked).
         available: the map's coordinates (pose dims or sampled axes).
         required: the coordinates the picture plots (must be in the path).
 
@@ -264,9 +277,15 @@ def check_path(path, available: list[str], required: list[str]) -> dict[str, np.
             plotted coordinate missing, values not 1-D finite numbers of one
             length.
     """
+    from cdpm.paths import POCPath
+
+    suspect: tuple[int, ...] = ()
+    if isinstance(path, POCPath):
+        path, suspect = path.coordinates, tuple(path.suspect_steps or ())
     if not isinstance(path, Mapping):
         raise InputError(
-            f"path must map coordinate names to values along the path, got {type(path).__name__}"
+            "path must map coordinate names to values along the path (or be a POCPath), got "
+            f"{type(path).__name__}"
         )
     unknown = [str(name) for name in path if name not in available]
     if unknown:
@@ -280,7 +299,8 @@ def check_path(path, available: list[str], required: list[str]) -> dict[str, np.
             f"path lacks {', '.join(missing)}: the picture plots {', '.join(required)}, "
             "so the path needs values along them"
         )
-    out: dict[str, np.ndarray] = {}
+    out = PathCoordinates()
+    out.suspect = suspect
     for name, values in path.items():
         try:
             array = np.asarray(values, dtype=float)
@@ -312,11 +332,12 @@ def _seams(x, y, periods) -> tuple[np.ndarray, np.ndarray]:
     return crossing, steps
 
 
-def draw_path(ax, x, y, near=None, periods=(None, None)) -> None:
+def draw_path(ax, x, y, near=None, periods=(None, None), suspect=()) -> None:
     """The path through (x, y) (shape (k,)): a line from a start circle to a
     goal star.
 
     Args:
+        suspect: steps i (waypoint i to i + 1) drawn over in SUSPECT_COLOR.
         near: bool (k,): the poses near the panel's slice, drawn solid; the
             rest of the path is dashed and faint. None: all solid.
         periods: the period of the x and y coordinates (2 pi for angles) or
@@ -349,6 +370,8 @@ def draw_path(ax, x, y, near=None, periods=(None, None)) -> None:
             [(x[i + 1] - dx, y[i + 1] - dy), (x[i + 1], y[i + 1])],
         ]
         style = solid_style if solid[i] and solid[i + 1] else faint_style
+        if i in suspect:
+            style = {**solid_style, "color": SUSPECT_COLOR, "lw": 3.0}
         ax.add_collection(
             LineCollection(
                 stubs,
@@ -359,6 +382,22 @@ def draw_path(ax, x, y, near=None, periods=(None, None)) -> None:
                 path_effects=style.get("path_effects"),
                 zorder=style["zorder"],
                 gid="path seam",
+            ),
+            autolim=False,
+        )
+    marked = [i for i in suspect if not crossing[i]]  # across a seam: the stubs above
+    if marked:
+        from matplotlib.collections import LineCollection
+
+        segments = [[(x[i], y[i]), (x[i + 1], y[i + 1])] for i in marked]
+        ax.add_collection(
+            LineCollection(
+                segments,
+                colors=SUSPECT_COLOR,
+                linewidths=3.0,
+                path_effects=halo(5.0),
+                zorder=6,
+                gid="suspect steps",
             ),
             autolim=False,
         )
@@ -373,15 +412,20 @@ def draw_path(ax, x, y, near=None, periods=(None, None)) -> None:
     ax.plot(x[-1], y[-1], "*", ms=13, mfc=PATH_COLOR, mec="white", mew=1.0, gid="goal", **ends)
 
 
-def path_handles(k: int, sliced: bool = False) -> list:
-    """Legend entries of a path of k poses."""
+def path_handles(k: int, sliced: bool = False, suspect: int = 0) -> list:
+    """Legend entries of a path of k poses (line, start, goal, and with
+    ``suspect`` steps marked, theirs)."""
     from matplotlib.lines import Line2D
 
     label = f"path ({k} poses)"
     if sliced:
         label += "; dashed: away from this slice"
-    return [
+    handles = [
         Line2D([], [], color=PATH_COLOR, lw=1.8, label=label),
         Line2D([], [], ls="", marker="o", ms=7, mfc="white", mec=PATH_COLOR, label="start"),
         Line2D([], [], ls="", marker="*", ms=11, mfc=PATH_COLOR, mec="white", label="goal"),
     ]
+    if suspect:
+        label = f"step that may cross a thin NO set ({suspect})"
+        handles.append(Line2D([], [], color=SUSPECT_COLOR, lw=3.0, label=label))
+    return handles

@@ -34,7 +34,7 @@ import os
 import textwrap
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -71,6 +71,9 @@ from cdpm._plot_overlays import (
 )
 from cdpm.errors import InputError
 from cdpm.verdicts import VERDICT_COLORS
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cdpm.paths import POCPath
 
 __all__ = [
     "plot_map",
@@ -211,7 +214,7 @@ def plot_map(
     margin: bool = True,
     output_view: bool = True,
     outputs: Sequence[str] | str | None = None,
-    path: Mapping[str, Any] | None = None,
+    path: Mapping[str, Any] | POCPath | None = None,
     max_slices: int = 6,
     title: str | None = None,
 ):
@@ -239,17 +242,20 @@ def plot_map(
             the map's outputs (one: against the first coordinate; two or
             more: the first two).
         path: coordinate name -> values along a path of map poses, each of
-            shape (k,) [the coordinates' units]; it must give the plotted
-            coordinates (the first two, or the one of a one-axis map). It is
-            drawn over the verdict and margin panels as a line from a start
-            circle to a goal star (on a one-axis map, along the margin
-            line). Coordinates not plotted are projected out: on the
-            slices of a map of more than two axes, the poses whose third
-            coordinate is nearest the slice's value are drawn solid and the
-            rest dashed (all solid without a third coordinate in ``path``);
-            further coordinates are ignored. A step across the seam of a
-            full-turn angle (pi to -pi) is drawn the short way, out through
-            one edge of the panel and back through the other.
+            shape (k,) [the coordinates' units], or a :class:`cdpm.paths.POCPath`
+            (its coordinates, and its ``suspect_steps`` drawn over in magenta:
+            steps that may cross a NO set thinner than the map's
+            resolution); it must give the plotted coordinates (the first
+            two, or the one of a one-axis map). It is drawn over the verdict
+            and margin panels as a blue line from a start circle to a goal
+            star (on a one-axis map, along the margin line). Coordinates not
+            plotted are projected out: on the slices of a map of more than
+            two axes, the poses whose third coordinate is nearest the
+            slice's value are drawn solid and the rest dashed (all solid
+            without a third coordinate in ``path``); further coordinates are
+            ignored. A step across the seam of a full-turn angle (pi to -pi)
+            is drawn the short way, out through one edge of the panel and
+            back through the other.
         max_slices: most slices drawn for maps of more than two axes.
         title: figure title (default: spec name, poses, the base values of
             the coordinates off the axes, tension).
@@ -373,7 +379,7 @@ def _verdict_grid_panel(ax, ds, variable, dims, slices, k, path, regions) -> Non
         if regions:
             handles.append(region_handle(regions, all_numbered))
         if path is not None:
-            handles += path_handles(next(iter(path.values())).size, sliced)
+            handles += path_handles(next(iter(path.values())).size, sliced, len(path.suspect))
         legend_below(ax, handles, ncol=3)
 
 
@@ -385,7 +391,7 @@ def _grid_path(ax, ds, dims, slices, k, path) -> bool:
     x, y = dims[0], dims[1]
     sliced = bool(slices[k]) and dims[2] in path
     near = _near_slice(ds, dims[2], path[dims[2]], slices, k) if sliced else None
-    draw_path(ax, path[x], path[y], near, (_period(ds, x), _period(ds, y)))
+    draw_path(ax, path[x], path[y], near, (_period(ds, x), _period(ds, y)), path.suspect)
     return sliced
 
 
@@ -446,15 +452,27 @@ def _sample_panel(ax, fig, ds, variable, axes_names, kind, scale, path, regions)
             _, all_numbered = draw_regions_samples(ax, ids, xv, yv, len(axes_names) == 2)
             handles.append(region_handle(regions, all_numbered))
         if path is not None:
-            draw_path(ax, path[xn], path[yn], periods=(_period(ds, xn), _period(ds, yn)))
-            handles += path_handles(path[xn].size)
+            draw_path(
+                ax,
+                path[xn],
+                path[yn],
+                periods=(_period(ds, xn), _period(ds, yn)),
+                suspect=path.suspect,
+            )
+            handles += path_handles(path[xn].size, suspect=len(path.suspect))
         legend_below(ax, handles, ncol=3)
         ax.set_title(verdict_title(variable) + projected, fontsize=10)
     else:
         margins = np.asarray(ds[scale.variable].values, dtype=float)
         handles = margin_scatter(ax, fig, xv, yv, margins, _status(ds), values, scale, size)
         if path is not None:
-            draw_path(ax, path[xn], path[yn], periods=(_period(ds, xn), _period(ds, yn)))
+            draw_path(
+                ax,
+                path[xn],
+                path[yn],
+                periods=(_period(ds, xn), _period(ds, yn)),
+                suspect=path.suspect,
+            )
             handles += path_handles(path[xn].size)[:1]
         legend_below(ax, handles, ncol=1)
         ax.set_title(scale.title + projected, fontsize=10)
@@ -586,8 +604,14 @@ def _plot_one_axis(ds, variable, name, scale, choice: OutputChoice | None, path,
             handles.append(region_handle(regions, all_numbered))
     period = _period(ds, name)
     if path is not None:
-        draw_path(strip, path[name], np.full(path[name].size, 0.5), periods=(period, None))
-        handles += path_handles(path[name].size)
+        draw_path(
+            strip,
+            path[name],
+            np.full(path[name].size, 0.5),
+            periods=(period, None),
+            suspect=path.suspect,
+        )
+        handles += path_handles(path[name].size, suspect=len(path.suspect))
     strip.legend(
         handles=handles,
         loc="lower left",
@@ -609,7 +633,7 @@ def _plot_one_axis(ds, variable, name, scale, choice: OutputChoice | None, path,
         margin_handles = margin_line(line, x, values, status, codes, scale)
         if path is not None:
             heights = _along_line(line, x, values, path[name])
-            draw_path(line, path[name], heights, periods=(period, None))
+            draw_path(line, path[name], heights, periods=(period, None), suspect=path.suspect)
         line.set_xlabel(axis_label)
         line.set_title(scale.title, fontsize=10)
         legend_below(line, margin_handles, ncol=2)
@@ -643,14 +667,15 @@ def save_map_plot(
     margin: bool = True,
     output_view: bool = True,
     outputs: Sequence[str] | str | None = None,
-    path: Mapping[str, Any] | None = None,
+    path: Mapping[str, Any] | POCPath | None = None,
     max_slices: int = 6,
     title: str | None = None,
 ) -> Path:
     """Draw a map with :func:`plot_map` and write it to the file ``image``
     in the format of its extension (PNG without one); returns the file
     written. The keywords are :func:`plot_map`'s (``path``: coordinate name
-    -> (k,) values along a path of map poses), and ``dpi`` the resolution.
+    -> (k,) values along a path of map poses, or a POCPath), and ``dpi``
+    the resolution.
 
     Raises:
         InputError: matplotlib cannot write the extension, ``dpi`` is not

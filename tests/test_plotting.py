@@ -106,7 +106,7 @@ def test_plot_of_more_than_two_axes(tmp_path):
     one = re.search(r"441 poses on (\d+) points", plot_map(ds).axes[-1].get_title())
     assert one and int(one.group(1)) < 441
     assert (
-        f"1323 poses on {one.group(1)} points (not analysed under yes under no)"
+        f"1323 poses on {one.group(1)} points,\nno drawn over yes over not analysed"
         in fig.axes[-1].get_title()
     )
     # four axes: 2 of the 3 slices of z, and w at its middle value only, said in
@@ -969,14 +969,48 @@ def test_path_start_and_goal_on_the_edge_of_the_map_are_not_cut_off(paper_map):
     right = pixels[int(height - y) - 6 : int(height - y) + 4, int(box.x1) + 2 : int(box.x1) + 7]
     x, y = ax.transData.transform((0.5, -np.pi))
     below = pixels[int(height - box.y0) + 2 : int(height - box.y0) + 6, int(x) - 4 : int(x) + 5]
-    assert (right.sum(axis=-1) < 150).any()  # the black star beyond the right edge
-    assert (below.sum(axis=-1) < 150).any()  # the start circle's black rim below
+
+    # the path's blue (PATH_COLOR, #1f3fd6): blue well above red and green
+    def blue(p):
+        return (p[..., 2] > 180) & (p[..., 0] < 90) & (p[..., 1] < 110)
+
+    assert blue(right).any()  # the star beyond the right edge
+    assert blue(below).any()  # the start circle's rim below
     # on the margin panel too
     fig = plot_map(paper_map, path=path, output_view=False)
     for ax in fig.axes[:2]:
         (goal,) = [ln for ln in ax.get_lines() if ln.get_gid() == "goal"]
         (start,) = [ln for ln in ax.get_lines() if ln.get_gid() == "start"]
         assert not goal.get_clip_on() and not start.get_clip_on()
+
+
+def test_a_pocpath_is_drawn_with_its_suspect_steps(paper_map):
+    """plot_map takes a POCPath: its steps that may cross a thin NO set
+    are drawn over in magenta on the verdict and margin panels, and the
+    legend counts them, as `cdpm path` warns of them."""
+    from cdpm._plot_overlays import SUSPECT_COLOR
+    from cdpm.paths import poc_path
+    from cdpm.plotting import plot_map
+
+    path = poc_path(paper_map, [np.pi / 6, np.pi / 3], [3.0, -2.0])
+    assert path.suspect_steps  # the paper arm's thin NO lines
+    fig = plot_map(paper_map, path=path, output_view=False)
+    for ax in fig.axes[:2]:
+        (marks,) = [c for c in ax.collections if c.get_gid() == "suspect steps"]
+        first = path.suspect_steps[0]
+        np.testing.assert_allclose(
+            marks.get_segments()[0],
+            [[path.coordinates[a][first + d] for a in ("q1", "q2")] for d in (0, 1)],
+        )
+        assert len(marks.get_segments()) == len(path.suspect_steps)  # none across the seam
+        assert tuple(marks.get_colors()[0][:3]) == pytest.approx(
+            [int(SUSPECT_COLOR[k : k + 2], 16) / 255 for k in (1, 3, 5)]
+        )
+    labels = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
+    assert f"step that may cross a thin NO set ({len(path.suspect_steps)})" in labels
+    # a plain mapping of coordinates has no steps to mark
+    fig = plot_map(paper_map, path=path.coordinates, output_view=False)
+    assert not [c for c in fig.axes[0].collections if c.get_gid() == "suspect steps"]
 
 
 @pytest.mark.parametrize("kind", ["grid", "samples", "one axis"])

@@ -152,7 +152,7 @@ def run(args: argparse.Namespace) -> int:
     if args.plot:
         from cdpm.plotting import save_map_plot
 
-        written = save_map_plot(ds, args.plot, path=path.coordinates)
+        written = save_map_plot(ds, args.plot, path=path)
         print(f"plot written to {written}", file=out)
     if args.json:
         result = {"connected": True, **path.as_dict()}
