@@ -217,6 +217,7 @@ def plot_map(
     path: Mapping[str, Any] | POCPath | None = None,
     max_slices: int = 6,
     title: str | None = None,
+    subtitle: str | None = None,
 ):
     """Draw a workspace map.
 
@@ -259,6 +260,8 @@ def plot_map(
         max_slices: most slices drawn for maps of more than two axes.
         title: figure title (default: spec name, poses, the base values of
             the coordinates off the axes, tension).
+        subtitle: a line added under the figure title (e.g. how steering
+            along ``path`` went).
 
     Returns:
         ``matplotlib.figure.Figure``.
@@ -292,7 +295,7 @@ def plot_map(
     regions = region_count(ds) if variable == "poc" else 0
     if len(axes_names) == 1:
         fig = _plot_one_axis(ds, variable, axes_names[0], scale, choice, path, regions)
-        _suptitle(fig, ds, title, axes_names, missing)
+        _suptitle(fig, ds, title, axes_names, missing, subtitle=subtitle)
         return fig
     slices: list[dict] = [{}]
     drawn = ""
@@ -321,7 +324,7 @@ def plot_map(
             _margin_grid_panel(ax, fig, ds, variable, dims, slices, scale, path)
         else:
             _verdict_grid_panel(ax, ds, variable, dims, slices, k, path, regions)
-    _suptitle(fig, ds, title, axes_names, missing, drawn)
+    _suptitle(fig, ds, title, axes_names, missing, drawn, subtitle)
     return fig
 
 
@@ -534,12 +537,19 @@ def _overrides_text(ds) -> str:
 
 
 def _suptitle(
-    fig, ds, title: str | None, axes_names, missing: MarginScale | None, drawn: str = ""
+    fig,
+    ds,
+    title: str | None,
+    axes_names,
+    missing: MarginScale | None,
+    drawn: str = "",
+    subtitle: str | None = None,
 ) -> None:
     """The figure title: ``title``, else the spec, the poses, the base pose
     and the tension, a line on the spec's values the map overrode, a line
     ``drawn`` on the slices left out (maps of more than two axes), and a
-    line when the margin was asked for but the map has none."""
+    line when the margin was asked for but the map has none; then
+    ``subtitle``."""
     if title is None:
         tension = ds.attrs.get("tension", "?")
         try:
@@ -563,6 +573,8 @@ def _suptitle(
         if missing is not None:
             what = "reach margin" if missing.variable == "reach_margin" else "POC margin"
             title += f"\n{what} not computed (map made with --no-margin): no margin panel"
+    if subtitle:
+        title += "\n" + textwrap.fill(subtitle, int(12 * fig.get_figwidth()))
     fig.suptitle(title, fontsize=11)
 
 
@@ -670,6 +682,7 @@ def save_map_plot(
     path: Mapping[str, Any] | POCPath | None = None,
     max_slices: int = 6,
     title: str | None = None,
+    subtitle: str | None = None,
 ) -> Path:
     """Draw a map with :func:`plot_map` and write it to the file ``image``
     in the format of its extension (PNG without one); returns the file
@@ -693,6 +706,7 @@ def save_map_plot(
         path=path,
         max_slices=max_slices,
         title=title,
+        subtitle=subtitle,
     )
     out.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out, dpi=dpi)

@@ -7,6 +7,7 @@ import heapq
 import inspect
 import json
 import math
+import re
 import socket
 from collections import deque
 
@@ -417,6 +418,29 @@ def test_path_command_exits_4_when_a_leg_misses(stores, capsys, monkeypatch):
     assert main(argv) == 4
     out = capsys.readouterr().out
     assert out.rstrip().endswith("1 of 2 legs reached their waypoint's output")
+    # the picture's title says so too, naming the leg
+    pytest.importorskip("matplotlib")
+    import cdpm.plotting
+
+    titles = []
+    real_plot = cdpm.plotting.plot_map
+
+    def recorded(*args, **kwargs):
+        fig = real_plot(*args, **kwargs)
+        titles.append(fig.get_suptitle())
+        return fig
+
+    monkeypatch.setattr(cdpm.plotting, "plot_map", recorded)
+    assert main([*argv, "--plot", str(stores["vertical"].parent / "legs.png")]) == 4
+    leg = re.search(r"^  +2 +(\d+) +(\d+) .* no$", capsys.readouterr().out, re.M)
+    assert (
+        titles[0]
+        .splitlines()[-1]
+        .startswith(
+            f"steered along 2 leg(s): 1 reached their waypoint's output; missed: leg 2 (waypoints "
+            f"{leg.group(1)} to {leg.group(2)}) by "
+        )
+    )
 
 
 def test_path_command_warns_of_suspect_steps(stores, paper, capsys):

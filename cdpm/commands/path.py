@@ -152,7 +152,8 @@ def run(args: argparse.Namespace) -> int:
     if args.plot:
         from cdpm.plotting import save_map_plot
 
-        written = save_map_plot(ds, args.plot, path=path)
+        subtitle = None if legs is None else _legs_caption(legs, _miss_unit(robot.get("--steer")))
+        written = save_map_plot(ds, args.plot, path=path, subtitle=subtitle)
         print(f"plot written to {written}", file=out)
     if args.json:
         result = {"connected": True, **path.as_dict()}
@@ -274,9 +275,7 @@ def _steer_legs(robot: CableRobot, ds, path, legs: int, out) -> list[dict]:
         "equilibrium of a waypoint to the output of the next one listed:",
         file=out,
     )
-    from cdpm.reach import reach_unit
-
-    unit = reach_unit(robot.output_units).replace(" and ", ", ").replace(", one to one", "")
+    unit = _miss_unit(robot)
     print(
         f"  {'leg':>4} {'from':>5} {'to':>5} {f'distance [{unit}]':>13} {f'miss [{unit}]':>10} "
         f"{'T [s]':>7}  reached",
@@ -321,6 +320,28 @@ def _steer_legs(robot: CableRobot, ds, path, legs: int, out) -> list[dict]:
     legs_text = f"{len(rows)} legs reached their" if len(rows) != 1 else "1 leg reached its"
     print(f"{reached} of {legs_text} waypoint's output", file=out)
     return rows
+
+
+def _miss_unit(robot: CableRobot) -> str:
+    """The unit of the legs' distances and misses: the outputs' (``m``,
+    ``rad``, or ``m, rad``)."""
+    from cdpm.reach import reach_unit
+
+    return reach_unit(robot.output_units).replace(" and ", ", ").replace(", one to one", "")
+
+
+def _legs_caption(legs: list[dict], unit: str) -> str:
+    """How steering along the path went, for the picture's title: ``"steered
+    along 18 leg(s): 17 reached their waypoint's output; missed: leg 16
+    (waypoints 72 to 76) by 0.378 m"``."""
+    reached = sum(leg["reached"] for leg in legs)
+    text = f"steered along {len(legs)} leg(s): {reached} reached their waypoint's output"
+    missed = [
+        f"leg {k} (waypoints {leg['from']} to {leg['to']}) by {leg['miss']:.3g} {unit}"
+        for k, leg in enumerate(legs, start=1)
+        if not leg["reached"]
+    ]
+    return text + ("; missed: " + ", ".join(missed) if missed else "")
 
 
 def _path_trajectory(robot: CableRobot, ds, path):
