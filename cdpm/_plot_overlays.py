@@ -17,6 +17,9 @@ MAX_NUMBERED_REGIONS = 15
 #: smallest region numbered, as a fraction of the panel's poses (the
 #: largest region on a panel is always numbered)
 MIN_NUMBERED_FRACTION = 0.005
+#: most pieces of one region numbered on a panel (a region across the seams
+#: of two full turns shows as up to four)
+MAX_NUMBERED_PIECES = 4
 #: resolution of the nearest-sample raster behind the outlines of sampled maps
 _SAMPLE_RASTER = 200
 #: region outlines follow a region's outer boundary and its holes, but not
@@ -102,18 +105,25 @@ def _outline_segments(
     return segments
 
 
-def _label_cell(mask: np.ndarray) -> tuple[int, int]:
-    """The cell deepest inside the largest connected piece of ``mask``
-    (2-D bool): where a region's number reads best."""
+def _label_cells(mask: np.ndarray, smallest: float) -> list[tuple[int, int]]:
+    """Where a region's number reads best on each of its pieces on the
+    panel (the connected pieces of ``mask``, 2-D bool; a region that wraps
+    around a full turn shows as several): the cell deepest inside each
+    piece of at least ``smallest`` cells, largest first (the largest piece
+    always), at most MAX_NUMBERED_PIECES."""
     from scipy import ndimage
 
     pieces, n = ndimage.label(mask)
-    if n > 1:
-        sizes = ndimage.sum_labels(mask, pieces, index=np.arange(1, n + 1))
-        mask = pieces == 1 + int(np.argmax(sizes))
-    depth = ndimage.distance_transform_edt(np.pad(mask, 1))[1:-1, 1:-1]
-    i, j = np.unravel_index(int(np.argmax(depth)), mask.shape)
-    return int(i), int(j)
+    sizes = ndimage.sum_labels(mask, pieces, index=np.arange(1, n + 1))
+    order = np.argsort(-sizes, kind="stable")
+    chosen = [k for k in order if sizes[k] >= smallest] or list(order[:1])
+    cells = []
+    for k in chosen[:MAX_NUMBERED_PIECES]:
+        piece = pieces == k + 1
+        depth = ndimage.distance_transform_edt(np.pad(piece, 1))[1:-1, 1:-1]
+        i, j = np.unravel_index(int(np.argmax(depth)), piece.shape)
+        cells.append((int(i), int(j)))
+    return cells
 
 
 def _numbered(ids: np.ndarray) -> tuple[list[int], list[int]]:
@@ -163,14 +173,15 @@ def _outline(ax, ids: np.ndarray, x_edges, y_edges, owners: np.ndarray | None = 
 
 
 def _number_cells(ax, ids: np.ndarray, numbered: list[int], x_edges, y_edges) -> None:
-    """Each numbered region's number at the cell deepest inside its
-    largest piece of the grid ``ids`` (nx, ny)."""
+    """Each numbered region's number at the cell deepest inside each of
+    its pieces on the grid ``ids`` (nx, ny) of at least
+    MIN_NUMBERED_FRACTION of the panel's cells (its largest piece always)."""
     xc = 0.5 * (x_edges[1:] + x_edges[:-1])
     yc = 0.5 * (y_edges[1:] + y_edges[:-1])
     for k in numbered:
         if np.any(ids == k):
-            i, j = _label_cell(ids == k)
-            _number(ax, xc[i], yc[j], k)
+            for i, j in _label_cells(ids == k, MIN_NUMBERED_FRACTION * ids.size):
+                _number(ax, xc[i], yc[j], k)
 
 
 def draw_regions_grid(ax, ids: np.ndarray, x_edges, y_edges) -> tuple[int, bool]:

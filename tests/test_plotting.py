@@ -984,6 +984,27 @@ def test_path_start_and_goal_on_the_edge_of_the_map_are_not_cut_off(paper_map):
         assert not goal.get_clip_on() and not start.get_clip_on()
 
 
+def test_every_piece_of_a_region_on_a_panel_is_numbered(vertical_map):
+    """A region across the seams of the full turns shows as several pieces
+    on the panel; each piece big enough gets the region's number (only the
+    largest one was numbered, and the others read as unnamed regions)."""
+    from scipy import ndimage
+
+    from cdpm._plot_overlays import MIN_NUMBERED_FRACTION
+    from cdpm.plotting import plot_map
+
+    ids = vertical_map.poc_region.transpose("q1", "q2").values
+    verdict = plot_map(vertical_map, margin=False, output_view=False).axes[0]
+    numbers = _region_numbers(verdict)
+    pieces_of = {}
+    for k in np.unique(ids[ids > 0]):
+        pieces, n = ndimage.label(ids == k)
+        sizes = ndimage.sum_labels(ids == k, pieces, index=np.arange(1, n + 1))
+        pieces_of[str(k)] = max(1, int((sizes >= MIN_NUMBERED_FRACTION * ids.size).sum()))
+    assert {k: numbers.count(k) for k in pieces_of} == pieces_of
+    assert max(pieces_of.values()) >= 2  # the gravity arm's regions wrap around
+
+
 def test_a_pocpath_is_drawn_with_its_suspect_steps(paper_map):
     """plot_map takes a POCPath: its steps that may cross a thin NO set
     are drawn over in magenta on the verdict and margin panels, and the
