@@ -122,6 +122,58 @@ class TensionProfile:
         return self.values[min(max(k, 0), self.values.shape[0] - 1)]
 
 
+#: how outputs of small motions are shown: in thousandths of metres and radians
+_MILLI = {"m": "mm", "rad": "mrad"}
+
+
+def display_unit(unit: str) -> tuple[float, str]:
+    """(factor, unit shown) of an output change in ``unit`` on a plot of a
+    small motion: metres as mm, radians as mrad, an output mixing both
+    (``"mixed"``, or ``reach_unit``'s ``"m and rad, one to one"``) as
+    ``"mm, mrad"``; other units as they are."""
+    if unit in _MILLI:
+        return 1e3, _MILLI[unit]
+    if unit == "mixed" or unit.startswith("m and rad"):
+        return 1e3, "mm, mrad"
+    return 1.0, unit
+
+
+def tension_panel(ax, time, values, names, equilibrium=None) -> None:
+    """Tensions [N] on ``ax``: a step line per cable of the profile
+    ``values`` (K, m) on knots ``time`` (K + 1,), or of samples (K, m) at
+    ``time`` (K,); with ``equilibrium`` (m,), each cable's f* dotted in its
+    colour. Cables at 0 N throughout are named in the title instead of
+    drawn on top of each other; the legend goes right of the axes."""
+    values = np.asarray(values, dtype=float)
+    stepped = len(time) == values.shape[0] + 1
+    f_eq = np.zeros(len(names)) if equilibrium is None else np.asarray(equilibrium, dtype=float)
+    idle = [n for j, n in enumerate(names) if not np.any(values[:, j]) and f_eq[j] == 0]
+    for j, name in enumerate(names):
+        if name in idle:
+            continue
+        if stepped:
+            held = np.append(values[:, j], values[-1, j])
+            (line,) = ax.step(time, held, where="post", label=name)
+        else:
+            (line,) = ax.plot(time, values[:, j], label=name)
+        if equilibrium is not None:
+            ax.axhline(f_eq[j], color=line.get_color(), ls=":", lw=1.0)
+    ax.set_ylabel("cable tension [N]")
+    ax.grid(alpha=0.3)
+    title = "tensions" + ("; dotted: equilibrium f*" if equilibrium is not None else "")
+    if idle:
+        title += f"\nat 0 N throughout: {', '.join(idle)}"
+    ax.set_title(title, fontsize=9)
+    if len(idle) < len(names):
+        ax.legend(
+            fontsize=7,
+            loc="center left",
+            bbox_to_anchor=(1.01, 0.5),
+            frameon=False,
+            ncol=1 + (len(names) - len(idle)) // 9,
+        )
+
+
 @dataclass(frozen=True)
 class Trajectory:
     """A simulated motion, sampled at times t.
@@ -131,12 +183,14 @@ class Trajectory:
         q: configurations, shape (T, nq).
         v: velocities (tangent space), shape (T, nv).
         f: cable tensions applied at each sample [N], shape (T, m).
-        y: outputs, shape (T, p) [m or rad].
+        y: outputs, shape (T, p), each in its unit (``output_units``).
         lengths: cable lengths [m], shape (T, m).
         tension_min, tension_max: the cables' bounds [N], each (m,).
         cable_names, output_names, coordinate_names: labels.
         profile: the piecewise-constant profile simulated, or None for a
             feedback law.
+        output_units: each output's unit (``"m"``, ``"rad"``, ``"mixed"``
+            or a spec's ``unit:``); empty: metres.
     """
 
     t: np.ndarray
@@ -151,6 +205,12 @@ class Trajectory:
     output_names: tuple[str, ...]
     coordinate_names: tuple[str, ...]
     profile: TensionProfile | None = None
+    output_units: tuple[str, ...] = ()
+
+    @property
+    def units(self) -> tuple[str, ...]:
+        """Each output's unit (``output_units``, metres when not given)."""
+        return self.output_units or ("m",) * len(self.output_names)
 
     @property
     def out_of_bounds(self) -> np.ndarray:
@@ -173,7 +233,11 @@ class Trajectory:
             {
                 "tension": (("time", "cable"), self.f, {"units": "N"}),
                 "cable_length": (("time", "cable"), self.lengths, {"units": "m"}),
-                "y": (("time", "output"), self.y, {"long_name": "outputs", "units": "m"}),
+                "y": (
+                    ("time", "output"),
+                    self.y,
+                    {"long_name": "outputs", "units": ", ".join(dict.fromkeys(self.units))},
+                ),
                 "v": (
                     ("time", "velocity"),
                     self.v,
@@ -190,6 +254,7 @@ class Trajectory:
                 "time": ("time", self.t, {"units": "s"}),
                 "cable": list(self.cable_names),
                 "output": list(self.output_names),
+                "output_unit": ("output", list(self.units)),
                 "velocity": [f"{c}_dot" for c in self.coordinate_names],
                 "tension_min": ("cable", self.tension_min, {"units": "N"}),
                 "tension_max": ("cable", self.tension_max, {"units": "N"}),
@@ -197,40 +262,39 @@ class Trajectory:
             attrs={"within_bounds": int(self.within_bounds)},
         )
 
-    def plot(self, path=None, *, title: str | None = None, target=None):
-        """Outputs y(t) (change from the start) and tensions f(t) in two
-        panels; with ``path``, saved there. ``target`` (p,) draws the
-        outputs' targets. Returns the matplotlib Figure."""
+    def plot(self, path=None, *, title: str | None = None, target=None, equilibrium=None):
+        """Outputs y(t) (change from the start; metres as mm, radians as
+        mrad) and tensions f(t) in two panels; with ``path``, saved there.
+        ``target`` (p,) draws the outputs' targets, ``equilibrium`` (m,) the
+        cables' equilibrium tensions f* [N]. Returns the matplotlib Figure."""
         from cdpm.plotting import _matplotlib
 
         _, Figure = _matplotlib()
         fig = Figure(figsize=(8, 6), layout="constrained")
         ax_y, ax_f = fig.subplots(2, 1, sharex=True)
         dy = self.y - self.y[0]
+        shown = [display_unit(u) for u in self.units]
         for i, name in enumerate(self.output_names):
-            (line,) = ax_y.plot(self.t, dy[:, i] * 1e3, label=name)
+            factor, unit = shown[i]
+            (line,) = ax_y.plot(self.t, dy[:, i] * factor, label=f"{name} [{unit}]")
             if target is not None:
                 ax_y.axhline(
-                    (target[i] - self.y[0, i]) * 1e3,
+                    (target[i] - self.y[0, i]) * factor,
                     color=line.get_color(),
                     ls="--",
                     lw=0.8,
                     label=f"{name} target",
                 )
-        ax_y.set_ylabel("output change y - y(0) [mm]")
+        units = ", ".join(dict.fromkeys(unit for _, unit in shown))
+        ax_y.set_ylabel(f"output change y - y(0) [{units}]")
         ax_y.legend(loc="best", fontsize=8)
         ax_y.grid(alpha=0.3)
-        times = self.t if self.profile is None else self.profile.time
-        for j, name in enumerate(self.cable_names):
-            if self.profile is None:
-                ax_f.plot(self.t, self.f[:, j], label=name)
-            else:
-                vals = np.append(self.profile.values[:, j], self.profile.values[-1, j])
-                ax_f.step(times, vals, where="post", label=name)
+        if self.profile is None:
+            tension_panel(ax_f, self.t, self.f, self.cable_names, equilibrium)
+        else:
+            profile = self.profile
+            tension_panel(ax_f, profile.time, profile.values, self.cable_names, equilibrium)
         ax_f.set_xlabel("time [s]")
-        ax_f.set_ylabel("cable tension [N]")
-        ax_f.legend(loc="best", fontsize=8, ncol=2)
-        ax_f.grid(alpha=0.3)
         if title:
             fig.suptitle(title, fontsize=10)
         if path is not None:
@@ -546,4 +610,5 @@ def simulate(
         output_names=tuple(robot.output_names),
         coordinate_names=tuple(robot.coordinate_names),
         profile=profile,
+        output_units=tuple(robot.output_units),
     )

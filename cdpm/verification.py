@@ -129,6 +129,14 @@ class VerifyReport:
             "runs": self.rows(),
         }
 
+    @property
+    def unit(self) -> str:
+        """The unit of R and the misses: the outputs' (``m``, ``rad`` or
+        ``m and rad, one to one``, :func:`cdpm.reach.reach_unit`)."""
+        from cdpm.reach import reach_unit
+
+        return reach_unit(self.runs[0].trajectory.units) if self.runs else "m"
+
     def __str__(self) -> str:
         where = f"pose {self.pose_name!r}" if self.pose_name else "the given q"
         how = (
@@ -138,7 +146,7 @@ class VerifyReport:
         )
         lines = [
             f"cdpm verify: {self.model_name}, {where}: POC {self.verdict.upper()}",
-            f"  targets at R = {self.radius:.4g} m ({how}) from y0 = "
+            f"  targets at R = {self.radius:.4g} {self.unit} ({how}) from y0 = "
             f"{np.array2string(self.y0, precision=6)}",
         ]
         if self.blocked_direction is not None:
@@ -192,42 +200,60 @@ class VerifyReport:
         """Output change and tensions of every run (one row per run); with
         ``path``, saved there. Returns the Figure."""
         from cdpm.plotting import _matplotlib
+        from cdpm.simulation import display_unit, tension_panel
 
         _, Figure = _matplotlib()
         n = len(self.runs)
-        fig = Figure(figsize=(9, 2.2 * max(n, 1) + 0.6), layout="constrained")
+        factor, unit = display_unit(self.unit)
+        fig = Figure(figsize=(9.5, 2.4 * max(n, 1) + 0.8), layout="constrained")
         axes = fig.subplots(max(n, 1), 2, squeeze=False)
         for i, (d, run) in enumerate(zip(self.directions, self.runs, strict=True)):
             traj = run.trajectory
             ax_y, ax_f = axes[i]
-            ax_y.plot(traj.t, ((traj.y - self.y0) @ d) * 1e3, color="k", label="along target")
-            ax_y.axhline(self.radius * 1e3, color="k", ls="--", lw=0.8, label="target")
-            ax_y.set_ylabel("d.(y - y0) [mm]")
+            ax_y.plot(traj.t, ((traj.y - self.y0) @ d) * factor, color="k", label="progress")
+            ax_y.axhline(self.radius * factor, color="k", ls="--", lw=0.8, label="target (R)")
+            ax_y.set_ylabel(f"progress along d [{unit}]")
             word = "reached" if run.reached else "NOT reached"
             ax_y.set_title(
-                f"direction {np.array2string(d + 0.0, precision=2)}: {word}, "
-                f"miss {run.miss * 1e3:.2g} mm",
+                f"d = {direction_text(d, traj.output_names)}: {word}, "
+                f"miss {run.miss * factor:.2g} {unit}",
                 fontsize=9,
             )
             ax_y.grid(alpha=0.3)
-            for j, name in enumerate(traj.cable_names):
-                vals = np.append(run.tension[:, j], run.tension[-1, j])
-                ax_f.step(run.time, vals, where="post", label=name)
-            ax_f.set_ylabel("tension [N]")
-            ax_f.grid(alpha=0.3)
+            tension_panel(ax_f, run.time, run.tension, traj.cable_names, run.equilibrium_tension)
             if i == 0:
                 ax_y.legend(fontsize=7, loc="best")
-                ax_f.legend(fontsize=7, loc="best", ncol=2)
         axes[-1][0].set_xlabel("time [s]")
         axes[-1][1].set_xlabel("time [s]")
-        fig.suptitle(
+        title = (
             f"{self.model_name}, {self.pose_name or 'q'}: POC {self.verdict.upper()}, "
-            f"R = {self.radius * 1e3:.3g} mm",
-            fontsize=10,
+            f"targets at R = {self.radius * factor:.3g} {unit}"
         )
+        if self.blocked_direction is not None:
+            names = self.runs[0].trajectory.output_names if self.runs else ()
+            title += (
+                f"\nblocked direction v = {direction_text(self.blocked_direction, names)}: shown, "
+                "the pull of one cable that moved the output furthest along v"
+            )
+            progress = self.blocked_progress()
+            if progress is not None and progress <= 0:
+                title += " (none moved it along v)"
+        fig.suptitle(title, fontsize=10)
         if path is not None:
             fig.savefig(path, dpi=100)
         return fig
+
+
+def direction_text(d: np.ndarray, names: tuple[str, ...]) -> str:
+    """An output-space direction in words: ``"+tip_x"``, ``"-tip_z"`` or
+    ``"0.71 tip_x - 0.71 tip_z"`` (components below 1e-9 left out)."""
+    terms = [(float(c), n) for c, n in zip(d, names, strict=False) if abs(c) > 1e-9]
+    if not names or len(names) != len(d):
+        return np.array2string(np.asarray(d) + 0.0, precision=2)
+    if len(terms) == 1 and abs(abs(terms[0][0]) - 1.0) < 1e-9:
+        return ("+" if terms[0][0] > 0 else "-") + terms[0][1]
+    text = " ".join(f"{'-' if c < 0 else '+'} {abs(c):.2g} {n}" for c, n in terms)
+    return text[2:] if text.startswith("+ ") else "-" + text[2:]
 
 
 def default_radius(robot: CableRobot, q: Any) -> tuple[float, float]:

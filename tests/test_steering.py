@@ -303,6 +303,45 @@ def test_verify_and_steer_commands(capsys, tmp_path):
     assert "SOME TARGETS MISSED" in capsys.readouterr().out
 
 
+def test_motion_plots_show_each_output_in_its_unit_and_the_cables_that_pull():
+    """Output changes are drawn in mm or mrad by the output's unit (rotations
+    were labelled mm), directions in output names, cables at 0 N throughout
+    named instead of drawn under each other, and f* dotted."""
+    pytest.importorskip("matplotlib")
+    from cdpm.simulation import display_unit
+    from cdpm.verification import direction_text
+
+    assert display_unit("m") == (1e3, "mm") and display_unit("rad") == (1e3, "mrad")
+    assert display_unit("m and rad, one to one") == (1e3, "mm, mrad")
+    assert display_unit("N") == (1.0, "N")
+    names = ("tip_x", "tip_z")
+    assert direction_text(np.array([0.0, -1.0]), names) == "-tip_z"
+    assert direction_text(np.array([0.6, -0.8]), names) == "0.6 tip_x - 0.8 tip_z"
+    assert direction_text(np.array([-0.6, 0.8]), names) == "-0.6 tip_x + 0.8 tip_z"
+    robot = cdpm.load_robot(MODELS / "spatial_8cable" / "spatial_8cable_pose.yaml")
+    assert "rad" in robot.output_units and "m" in robot.output_units
+    res = cdpm.steer(robot, "centre", robot.output("centre") + 0.002)
+    assert res.trajectory.output_units == robot.output_units
+    fig = res.trajectory.plot(target=res.target, equilibrium=res.equilibrium_tension)
+    ax_y, ax_f = fig.axes[:2]
+    assert ax_y.get_ylabel() == "output change y - y(0) [mm, mrad]"
+    labels = [t.get_text() for t in ax_y.get_legend().get_texts()]
+    units = dict(zip(robot.output_names, robot.output_units, strict=True))
+    for name, unit in units.items():
+        assert f"{name} [{'mm' if unit == 'm' else 'mrad'}]" in labels
+    assert res.trajectory.to_dataset().y.attrs["units"] == "m, rad"
+    # two-cable arm: c2 never pulls at the NO pose's attempt; it is named, not drawn
+    report = cdpm.verify_pose(cdpm.load_robot(TWO_CABLES), "nominal", radius=0.004)
+    fig = report.plot()
+    ax_y, ax_f = fig.axes[:2]
+    assert ax_y.get_title().startswith("d = +tip_x: NOT reached, miss ")
+    assert ax_y.get_ylabel() == "progress along d [mm]"
+    assert ax_f.get_title() == "tensions; dotted: equilibrium f*\nat 0 N throughout: c2"
+    assert [t.get_text() for t in ax_f.get_legend().get_texts()] == ["c3"]
+    assert "blocked direction v = +tip_x" in fig.get_suptitle()
+    assert fig.get_suptitle().endswith("(none moved it along v)")
+
+
 def test_remark_11_on_the_nonlinear_robot(paper):
     """Seed paper Remark 11 at the nominal pose: the Brammer witness w gives
     a quantity w.x (x = (q - q*, q')) that nonnegative tensions never raise

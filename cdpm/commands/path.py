@@ -372,6 +372,7 @@ def _path_trajectory(robot: CableRobot, ds, path):
         cable_names=tuple(robot.cable_names),
         output_names=tuple(robot.output_names),
         coordinate_names=tuple(robot.coordinate_names),
+        output_units=tuple(robot.output_units),
     )
 
 

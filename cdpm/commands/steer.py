@@ -117,11 +117,16 @@ def run(args: argparse.Namespace) -> int:
     if args.plot:
         where = f"pose {pose!r}" if isinstance(pose, str) else "the given q"
         word = "reached" if result.reached else "NOT reached"
+        from cdpm.reach import reach_unit
+        from cdpm.simulation import display_unit
+
+        factor, unit = display_unit(reach_unit(robot.output_units))
         result.trajectory.plot(
             args.plot,
             title=f"{robot.spec.path.name}, {where}: steering to the dashed target, {word} "
-            f"(miss {result.miss * 1e3:.2g} mm)",
+            f"(miss {result.miss * factor:.2g} {unit})",
             target=result.target,
+            equilibrium=result.equilibrium_tension,
         )
     if args.json:
         print(json_text(result.as_dict()))
