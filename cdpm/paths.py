@@ -105,6 +105,8 @@ class POCPath:
             seam the short way).
         maximise_margin: the path maximises its smallest margin.
         units: axis -> unit (``"rad"``, ``"m"``).
+        margin_unit: the unit of ``margins`` (the map variable's ``units``;
+            "" for the unitless poc_margin).
         seam_crossings: steps i (waypoint i to i+1) that cross the seam of an
             axis that wraps (the coordinates jump there by about a turn).
         suspect_steps: steps i (waypoint i to i+1) that may cross a NO set
@@ -128,6 +130,7 @@ class POCPath:
     length: float
     maximise_margin: bool = False
     units: dict[str, str] = field(default_factory=dict)
+    margin_unit: str = ""
     seam_crossings: tuple[int, ...] = ()
     suspect_steps: tuple[int, ...] | None = None
     start_pose: dict[str, float] = field(default_factory=dict)
@@ -166,6 +169,7 @@ class POCPath:
             "length": self.length,
             "maximise_margin": self.maximise_margin,
             "margin_variable": self.margin_variable,
+            "margin_unit": self.margin_unit,
             "min_margin": _json_float(self.min_margin),
             "suspect_steps": None if self.suspect_steps is None else list(self.suspect_steps),
             "seam_crossings": list(self.seam_crossings),
@@ -216,7 +220,8 @@ class POCPath:
         if self.margin_variable is not None and np.any(np.isfinite(self.margins)):
             at = int(np.nanargmin(self.margins))
             lines.append(
-                f"  smallest {self.margin_variable} along it: {self.min_margin:.4g} (waypoint {at})"
+                f"  smallest {self.margin_variable} along it: {self.min_margin:.4g}"
+                f"{' ' + self.margin_unit if self.margin_unit else ''} (waypoint {at})"
             )
         else:
             lines.append("  no margins in this map")
@@ -237,7 +242,8 @@ class POCPath:
                 f"waypoint{'s' if len(rest) > 1 else ''} {', '.join(map(str, rest))} to the next"
             )
         head = "  waypoints:  #  " + " ".join(f"{a:>10}" for a in self.axes)
-        lines.append(head + ("  margin" if self.margin_variable else ""))
+        unit = f" [{self.margin_unit}]" if self.margin_unit else ""
+        lines.append(head + (f"  margin{unit}" if self.margin_variable else ""))
         show = list(range(k))
         if k > PRINT_WAYPOINTS:
             half = PRINT_WAYPOINTS // 2
@@ -584,6 +590,7 @@ def _make_path(ds, layout, indices, crossings, label, labels, margin, margin_nam
         length=length,
         maximise_margin=bool(maximise),
         units=dict(zip(layout.axes, layout.units, strict=True)),
+        margin_unit=str(ds[margin_name].attrs.get("units", "")) if margin_name else "",
         seam_crossings=crossings[0],
         suspect_steps=crossings[1],
         start_pose=map_pose(layout, tuple(indices[0])),

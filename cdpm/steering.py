@@ -151,13 +151,18 @@ class SteerResult:
         }
 
     def __str__(self) -> str:
+        from cdpm.reach import reach_unit
+
         word = "REACHED" if self.reached else "NOT REACHED"
+        traj = self.trajectory
+        unit = reach_unit(traj.units)
+        names = ", ".join(f"{n} [{u}]" for n, u in zip(traj.output_names, traj.units, strict=True))
         lines = [
             f"Steering: {word} ({self.status})",
-            f"  target {np.array2string(self.target, precision=6)} from "
+            f"  outputs ({names}): target {np.array2string(self.target, precision=6)} from "
             f"y0 {np.array2string(self.y0, precision=6)}; y(T) "
-            f"{np.array2string(self.trajectory.y[-1], precision=6)}",
-            f"  miss {self.miss:.3g} (tolerance {self.tolerance:.3g}) after "
+            f"{np.array2string(traj.y[-1], precision=6)}",
+            f"  miss {self.miss:.3g} {unit} (tolerance {self.tolerance:.3g} {unit}) after "
             f"{self.iterations} simulation(s); T = {self.duration:.4g} s, "
             f"{self.tension.shape[0]} intervals",
             f"  peak tension {self.peak_tension:.4g} N; tensions "
