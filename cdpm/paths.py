@@ -12,7 +12,9 @@ nearest the start to the one nearest the goal.
 - shortest: fewest steps on a grid, least length (sum of the distances in
   the sampled coordinates) on a sampled map (``scipy.sparse.csgraph``);
 - ``maximise_margin=True``: the path whose smallest margin (``reach_margin``,
-  else ``poc_margin``) is largest (the bottleneck), shortest among those.
+  else ``poc_margin``) between the start and the goal is largest (the
+  bottleneck; the two ends' margins are given, so a start of small margin
+  does not make every path tie), shortest among those.
   The bottleneck is found by bisection over the edges' margins (an edge's
   margin is the smaller of its two poses'): the largest threshold t for
   which the edges with margin >= t still join start and goal (connected
@@ -408,7 +410,8 @@ def poc_path(map: Any, start: Any, goal: Any, *, maximise_margin: bool = False) 
             robot's natural coordinates, or a pose name of the map's spec;
             each is moved to its nearest map pose.
         maximise_margin: maximise the smallest margin (``reach_margin``, else
-            ``poc_margin``) along the path, then take the shortest such path;
+            ``poc_margin``) of the waypoints between the start and the goal
+            (theirs are given), then take the shortest such path;
             default: the shortest path (fewest steps on a grid, least length
             on a sampled map). Suspect steps (:func:`suspect_edges`) are left
             out when start and goal stay joined without them.
@@ -469,6 +472,10 @@ def poc_path(map: Any, start: Any, goal: Any, *, maximise_margin: bool = False) 
                 "or ask for the shortest path"
             )
         node_margin = np.where(np.isfinite(node_margin), node_margin, -np.inf)
+        # the start's and goal's margins are given: the waypoints between them
+        # decide (a start of small margin made every path tie, and the
+        # shortest of them could hug a low-margin edge)
+        node_margin[[s, g]] = np.inf
         if suspect is not None and suspect.any() and _connected(n, edges[:, ~suspect], s, g):
             edges, lengths, suspect = edges[:, ~suspect], lengths[~suspect], suspect[~suspect]
         if s != g:

@@ -162,6 +162,26 @@ def test_maximin_path_keeps_the_largest_smallest_margin(paper):
     assert widest.steps >= shortest.steps
 
 
+def test_maximin_path_from_a_start_of_small_margin_widens_the_rest(paper):
+    """The start's and goal's margins are given: from a start whose margin
+    is the smallest on any path, every path tied and the shortest of them
+    was taken; the waypoints between them now have the largest smallest
+    margin there is (a widest-path search with the ends left out)."""
+    start, goal = [TURN[6], TURN[5]], [-2.0, -1.5]
+    widest = poc_path(paper, start, goal, maximise_margin=True)
+    shortest = poc_path(paper, start, goal)
+    _check_walk(paper, widest)
+    margin = _distinct_margin(paper, widest.margin_variable)
+    s = tuple(int(x) for x in widest.indices[0] % (N - 1))
+    g = tuple(int(x) for x in widest.indices[-1] % (N - 1))
+    assert widest.min_margin == margin[s] < 0.01  # the start is the bottleneck
+    inner = margin.copy()
+    inner[s] = inner[g] = np.inf
+    best = _widest_bottleneck(_distinct_yes(paper), inner, s, g)
+    assert np.min(widest.margins[1:-1]) == pytest.approx(best, rel=1e-12)
+    assert best > 4 * np.min(shortest.margins[1:-1])  # 0.077 against 0.018 m
+
+
 def test_a_path_across_the_seam_takes_the_short_way(paper):
     path = poc_path(paper, [2.9, 0.5], [-2.9, 0.5])
     assert path.steps <= 3  # across +-pi, not 28 steps the long way round

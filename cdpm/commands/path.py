@@ -28,7 +28,8 @@ Prints the region, the number of waypoints, the length, the smallest margin
 and the waypoints, and warns of steps that may cross a NO set thinner than
 the map's resolution (where the reach margin r_T at both ends is within one
 step's change of 0); --maximin maximises the smallest margin along the path
-instead of taking the shortest, avoiding such steps where it can. --plot
+(of the waypoints between the two ends, whose margins are given) instead of
+taking the shortest, avoiding such steps where it can. --plot
 draws the map with the path, --view plays the path in the 3-D viewer,
 --steer steers the simulated nonlinear robot from waypoint to waypoint and
 prints the miss at each."""
