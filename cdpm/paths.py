@@ -41,6 +41,7 @@ from typing import Any
 import numpy as np
 
 from cdpm.errors import InputError
+from cdpm.maps._sampled import default_radius, sample_distance, sample_edges
 from cdpm.maps.regions import (
     as_dataset,
     distinct,
@@ -50,7 +51,6 @@ from cdpm.maps.regions import (
     named_pose,
     nearest_index,
     region_labels,
-    sample_edges,
 )
 from cdpm.numerics import SUSPECT_LIPSCHITZ_SAFETY
 from cdpm.verdicts import STATUS_LABELS, VERDICT_LABELS, YES
@@ -435,8 +435,6 @@ def poc_path(map: Any, start: Any, goal: Any, *, maximise_margin: bool = False) 
     labels = np.asarray(labels_da.transpose(*layout.dims).values)
     radius = labels_da.attrs.get("radius") if layout.mode == "sample" else None
     if layout.mode == "sample" and radius is None:
-        from cdpm.maps.regions import default_radius
-
         radius = default_radius(layout)
     s_idx = nearest_index(ds, layout, start, radius)
     g_idx = nearest_index(ds, layout, goal, radius)
@@ -557,8 +555,6 @@ def _seams(layout, shown: list[np.ndarray]) -> tuple[int, ...]:
 def _make_path(ds, layout, indices, crossings, label, labels, margin, margin_name, maximise):
     """The :class:`POCPath` of dataset indices (k, d); ``crossings`` is
     (seam crossings, suspect steps or None)."""
-    from cdpm.maps.regions import sample_distance
-
     k = indices.shape[0]
     tup = tuple(indices.T)
     if layout.mode == "grid":

@@ -28,10 +28,8 @@ matplotlib writes (:func:`image_formats`).
 
 from __future__ import annotations
 
-import json
 import math
 import os
-import textwrap
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -69,6 +67,7 @@ from cdpm._plot_overlays import (
     region_count,
     region_handle,
 )
+from cdpm._plot_titles import map_suptitle, slices_text
 from cdpm.errors import InputError
 from cdpm.verdicts import VERDICT_COLORS
 
@@ -295,7 +294,7 @@ def plot_map(
     regions = region_count(ds) if variable == "poc" else 0
     if len(axes_names) == 1:
         fig = _plot_one_axis(ds, variable, axes_names[0], scale, choice, path, regions)
-        _suptitle(fig, ds, title, axes_names, missing, subtitle=subtitle)
+        map_suptitle(fig, ds, title, axes_names, missing, subtitle=subtitle)
         return fig
     slices: list[dict] = [{}]
     drawn = ""
@@ -305,7 +304,7 @@ def plot_map(
         picks = np.unique(np.linspace(0, n3 - 1, min(max_slices, n3)).round().astype(int))
         rest = {d: ds.sizes[d] // 2 for d in dims[3:]}
         slices = [{third: int(k), **rest} for k in picks]
-        drawn = _slices_text(ds, third, picks, rest)
+        drawn = slices_text(ds, third, picks, rest)
     panels = ["verdict"] * len(slices)
     if scale is not None:
         panels.append("margin")
@@ -324,22 +323,8 @@ def plot_map(
             _margin_grid_panel(ax, fig, ds, variable, dims, slices, scale, path)
         else:
             _verdict_grid_panel(ax, ds, variable, dims, slices, k, path, regions)
-    _suptitle(fig, ds, title, axes_names, missing, drawn, subtitle)
+    map_suptitle(fig, ds, title, axes_names, missing, drawn, subtitle)
     return fig
-
-
-def _slices_text(ds, third: str, picks: np.ndarray, rest: dict) -> str:
-    """What the slices of a map of more than two axes leave out, or "":
-    ``"slices: 6 of the 8 values of q3 (every other left out); q4 = 0 rad
-    only (the middle of its 3 values)"``."""
-    parts = []
-    n3 = ds.sizes[third]
-    if picks.size < n3:
-        parts.append(f"slices: {picks.size} of the {n3} values of {third}")
-    for d, i in rest.items():
-        value = coordinate_value(ds, d, float(ds[d].values[i]))
-        parts.append(f"{value} only (the middle of its {ds.sizes[d]} values)")
-    return "; ".join(parts)
 
 
 def _period(ds, name: str) -> float | None:
@@ -482,100 +467,6 @@ def _sample_panel(ax, fig, ds, variable, axes_names, kind, scale, path, regions)
     ax.set_xlabel(coordinate_label(ds, xn))
     ax.set_ylabel(coordinate_label(ds, yn))
     ax.set_box_aspect(1)
-
-
-#: most base coordinates a title lists
-_MAX_BASE_IN_TITLE = 6
-
-
-def _base_text(ds, axes_names: Sequence[str]) -> str:
-    """``"q2 = 1.047 (base)"``: the coordinates off the map's axes at the
-    base pose (attributes ``robot_coordinates`` and ``base``), or ""."""
-    names, base = ds.attrs.get("robot_coordinates"), ds.attrs.get("base")
-    try:
-        names, base = [str(n) for n in names], [float(v) for v in base]
-    except (TypeError, ValueError):
-        return ""
-    if len(names) != len(base):  # natural coordinates that are not named one by one
-        return ""
-    fixed = [  # + 0.0: no "-0"
-        f"{n} = {v + 0.0:.4g}" for n, v in zip(names, base, strict=True) if n not in axes_names
-    ]
-    if not fixed:
-        return ""
-    if len(fixed) > _MAX_BASE_IN_TITLE:
-        fixed = [*fixed[:_MAX_BASE_IN_TITLE], "..."]
-    return ", ".join(fixed) + " (base)"
-
-
-def _poses_text(ds, axes_names: Sequence[str]) -> str:
-    """``"q1: 181 poses, q2 = 1.047 (base)"``, ``"181 x 181 grid"``,
-    ``"2000 random poses"``: what the map covers."""
-    if "sample" in ds.dims:
-        poses = f"{ds.sizes['sample']} random poses"
-    elif len(axes_names) == 1:
-        poses = f"{axes_names[0]}: {ds.sizes[axes_names[0]]} poses"
-    else:
-        sizes = [ds.sizes[d] for d in ds.dims if d not in ("output", "xyz", "cable")]
-        poses = " x ".join(str(n) for n in sizes) + " grid"
-    base = _base_text(ds, axes_names)
-    return f"{poses}, {base}" if base else poses
-
-
-def _overrides_text(ds) -> str:
-    """``"overrides of the spec: gravity [0, 0, -5] m/s^2; ..."``: what the
-    map's robot changed of its spec (attribute ``overrides``), or ""."""
-    from cdpm.maps._plan import describe_overrides
-
-    try:
-        overrides = json.loads(ds.attrs.get("overrides", "{}"))
-    except (TypeError, ValueError):
-        return ""
-    if not isinstance(overrides, dict) or not overrides:
-        return ""
-    return f"overrides of the spec: {describe_overrides(overrides)}"
-
-
-def _suptitle(
-    fig,
-    ds,
-    title: str | None,
-    axes_names,
-    missing: MarginScale | None,
-    drawn: str = "",
-    subtitle: str | None = None,
-) -> None:
-    """The figure title: ``title``, else the spec, the poses, the base pose
-    and the tension, a line on the spec's values the map overrode, a line
-    ``drawn`` on the slices left out (maps of more than two axes), and a
-    line when the margin was asked for but the map has none; then
-    ``subtitle``."""
-    if title is None:
-        tension = ds.attrs.get("tension", "?")
-        try:
-            tension = json.loads(tension)
-        except (TypeError, ValueError):
-            pass
-        spec = Path(str(ds.attrs.get("spec", "map"))).name
-        head = f"{spec}: {_poses_text(ds, axes_names)}"
-        tail = f"equilibrium tension {tension}"
-        if "poc_some_tension" in ds and bool((ds["poc_some_tension"] >= 0).any()):
-            tail += " (and the tension search)"
-        # about 12 characters per inch at 11 points
-        width = int(12 * fig.get_figwidth())
-        fits = len(head) + len(tail) + 2 <= width
-        title = f"{head}, {tail}" if fits else f"{textwrap.fill(head, width)}\n{tail}"
-        overrides = _overrides_text(ds)
-        if overrides:
-            title += "\n" + textwrap.fill(overrides, width)
-        if drawn:
-            title += "\n" + textwrap.fill(drawn, width)
-        if missing is not None:
-            what = "reach margin" if missing.variable == "reach_margin" else "POC margin"
-            title += f"\n{what} not computed (map made with --no-margin): no margin panel"
-    if subtitle:
-        title += "\n" + textwrap.fill(subtitle, int(12 * fig.get_figwidth()))
-    fig.suptitle(title, fontsize=11)
 
 
 def _plot_one_axis(ds, variable, name, scale, choice: OutputChoice | None, path, regions: int):
