@@ -162,19 +162,26 @@ def check_dpi(dpi: Any) -> float:
     return value
 
 
-def _require_computed(ds, variable: str) -> None:
-    """Refuse a variable computed only on request (the tension search) in a
-    map made without that request: every pose would be 'not analysed'."""
+def _computed(ds, variable: str) -> bool:
+    """Whether the map computed ``variable``: not a variable computed only
+    on request (the tension search) in a map made without that request,
+    where every pose is 'not analysed'."""
     from cdpm.maps.criteria import CRITERIA
     from cdpm.verdicts import NOT_ANALYSED
 
     criterion = CRITERIA.get(variable)
-    if criterion is not None and criterion.on_request:
-        if bool((ds[variable] == NOT_ANALYSED).all()):
-            raise InputError(
-                f"{variable!r} was not computed in this map: it comes from the tension "
-                "search; make the map with --tension best (tension='best')"
-            )
+    if criterion is None or not criterion.on_request:
+        return True
+    return not bool((ds[variable] == NOT_ANALYSED).all())
+
+
+def _require_computed(ds, variable: str) -> None:
+    """Refuse a variable the map did not compute (:func:`_computed`)."""
+    if not _computed(ds, variable):
+        raise InputError(
+            f"{variable!r} was not computed in this map: it comes from the tension "
+            "search; make the map with --tension best (tension='best')"
+        )
 
 
 def _load(ds_or_path):
@@ -274,7 +281,11 @@ def plot_map(
     _, Figure = _matplotlib()
     ds = _load(ds_or_path)
     if variable not in ds or "flag_values" not in ds[variable].attrs or variable == "status":
-        choices = [v for v in ds.data_vars if "flag_values" in ds[v].attrs and v != "status"]
+        choices = [
+            v
+            for v in ds.data_vars
+            if "flag_values" in ds[v].attrs and v != "status" and _computed(ds, v)
+        ]
         raise InputError(f"{variable!r} is not a verdict of this map; choose one of {choices}")
     _require_computed(ds, variable)
     dims = _pose_dims(ds, variable)

@@ -143,8 +143,13 @@ def test_plot_rejects_unknown_variable(paper_robot):
     from cdpm.plotting import plot_map
 
     ds = workspace_map(paper_robot, {"q1": [0.1, 0.2]}, workers=1)
-    with pytest.raises(InputError, match="not a verdict of this map"):
+    # the choices are the map's verdicts, the tension search's only when it ran
+    with pytest.raises(InputError, match="not a verdict of this map") as info:
         plot_map(ds, variable="tension_max")
+    assert str(info.value).endswith(
+        "choose one of ['output_controllable', 'poc', 'positive_controllable', "
+        "'static_feasible', 'wrench_closure']"
+    )
     # status has flag meanings too, but its codes are not verdicts
     with pytest.raises(InputError, match="'status' is not a verdict of this map"):
         plot_map(ds, variable="status")
