@@ -283,7 +283,7 @@ def plot_map(
     if variable not in ds or "flag_values" not in ds[variable].attrs or variable == "status":
         choices = [
             v
-            for v in ds.data_vars
+            for v in sorted(ds.data_vars)
             if "flag_values" in ds[v].attrs and v != "status" and _computed(ds, v)
         ]
         raise InputError(f"{variable!r} is not a verdict of this map; choose one of {choices}")
