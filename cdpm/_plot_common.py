@@ -57,9 +57,9 @@ STATUS_TEXT = {
 #: a zero margin (not POC, or the horizon too short): red, outside the colour map
 ZERO_MARGIN_COLOR = "#e0312b"
 #: a pose analysed without a margin (r_T not resolvable in double precision,
-#: docs/analysis.md): light magenta, apart from the greys, the red and the
-#: colour map
-NO_MARGIN_COLOR = "#f0a8d8"
+#: docs/analysis.md): pink, apart from the greys, the red and the colour map
+#: (a lighter pink was hard to tell from the greys)
+NO_MARGIN_COLOR = "#e377c2"
 #: sequential colour map of positive margins (dark = small)
 MARGIN_CMAP = "viridis"
 

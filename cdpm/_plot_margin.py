@@ -177,14 +177,16 @@ def classify(values, status, verdict) -> tuple[np.ndarray, np.ndarray]:
 
 
 def category_handles(category: np.ndarray, scale: MarginScale) -> list:
-    """Legend patches of the categories present."""
+    """Legend patches of the categories present, each with its count of
+    poses (a few cells of a large map are easily missed)."""
     from matplotlib.patches import Patch
 
     handles = []
     for k, (label, colour) in enumerate(_categories()):
-        if np.any(category == k):
+        n = int(np.count_nonzero(category == k))
+        if n:
             text = scale.zero_label if k == ZERO else label
-            handles.append(Patch(facecolor=colour, edgecolor="0.3", label=text))
+            handles.append(Patch(facecolor=colour, edgecolor="0.3", label=f"{text} ({n})"))
     return handles
 
 

@@ -479,7 +479,7 @@ def test_one_axis_margin_line_splits_poses_without_a_margin(tmp_path):
     assert spans  # no equilibrium: grey spans behind the line
     labels = [t.get_text() for t in line.get_legend().get_texts()]
     assert any("not POC" in t for t in labels)
-    assert "not analysed: no equilibrium" in labels
+    assert f"not analysed: no equilibrium ({int((status == 3).sum())})" in labels
     assert save_map_plot(ds, tmp_path / "vertical_line.png").stat().st_size > 5_000
     # a bent elbow: POC regions end where poses without an equilibrium begin
     ds = _with_regions(workspace_map(spec, q1, base={"q2": 0.8}, workers=1))
@@ -629,14 +629,15 @@ def test_map_panels_read_at_a_glance(which, paper_map, vertical_map, tmp_path):
     ramp = positive_mesh.cmap(np.linspace(0, 1, 256))[:, :3]
     assert np.min(np.linalg.norm(ramp - to_rgb(ZERO_MARGIN_COLOR), axis=1)) > 0.3
     legend_texts = [t.get_text() for t in margin.get_legend().get_texts()]
-    assert "$r_T$ = 0 (not POC, or $T$ too short)" in legend_texts
+    # each category with its count of poses
+    assert f"$r_T$ = 0 (not POC, or $T$ too short) ({int(zero.sum())})" in legend_texts
     if which == "vertical":  # poses without an equilibrium, grey, named by reason
         unanalysed = status == 3
         assert unanalysed.any()
         expected = to_rgb(STATUS_COLORS[3])
         np.testing.assert_allclose(rgb[unanalysed], [expected] * int(unanalysed.sum()))
         assert np.linalg.norm(np.subtract(expected, to_rgb(ZERO_MARGIN_COLOR))) > 0.3
-        assert "not analysed: no equilibrium" in legend_texts
+        assert f"not analysed: no equilibrium ({int(unanalysed.sum())})" in legend_texts
     # the regions: numbered, the largest first; outlined where they meet the
     # wide grey areas of poses without an equilibrium (the paper's arm has
     # only thin or small NO pieces at 41 x 41: no outline)
