@@ -169,6 +169,11 @@ def render_pose(
 
     seen_states: dict[CableState, Any] = {}
     fixed = geometry.point_joint == 0
+    # taut cables in order of tension, the heaviest on top (cables whose
+    # projections coincide, e.g. an upper and a lower one seen from above,
+    # showed the lighter one's colour); a slack one above them all
+    rank = np.argsort(np.argsort(np.nan_to_num(np.asarray(state.tension, dtype=float))))
+    taut_z = 3.0 + 0.09 * rank / max(len(rank) - 1, 1)
     offset = 0
     # cable names at their anchors; cables whose anchors coincide in this
     # projection (e.g. an upper and a lower cable seen from above) share one label
@@ -183,7 +188,7 @@ def render_pose(
             color=rgb,
             lw=_CABLE_WIDTH[cstate],
             linestyle=_CABLE_STYLE[cstate],
-            zorder=3 if cstate is CableState.TAUT else 3.1,  # a slack one shows on a taut one
+            zorder=taut_z[i] if cstate is CableState.TAUT else 3.1,
         )
         seen_states.setdefault(cstate, line)
         on_world = fixed[offset : offset + len(route)]
@@ -269,6 +274,8 @@ def render_pose(
         titles = [title]
     handles = [seen_states[s] for s in CableState if s in seen_states]
     legend_labels = [_state_label(s, scale) for s in CableState if s in seen_states]
+    handles += _marker_handles(len(coms) > 0)
+    legend_labels += [h.get_label() for h in handles[len(legend_labels) :]]
     if marker is not None:
         handles.append(marker)
         legend_labels.append(f"output point: POC {_verdict_text(state)}")
@@ -346,6 +353,24 @@ def _draw_triad(ax, T: np.ndarray, length: float, h: int, v: int) -> list:
             )
         )
     return labels
+
+
+def _marker_handles(coms: bool) -> list:
+    """Legend entries of the picture's markers: joints, anchors on the
+    base, attachment points on the links and (``coms``) centres of mass."""
+    from matplotlib.lines import Line2D
+
+    def point(label: str, **style) -> Line2D:
+        return Line2D([], [], ls="", label=label, **style)
+
+    handles = [
+        point("joint", marker="o", ms=7, mfc="white", mec=COLORS["joint"], mew=1.8),
+        point("cable anchor on the base", marker="s", ms=6, color=COLORS["anchor"]),
+        point("cable attachment on a link", marker="o", ms=4, color=COLORS["attachment"]),
+    ]
+    if coms:
+        handles.append(point("link centre of mass", marker="o", ms=3, color=COLORS["com"]))
+    return handles
 
 
 def _axis_handles() -> list:

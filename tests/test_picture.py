@@ -281,6 +281,30 @@ def _arrows(ax):
     ]
 
 
+def test_heavier_cables_are_drawn_over_lighter_ones_and_every_marker_is_explained():
+    """Seen from the side, the IPAnema's upper and lower cables project onto
+    each other: the heavier is drawn on top (the 389 N c1 was hidden under
+    the 61 N c4), and the legend names the joints, anchors, attachments
+    and centres of mass."""
+    import cdpm
+    from cdpm.picture import render_pose
+    from cdpm.viewer.state import CableState, pose_state
+
+    robot = cdpm.load_robot(SPATIAL_SPEC)
+    fig = render_pose(robot, "offset", plane="xz")
+    ax = fig.axes[0]
+    state = pose_state(robot, "offset")
+    cables = [ln for ln in ax.get_lines() if 3.0 <= ln.get_zorder() <= 3.1]  # in cable order
+    assert len(cables) == robot.n_cables
+    taut = [k for k, s in enumerate(state.cable_states) if s is CableState.TAUT]
+    order = sorted(taut, key=lambda k: state.tension[k])
+    z = [cables[k].get_zorder() for k in order]
+    assert z == sorted(z) and len(set(z)) == len(z)  # strictly heavier on top
+    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    for marker in ("joint", "cable anchor on the base", "cable attachment on a link"):
+        assert marker in labels
+
+
 def test_orientation_outputs_draw_their_frame_axes(tmp_path):
     from cdpm.picture import render_pose
     from cdpm.viewer.state import AXIS_RGB
