@@ -526,17 +526,29 @@ def _plot_one_axis(ds, variable, name, scale, choice: OutputChoice | None, path,
             suspect=path.suspect,
         )
         handles += path_handles(path[name].size, suspect=len(path.suspect))
-    strip.legend(
-        handles=handles,
-        loc="lower left",
-        bbox_to_anchor=(0.0, 1.02),
-        ncol=min(len(handles), 4),
-        fontsize=8,
-        frameon=False,
-        borderaxespad=0.0,
-        handlelength=1.2,
-        columnspacing=1.0,
-    )
+    # above the strip, in as many columns as fit its width: a wider legend
+    # (a path's entries) set the width of the strip's column and squeezed it
+    room = 0.9 * fig.get_figwidth() * fig.dpi * widths[0] / sum(widths)
+    if not hasattr(fig.canvas, "get_renderer"):  # a bare Figure: measure with Agg
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+        FigureCanvasAgg(fig)
+    renderer = fig.canvas.get_renderer()
+    for ncol in range(min(len(handles), 4), 0, -1):
+        legend = strip.legend(
+            handles=handles,
+            loc="lower left",
+            bbox_to_anchor=(0.0, 1.02),
+            ncol=ncol,
+            fontsize=8,
+            frameon=False,
+            borderaxespad=0.0,
+            handlelength=1.2,
+            columnspacing=1.0,
+        )
+        if ncol == 1 or legend.get_window_extent(renderer).width <= room:
+            break
+        legend.remove()
     axis_label = coordinate_label(ds, name)
     if scale is not None:
         line = fig.add_subplot(left[1], sharex=strip)

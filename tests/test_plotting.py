@@ -1011,6 +1011,27 @@ def test_every_piece_of_a_region_on_a_panel_is_numbered(vertical_map):
     assert max(pieces_of.values()) >= 2  # the gravity arm's regions wrap around
 
 
+def test_a_path_legend_does_not_squeeze_a_one_axis_map():
+    """Above the strip of a one-axis map, a path's legend entries (with
+    its suspect steps) set the width of the strip's column, which shrank
+    to a sixth; the legend now takes as many rows as it needs."""
+    from cdpm.paths import poc_path
+    from cdpm.plotting import plot_map
+
+    ds = workspace_map(PAPER_SPEC, {"q1": (-np.pi, np.pi)}, samples=500, seed=0, workers=1)
+    path = poc_path(ds, {"q1": 0.0}, {"q1": 1.5})
+    assert path.suspect_steps  # the arm's NO pose near q1 = pi/3
+
+    def strip_width(fig) -> float:
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+        FigureCanvasAgg(fig).draw()  # the constrained layout, as when saved
+        return fig.axes[0].get_window_extent().width
+
+    plain, with_path = strip_width(plot_map(ds)), strip_width(plot_map(ds, path=path))
+    assert with_path > 0.9 * plain
+
+
 def test_a_pocpath_is_drawn_with_its_suspect_steps(paper_map):
     """plot_map takes a POCPath: its steps that may cross a thin NO set
     are drawn over in magenta on the verdict and margin panels, and the
