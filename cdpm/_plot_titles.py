@@ -17,14 +17,26 @@ from cdpm._plot_margin import MarginScale
 __all__ = ["map_suptitle", "slices_text"]
 
 
+#: most slice values left out that a title names one by one
+_MAX_NAMED_SLICES = 4
+
+
 def slices_text(ds, third: str, picks: np.ndarray, rest: dict) -> str:
     """What the slices of a map of more than two axes leave out, or "":
-    ``"slices: 6 of the 8 values of q3; q4 = 0 rad only (the middle of its
-    3 values)"``."""
+    ``"slices: 6 of the 8 values of q3 (not drawn: -0.257, 0.257 rad); q4 =
+    0 rad only (the middle of its 3 values)"``."""
     parts = []
     n3 = ds.sizes[third]
     if picks.size < n3:
-        parts.append(f"slices: {picks.size} of the {n3} values of {third}")
+        left = np.setdiff1d(np.arange(n3), picks)
+        units = ds[third].attrs.get("units", "")
+        values = np.asarray(ds[third].values, dtype=float)[left]
+        named = (
+            ", ".join(f"{v + 0.0:.3g}" for v in values) + (f" {units}" if units else "")
+            if left.size <= _MAX_NAMED_SLICES
+            else f"{left.size} values"
+        )
+        parts.append(f"slices: {picks.size} of the {n3} values of {third} (not drawn: {named})")
     for d, i in rest.items():
         value = coordinate_value(ds, d, float(ds[d].values[i]))
         parts.append(f"{value} only (the middle of its {ds.sizes[d]} values)")

@@ -311,8 +311,7 @@ def plot_map(
     drawn = ""
     if not sample and len(dims) > 2:
         third = dims[2]
-        n3 = ds.sizes[third]
-        picks = np.unique(np.linspace(0, n3 - 1, min(max_slices, n3)).round().astype(int))
+        picks = _slice_picks(ds, third, max_slices, path)
         rest = {d: ds.sizes[d] // 2 for d in dims[3:]}
         slices = [{third: int(k), **rest} for k in picks]
         drawn = slices_text(ds, third, picks, rest)
@@ -394,11 +393,39 @@ def _grid_path(ax, ds, dims, slices, k, path) -> bool:
     return sliced
 
 
+def _slice_index(ds, third: str, values: np.ndarray) -> np.ndarray:
+    """The index of the map value of ``third`` nearest each of ``values``."""
+    grid = np.asarray(ds[third].values, dtype=float)
+    return np.argmin(np.abs(np.asarray(values, dtype=float)[:, None] - grid[None, :]), axis=1)
+
+
+def _slice_picks(ds, third: str, max_slices: int, path) -> np.ndarray:
+    """Indices of the values of ``third`` drawn as slices: at most
+    ``max_slices`` (at least the path's ends), evenly spread, and with a
+    path (giving ``third``) the slices of its start and goal among them:
+    the spread slice nearest another is left out for each end added."""
+    n3 = ds.sizes[third]
+    spread = {int(k) for k in np.linspace(0, n3 - 1, min(max_slices, n3)).round()}
+    if path is None or third not in path:
+        return np.array(sorted(spread))
+    ends = {int(k) for k in _slice_index(ds, third, path[third][[0, -1]])}
+    picks = sorted(spread | ends)
+    while len(picks) > max(max_slices, len(ends)):
+        gaps = np.diff(picks)
+        # the spread slice with the smallest gap to a neighbour
+        crowded = sorted(
+            (min(gaps[i - 1] if i else n3, gaps[i] if i < len(gaps) else n3), k)
+            for i, k in enumerate(picks)
+            if k not in ends
+        )
+        picks.remove(crowded[0][1])
+    return np.array(picks)
+
+
 def _near_slice(ds, third: str, values: np.ndarray, slices: list[dict], k: int) -> np.ndarray:
-    """Which path poses have slice ``k`` as their nearest drawn slice."""
-    drawn = np.asarray(ds[third].values, dtype=float)[[s[third] for s in slices]]
-    nearest = np.argmin(np.abs(values[:, None] - drawn[None, :]), axis=1)
-    return nearest == k
+    """Which path poses lie in slice ``k`` (their nearest value of
+    ``third`` is the slice's); the others are drawn dashed there."""
+    return _slice_index(ds, third, values) == slices[k][third]
 
 
 def _margin_grid_panel(ax, fig, ds, variable, dims, slices, scale: MarginScale, path) -> None:

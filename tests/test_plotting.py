@@ -116,7 +116,7 @@ def test_plot_of_more_than_two_axes(tmp_path):
     ).transpose("q1", "q2", "z", "w", ...)
     fig = plot_map(four, max_slices=2, output_view=False)
     assert fig.get_suptitle().endswith(
-        "\nslices: 2 of the 3 values of z; w = 0 only (the middle of its 3 values)"
+        "\nslices: 2 of the 3 values of z (not drawn: 1); w = 0 only (the middle of its 3 values)"
     )
     titles = [ax.get_title() for ax in fig.axes if ax.get_title().startswith("POC verdict")]
     assert titles == ["POC verdict (z = 0)", "POC verdict (z = 2)"]
@@ -773,6 +773,23 @@ def test_slices_of_a_three_axis_map_carry_regions_and_the_path(paper_map):
     labels = [t.get_text() for t in slices[0].get_legend().get_texts()]
     assert "path (3 poses); dashed: away from this slice" in labels
     _assert_legends_outside(fig)
+    # eight values of z, six slices: the slices of the path's start and goal
+    # are drawn, and the path is solid only in the slice it lies in (it was
+    # drawn solid in the nearest slice drawn, which it never entered)
+    eight = xr.concat([ds] * 8, dim=xr.DataArray(np.arange(8.0), dims="z", name="z"))
+    eight = _with_regions(
+        eight.transpose("q1", "q2", "z", ...).assign_attrs(axes=["q1", "q2", "z"])
+    )
+    path = {"q1": [-1.0, 0.0, 1.0], "q2": [0.5, 1.0, 1.5], "z": [2.0, 2.0, 5.0]}
+    fig = plot_map(eight, path=path, max_slices=6)
+    slices = [ax for ax in fig.axes if ax.get_title().startswith("POC verdict (z = ")]
+    drawn = [float(ax.get_title()[len("POC verdict (z = ") : -1]) for ax in slices]
+    assert len(drawn) == 6 and {2.0, 5.0} <= set(drawn)
+    for ax, z in zip(slices, drawn, strict=True):
+        (line,) = [ln for ln in ax.get_lines() if ln.get_gid() == "path"]
+        solid = np.isfinite(np.asarray(line.get_xdata(), dtype=float))
+        np.testing.assert_array_equal(solid, np.array(path["z"]) == z)
+    assert "(not drawn: " in fig.get_suptitle()
 
 
 def test_sampled_map_gets_regions_path_and_log_margin(tmp_path):
