@@ -28,7 +28,11 @@ from cdpm._plot_common import (
     verdict_title,
 )
 from cdpm.errors import InputError
-from cdpm.verdicts import VERDICT_COLORS, VERDICT_LABELS
+from cdpm.verdicts import MARGINAL, NO, VERDICT_COLORS, VERDICT_LABELS
+
+#: least marker size [points^2] of NO and MARGINAL poses in the output panel:
+#: on a dense map (a 1 pt^2 marker for 14641 poses) they did not show
+RARE_VERDICT_MIN_SIZE = 6.0
 
 
 @dataclass(frozen=True)
@@ -217,7 +221,7 @@ def output_panel(ax, ds, variable: str, choice: OutputChoice, first_axis: str) -
             ax.scatter(
                 x_values[sel],
                 y_values[sel],
-                s=size,
+                s=max(size, RARE_VERDICT_MIN_SIZE) if c in (NO, MARGINAL) else size,
                 c=VERDICT_COLORS[int(c)],
                 linewidths=0,
                 label=VERDICT_LABELS[int(c)],

@@ -142,20 +142,24 @@ def tension_panel(ax, time, values, names, equilibrium=None) -> None:
     """Tensions [N] on ``ax``: a step line per cable of the profile
     ``values`` (K, m) on knots ``time`` (K + 1,), or of samples (K, m) at
     ``time`` (K,); with ``equilibrium`` (m,), each cable's f* dotted in its
-    colour. Cables at 0 N throughout are named in the title instead of
-    drawn on top of each other; the legend goes right of the axes."""
+    colour. Cables at 0 N throughout are named in the title, and cables
+    with the same tensions throughout share one line (``c1 = c2``), instead
+    of being drawn on top of each other; the legend goes right of the axes."""
     values = np.asarray(values, dtype=float)
     stepped = len(time) == values.shape[0] + 1
     f_eq = np.zeros(len(names)) if equilibrium is None else np.asarray(equilibrium, dtype=float)
     idle = [n for j, n in enumerate(names) if not np.any(values[:, j]) and f_eq[j] == 0]
+    groups: dict[tuple, list[int]] = {}  # cables with equal tensions and f*: one line
     for j, name in enumerate(names):
-        if name in idle:
-            continue
+        if name not in idle:
+            groups.setdefault((*values[:, j], f_eq[j]), []).append(j)
+    for members in groups.values():
+        j, label = members[0], " = ".join(names[k] for k in members)
         if stepped:
             held = np.append(values[:, j], values[-1, j])
-            (line,) = ax.step(time, held, where="post", label=name)
+            (line,) = ax.step(time, held, where="post", label=label)
         else:
-            (line,) = ax.plot(time, values[:, j], label=name)
+            (line,) = ax.plot(time, values[:, j], label=label)
         if equilibrium is not None:
             ax.axhline(f_eq[j], color=line.get_color(), ls=":", lw=1.0)
     ax.set_ylabel("cable tension [N]")
@@ -170,7 +174,7 @@ def tension_panel(ax, time, values, names, equilibrium=None) -> None:
             loc="center left",
             bbox_to_anchor=(1.01, 0.5),
             frameon=False,
-            ncol=1 + (len(names) - len(idle)) // 9,
+            ncol=1 + (len(groups) - 1) // 9,
         )
 
 
@@ -287,7 +291,8 @@ class Trajectory:
                 )
         units = ", ".join(dict.fromkeys(unit for _, unit in shown))
         ax_y.set_ylabel(f"output change y - y(0) [{units}]")
-        ax_y.legend(loc="best", fontsize=8)
+        # beside the panel, as the tensions' (inside, it covered the curves)
+        ax_y.legend(loc="center left", bbox_to_anchor=(1.01, 0.5), fontsize=8, frameon=False)
         ax_y.grid(alpha=0.3)
         if self.profile is None:
             tension_panel(ax_f, self.t, self.f, self.cable_names, equilibrium)

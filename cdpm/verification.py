@@ -139,6 +139,7 @@ class VerifyReport:
 
     def __str__(self) -> str:
         where = f"pose {self.pose_name!r}" if self.pose_name else "the given q"
+        names = self.runs[0].trajectory.output_names if self.runs else ()
         how = (
             "given"
             if self.radius_given
@@ -147,11 +148,15 @@ class VerifyReport:
         lines = [
             f"cdpm verify: {self.model_name}, {where}: POC {self.verdict.upper()}",
             f"  targets at R = {self.radius:.4g} {self.unit} ({how}) from y0 = "
-            f"{np.array2string(self.y0, precision=6)}",
+            + (
+                ", ".join(f"{n} {v:.6g}" for n, v in zip(names, self.y0, strict=True))
+                if len(names) == len(self.y0)
+                else np.array2string(self.y0, precision=6)
+            ),
         ]
         if self.blocked_direction is not None:
             lines.append(
-                f"  blocked direction v = {np.array2string(self.blocked_direction, precision=4)}"
+                f"  blocked direction v = {direction_text(self.blocked_direction, names)}"
                 f"; pulling each cable in turn, v.(y - y0) reached at most "
                 f"{self.blocked_progress():.3g} R"
             )
@@ -160,7 +165,7 @@ class VerifyReport:
             f"{'T [s]':>7} {'sims':>5}"
         )
         for row in self.rows():
-            d = np.array2string(np.array(row["direction"]) + 0.0, precision=3, suppress_small=True)
+            d = direction_text(np.array(row["direction"]), names)
             lines.append(
                 f"  {d:<28} {'yes' if row['reached'] else 'NO':>7} {row['relative_miss']:>10.2e} "
                 f"{row['peak_tension']:>10.4g} {row['duration']:>7.3g} {row['simulations']:>5}"

@@ -320,7 +320,7 @@ def test_motion_plots_show_each_output_in_its_unit_and_the_cables_that_pull():
     assert direction_text(np.array([-0.6, 0.8]), names) == "-0.6 tip_x + 0.8 tip_z"
     robot = cdpm.load_robot(MODELS / "spatial_8cable" / "spatial_8cable_pose.yaml")
     assert "rad" in robot.output_units and "m" in robot.output_units
-    res = cdpm.steer(robot, "centre", robot.output("centre") + 0.002)
+    res = cdpm.steer(robot, "centre", robot.output("centre") + [0.002, 0, 0, 0, 0, 0])
     assert res.trajectory.output_units == robot.output_units
     fig = res.trajectory.plot(target=res.target, equilibrium=res.equilibrium_tension)
     ax_y, ax_f = fig.axes[:2]
@@ -330,6 +330,15 @@ def test_motion_plots_show_each_output_in_its_unit_and_the_cables_that_pull():
     for name, unit in units.items():
         assert f"{name} [{'mm' if unit == 'm' else 'mrad'}]" in labels
     assert res.trajectory.to_dataset().y.attrs["units"] == "m, rad"
+    # cables with the same tensions throughout share a line named for all of them
+    groups = [t.get_text().split(" = ") for t in ax_f.get_legend().get_texts()]
+    names = list(robot.cable_names)
+    idle = ax_f.get_title().split("at 0 N throughout: ")[1].split(", ")
+    assert sorted(sum(groups, []) + idle) == sorted(names)
+    for group in groups:
+        columns = [res.tension[:, names.index(c)] for c in group]
+        assert all(np.array_equal(columns[0], col) for col in columns)
+    assert any(len(group) > 1 for group in groups)  # c1 = c4 on the symmetric platform
     # two-cable arm: c2 never pulls at the NO pose's attempt; it is named, not drawn
     report = cdpm.verify_pose(cdpm.load_robot(TWO_CABLES), "nominal", radius=0.004)
     fig = report.plot()

@@ -55,14 +55,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         nargs="+",
         type=argument_type(_number),
         metavar="Y",
-        help="the output target, one value per output [m]",
+        help="the output target, one value per output, in its unit [m or rad]",
     )
     goal.add_argument(
         "--by",
         nargs="+",
         type=argument_type(_number),
         metavar="DY",
-        help="the target as a change of the outputs from the pose's [m]",
+        help="the target as a change of the outputs from the pose's, in their units [m or rad]",
     )
     parser.add_argument(
         "--duration",
