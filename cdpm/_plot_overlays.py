@@ -348,7 +348,8 @@ def draw_path(ax, x, y, near=None, periods=(None, None), suspect=()) -> None:
     goal star.
 
     Args:
-        suspect: steps i (waypoint i to i + 1) drawn over in SUSPECT_COLOR.
+        suspect: steps i (waypoint i to i + 1) drawn over in SUSPECT_COLOR
+            (where both ends are drawn solid).
         near: bool (k,): the poses near the panel's slice, drawn solid; the
             rest of the path is dashed and faint. None: all solid.
         periods: the period of the x and y coordinates (2 pi for angles) or
@@ -381,7 +382,7 @@ def draw_path(ax, x, y, near=None, periods=(None, None), suspect=()) -> None:
             [(x[i + 1] - dx, y[i + 1] - dy), (x[i + 1], y[i + 1])],
         ]
         style = solid_style if solid[i] and solid[i + 1] else faint_style
-        if i in suspect:
+        if i in suspect and solid[i] and solid[i + 1]:
             style = {**solid_style, "color": SUSPECT_COLOR, "lw": 3.0}
         ax.add_collection(
             LineCollection(
@@ -396,7 +397,8 @@ def draw_path(ax, x, y, near=None, periods=(None, None), suspect=()) -> None:
             ),
             autolim=False,
         )
-    marked = [i for i in suspect if not crossing[i]]  # across a seam: the stubs above
+    # only where the path is drawn solid (in this slice); across a seam: the stubs above
+    marked = [i for i in suspect if not crossing[i] and solid[i] and solid[i + 1]]
     if marked:
         from matplotlib.collections import LineCollection
 

@@ -105,7 +105,9 @@ class POCPath:
         margin_variable: the map variable ``margins`` come from, or None.
         length: the sum of the step lengths in axis units (angles across a
             seam the short way).
-        maximise_margin: the path maximises its smallest margin.
+        maximise_margin: the path maximises the smallest margin of its
+            waypoints between the start and the goal (theirs are given, so
+            ``min_margin`` may be the start's or the goal's).
         units: axis -> unit (``"rad"``, ``"m"``).
         margin_unit: the unit of ``margins`` (the map variable's ``units``;
             "" for the unitless poc_margin).
@@ -368,6 +370,8 @@ def _bottleneck(n: int, edges: np.ndarray, node_margin: np.ndarray, s: int, g: i
     """The largest t such that the edges whose smaller end margin is >= t
     join s and g (bisection over the distinct edge margins)."""
     w = np.minimum(node_margin[edges[0]], node_margin[edges[1]])
+    if w.size == 0:  # no edge: nothing joins them (the route then says so)
+        return -np.inf
     levels = np.unique(w)
     lo, hi = 0, levels.size - 1  # levels[lo] joins them (all edges)
     while lo < hi:

@@ -68,7 +68,7 @@ from cdpm._plot_overlays import (
     region_handle,
 )
 from cdpm._plot_titles import map_suptitle, slices_text
-from cdpm.errors import InputError
+from cdpm.errors import InputError, is_integer
 from cdpm.verdicts import VERDICT_COLORS
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -279,6 +279,8 @@ def plot_map(
             missing, arrays not 1-D finite numbers of one length).
     """
     _, Figure = _matplotlib()
+    if not is_integer(max_slices) or max_slices < 1:
+        raise InputError(f"max_slices must be a positive integer, got {max_slices!r}")
     ds = _load(ds_or_path)
     if variable not in ds or "flag_values" not in ds[variable].attrs or variable == "status":
         choices = [
@@ -401,24 +403,17 @@ def _slice_index(ds, third: str, values: np.ndarray) -> np.ndarray:
 
 def _slice_picks(ds, third: str, max_slices: int, path) -> np.ndarray:
     """Indices of the values of ``third`` drawn as slices: at most
-    ``max_slices`` (at least the path's ends), evenly spread, and with a
-    path (giving ``third``) the slices of its start and goal among them:
-    the spread slice nearest another is left out for each end added."""
+    ``max_slices`` (at least the path's ends), evenly spread: with a path
+    (giving ``third``), the slices of its start and goal, then each next
+    one the value farthest from those chosen (the axis' ends first)."""
     n3 = ds.sizes[third]
-    spread = {int(k) for k in np.linspace(0, n3 - 1, min(max_slices, n3)).round()}
     if path is None or third not in path:
-        return np.array(sorted(spread))
-    ends = {int(k) for k in _slice_index(ds, third, path[third][[0, -1]])}
-    picks = sorted(spread | ends)
-    while len(picks) > max(max_slices, len(ends)):
-        gaps = np.diff(picks)
-        # the spread slice with the smallest gap to a neighbour
-        crowded = sorted(
-            (min(gaps[i - 1] if i else n3, gaps[i] if i < len(gaps) else n3), k)
-            for i, k in enumerate(picks)
-            if k not in ends
-        )
-        picks.remove(crowded[0][1])
+        return np.unique(np.linspace(0, n3 - 1, min(max_slices, n3)).round().astype(int))
+    picks = sorted({int(k) for k in _slice_index(ds, third, path[third][[0, -1]])})
+    while len(picks) < min(max_slices, n3):
+        others = np.setdiff1d(np.arange(n3), picks)
+        distance = np.min(np.abs(others[:, None] - np.array(picks)[None, :]), axis=1)
+        picks = sorted([*picks, int(others[np.argmax(distance)])])
     return np.array(picks)
 
 
@@ -441,7 +436,8 @@ def _margin_grid_panel(ax, fig, ds, variable, dims, slices, scale: MarginScale, 
     handles = margin_grid(ax, fig, x_edges, y_edges, values, status, codes, scale)
     sliced = _grid_path(ax, ds, dims, slices, k, path)
     if path is not None:
-        handles += path_handles(next(iter(path.values())).size, sliced)[:1]
+        marks = path_handles(next(iter(path.values())).size, sliced, len(path.suspect))
+        handles += marks[:1] + marks[3:]  # the line and the suspect steps: no start, goal
     legend_below(ax, handles, ncol=1)
     ax.set_xlabel(coordinate_label(ds, x))
     ax.set_ylabel(coordinate_label(ds, y))
@@ -499,7 +495,8 @@ def _sample_panel(ax, fig, ds, variable, axes_names, kind, scale, path, regions)
                 periods=(_period(ds, xn), _period(ds, yn)),
                 suspect=path.suspect,
             )
-            handles += path_handles(path[xn].size)[:1]
+            marks = path_handles(path[xn].size, suspect=len(path.suspect))
+            handles += marks[:1] + marks[3:]
         legend_below(ax, handles, ncol=1)
         ax.set_title(scale.title + projected, fontsize=10)
     ax.set_xlabel(coordinate_label(ds, xn))

@@ -133,7 +133,7 @@ def display_unit(unit: str) -> tuple[float, str]:
     ``"mm, mrad"``; other units as they are."""
     if unit in _MILLI:
         return 1e3, _MILLI[unit]
-    if unit == "mixed" or unit.startswith("m and rad"):
+    if unit in ("mixed", "m and rad, one to one"):
         return 1e3, "mm, mrad"
     return 1.0, unit
 

@@ -255,6 +255,8 @@ def direction_text(d: np.ndarray, names: tuple[str, ...]) -> str:
     terms = [(float(c), n) for c, n in zip(d, names, strict=False) if abs(c) > 1e-9]
     if not names or len(names) != len(d):
         return np.array2string(np.asarray(d) + 0.0, precision=2)
+    if not terms:
+        return "0"
     if len(terms) == 1 and abs(abs(terms[0][0]) - 1.0) < 1e-9:
         return ("+" if terms[0][0] > 0 else "-") + terms[0][1]
     text = " ".join(f"{'-' if c < 0 else '+'} {abs(c):.2g} {n}" for c, n in terms)

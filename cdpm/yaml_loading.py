@@ -39,6 +39,11 @@ class YamlLimitError(ValueError):
     """A YAML text exceeds one of the size limits (the message says which)."""
 
 
+#: literals that mean infinity (YAML's .inf; inf and infinity under an
+#: explicit !!float tag)
+_INFINITY = frozenset({".inf", "inf", "infinity"})
+
+
 def _safe_loader(fast: bool):
     """libyaml's safe loader when ``fast`` and PyYAML was built with it,
     else PyYAML's pure-Python one (the same constructors and resolvers)."""
@@ -166,7 +171,7 @@ def _load_yaml(text: str, fast: bool) -> tuple[Any, list[str]]:
     def construct_float(loader, node):
         # YAML reads 1.0e+400 as infinity without a word: only .inf means it
         value = base.construct_yaml_float(loader, node)
-        if math.isinf(value) and node.value.lstrip("+-").lower() != ".inf":
+        if math.isinf(value) and node.value.lstrip("+-").lower() not in _INFINITY:
             line = node.start_mark.line + 1
             problems.append(
                 (

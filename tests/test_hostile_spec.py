@@ -167,6 +167,10 @@ def test_numbers_that_overflow_to_infinity_are_refused(tmp_path):
         cdpm.load_robot(_spec(tmp_path, bounded))
     unbounded = bounded.replace("1.0e+400", ".inf")
     assert cdpm.load_robot(_spec(tmp_path, unbounded)).tension_max[0] == np.inf
+    from cdpm.yaml_loading import load_yaml
+
+    # infinity as meant, under an explicit tag too
+    assert load_yaml("a: !!float inf\nb: !!float -Infinity\n") == ({"a": np.inf, "b": -np.inf}, [])
 
 
 def test_far_output_point_is_a_model_error(tmp_path):

@@ -784,12 +784,34 @@ def test_slices_of_a_three_axis_map_carry_regions_and_the_path(paper_map):
     fig = plot_map(eight, path=path, max_slices=6)
     slices = [ax for ax in fig.axes if ax.get_title().startswith("POC verdict (z = ")]
     drawn = [float(ax.get_title()[len("POC verdict (z = ") : -1]) for ax in slices]
-    assert len(drawn) == 6 and {2.0, 5.0} <= set(drawn)
+    assert len(drawn) == 6 and {0.0, 2.0, 5.0, 7.0} <= set(drawn)  # the path's ends, spread
     for ax, z in zip(slices, drawn, strict=True):
         (line,) = [ln for ln in ax.get_lines() if ln.get_gid() == "path"]
         solid = np.isfinite(np.asarray(line.get_xdata(), dtype=float))
         np.testing.assert_array_equal(solid, np.array(path["z"]) == z)
     assert "(not drawn: " in fig.get_suptitle()
+    with pytest.raises(cdpm.InputError, match="max_slices must be a positive integer, got 0"):
+        plot_map(eight, max_slices=0)
+
+
+def test_suspect_steps_are_marked_where_the_path_is_drawn_solid():
+    """On a slice a path's steps away from it are faint; a suspect step
+    among them is not marked there (it showed on every slice)."""
+    from matplotlib.figure import Figure
+
+    from cdpm._plot_overlays import draw_path
+
+    ax = Figure().add_subplot()
+    draw_path(
+        ax,
+        [0.0, 1.0, 2.0, 3.0],
+        [0.0, 0.0, 1.0, 1.0],
+        near=[True, True, True, False],
+        suspect=(0, 2),
+    )
+    (marks,) = [c for c in ax.collections if c.get_gid() == "suspect steps"]
+    np.testing.assert_allclose(marks.get_segments()[0], [[0.0, 0.0], [1.0, 0.0]])
+    assert len(marks.get_segments()) == 1  # step 2 ends away from the slice
 
 
 def test_sampled_map_gets_regions_path_and_log_margin(tmp_path):

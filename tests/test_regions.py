@@ -303,6 +303,19 @@ def test_one_axis_samples_join_consecutive_samples_only():
     order = np.argsort(part.q1.values)
     assert label_regions(part).attrs["n_regions"] == 1
     assert label_regions(_with_no_at(part, [order[120]])).attrs["n_regions"] == 2
+    # two samples of an angle: their shorter arc, across the seam; an arc of
+    # more than half a turn joins nothing (the step would be drawn the other way)
+    from cdpm.maps._sampled import sample_edges
+    from cdpm.maps.regions import MapLayout
+
+    def layout(*q1):
+        values = (np.array(q1),)
+        return MapLayout("sample", ("q1",), ("sample",), values, ("rad",), ("modulo",), (len(q1),))
+
+    edges, lengths = sample_edges(layout(-3.0, 3.0), np.array([True, True]), radius=1.0)
+    assert edges.tolist() == [[0], [1]] and lengths == pytest.approx([2 * math.pi - 6.0])
+    edges, _ = sample_edges(layout(-2.9, 1.0, -3.0), np.array([True, True, False]), radius=10.0)
+    assert edges.shape[1] == 0  # -2.9 to 1.0 is 3.9 rad one way, through -3.0 the other
     # a path from one end of the turn to the other goes the short way, across the seam
     path = cdpm.poc_path(full, {"q1": -3.0}, {"q1": 3.0})
     steps = np.abs(np.diff(path.coordinates["q1"]))

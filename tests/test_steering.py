@@ -314,10 +314,12 @@ def test_motion_plots_show_each_output_in_its_unit_and_the_cables_that_pull():
     assert display_unit("m") == (1e3, "mm") and display_unit("rad") == (1e3, "mrad")
     assert display_unit("m and rad, one to one") == (1e3, "mm, mrad")
     assert display_unit("N") == (1.0, "N")
+    assert display_unit("m and rad and deg, one to one") == (1.0, "m and rad and deg, one to one")
     names = ("tip_x", "tip_z")
     assert direction_text(np.array([0.0, -1.0]), names) == "-tip_z"
     assert direction_text(np.array([0.6, -0.8]), names) == "0.6 tip_x - 0.8 tip_z"
     assert direction_text(np.array([-0.6, 0.8]), names) == "-0.6 tip_x + 0.8 tip_z"
+    assert direction_text(np.zeros(2), names) == "0"
     robot = cdpm.load_robot(MODELS / "spatial_8cable" / "spatial_8cable_pose.yaml")
     assert "rad" in robot.output_units and "m" in robot.output_units
     res = cdpm.steer(robot, "centre", robot.output("centre") + [0.002, 0, 0, 0, 0, 0])

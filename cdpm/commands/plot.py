@@ -20,8 +20,9 @@ axis horizontal:
     says so); zero margins in red, poses not analysed in greys by reason;
     no panel for a map made with --no-margin;
   - the poses in output space, coloured by verdict: by default the map's
-    outputs (one output: against the first axis; two or more: the two that
-    vary most over the map), or those named with --outputs; where poses fall
+    outputs (one output: against the first axis; two or more: the first two,
+    or when one of them does not vary, the two that vary most), or those
+    named with --outputs; where poses fall
     on one point, NO is drawn over YES over not analysed (the title says
     so); each axis says the output's unit ([rad] for rotations and revolute
     joints) and the formula of a joint, cable or sum output

@@ -17,12 +17,19 @@ from cdpm.numerics import REGION_GAP_FACTOR, REGION_RADIUS_FACTOR
 if TYPE_CHECKING:  # pragma: no cover
     from cdpm.maps.regions import MapLayout
 
-__all__ = ["sample_points", "sample_distance", "default_radius", "check_radius", "sample_edges"]
+__all__ = [
+    "angle_offset",
+    "sample_points",
+    "sample_distance",
+    "default_radius",
+    "check_radius",
+    "sample_edges",
+]
 
 _TWO_PI = 2.0 * math.pi
 
 
-def _angle_offset(a, b):
+def angle_offset(a, b):
     """b - a for angles, in [-pi, pi)."""
     return (np.asarray(b) - np.asarray(a) + math.pi) % _TWO_PI - math.pi
 
@@ -46,7 +53,7 @@ def sample_distance(layout: MapLayout, a: np.ndarray, b: np.ndarray) -> np.ndarr
     of axes that wrap compared modulo 2 pi (broadcast over leading dims)."""
     diff = np.asarray(b, dtype=float) - np.asarray(a, dtype=float)
     wrap = np.array([w is not None for w in layout.wrap])
-    diff = np.where(wrap, _angle_offset(0.0, diff), diff)
+    diff = np.where(wrap, angle_offset(0.0, diff), diff)
     return np.sqrt(np.sum(diff**2, axis=-1))
 
 
@@ -101,13 +108,20 @@ def _consecutive_edges(
     x: np.ndarray, period: float, wrap: str | None, yes: np.ndarray, radius: float
 ) -> tuple:
     """:func:`sample_edges` over one axis: samples at ``x`` (n,) [shifted to
-    start at 0], an angle (``wrap``) closing the turn after ``period``."""
+    start at 0], an angle (``wrap``) closing the turn after ``period``. On
+    an angle, a gap is the arc with no sample in it, and one of more than
+    half a turn joins nothing: the step would be taken (and drawn, and
+    measured) the other way round, through the other samples."""
     order = np.argsort(x, kind="stable")
     i, j = order[:-1], order[1:]
     gaps = x[j] - x[i]
     if wrap is not None and order.size > 2:  # the seam: the last sample, then the first
         i, j = np.append(i, order[-1]), np.append(j, order[0])
         gaps = np.append(gaps, x[order[0]] + period - x[order[-1]])
+    elif wrap is not None:  # two samples: the shorter of their two arcs
+        gaps = np.minimum(gaps, period - gaps)
     keep = (gaps <= radius) & yes[i] & yes[j]
+    if wrap is not None:
+        keep &= gaps <= 0.5 * period
     i, j = i[keep], j[keep]
     return np.stack([np.minimum(i, j), np.maximum(i, j)]), gaps[keep]

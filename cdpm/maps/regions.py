@@ -24,7 +24,7 @@ import numpy as np
 
 from cdpm.errors import InputError
 from cdpm.maps._sampled import (
-    _angle_offset,
+    angle_offset,
     check_radius,
     default_radius,
     sample_distance,
@@ -589,7 +589,7 @@ def nearest_index(ds, layout: MapLayout, pose: Any, radius: float | None = None)
     for name, v, w in zip(layout.axes, layout.values, layout.wrap, strict=True):
         x = values[name]
         if w:
-            d = np.abs(_angle_offset(v, x))
+            d = np.abs(angle_offset(v, x))
             near = np.flatnonzero(d <= d.min() + 1e-12)
             index.append(int(near[np.argmin(np.abs(v[near] - x))]))
             continue
