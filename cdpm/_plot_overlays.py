@@ -59,8 +59,10 @@ def _not_outlined(ids: np.ndarray, owners: np.ndarray | None = None) -> np.ndarr
     """Cells outside every region whose edges are not outlined: those in
     a small piece (a face-connected piece of such cells holding at most
     :data:`SMALL_HOLE_POSES` poses; ``owners``: the pose of each cell, shape
-    of ``ids``, None: each cell is a pose) and those in no 2 x 2 block of
-    such cells (a line one cell thin). Shape of ``ids``, bool."""
+    of ``ids``, None: each cell is a pose) and those in a piece with no 2 x 2
+    block of such cells anywhere (a line one cell thin). A piece with a
+    block is outlined all round, its thin parts too (the outline broke off
+    where a wide area narrowed to one cell). Shape of ``ids``, bool."""
     from scipy import ndimage
 
     outside = ids <= 0
@@ -79,7 +81,8 @@ def _not_outlined(ids: np.ndarray, owners: np.ndarray | None = None) -> np.ndarr
     for di in (0, 1):
         for dj in (0, 1):
             in_block[di : di + block.shape[0], dj : dj + block.shape[1]] |= block
-    return small[pieces] | (outside & ~in_block)
+    thick = np.bincount(pieces[in_block].ravel(), minlength=n + 1) > 0
+    return small[pieces] | (outside & ~thick[pieces])
 
 
 def _outline_segments(

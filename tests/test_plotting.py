@@ -794,6 +794,22 @@ def test_slices_of_a_three_axis_map_carry_regions_and_the_path(paper_map):
         plot_map(eight, max_slices=0)
 
 
+def test_a_wide_area_outside_the_regions_is_outlined_all_round():
+    """Where a wide area of poses outside every region narrows to one cell,
+    its outline went on (it broke off cell by cell); a line one cell thin
+    on its own and a piece of at most SMALL_HOLE_POSES poses are not outlined."""
+    from cdpm._plot_overlays import _not_outlined
+
+    ids = np.ones((12, 12), dtype=int)
+    ids[1:4, 1:4] = 0  # a 3 x 3 area ...
+    ids[4:8, 2] = 0  # ... with a tail one cell wide
+    ids[9, 5:11] = 0  # a thin line on its own
+    ids[10:12, 0:2] = 0  # four poses
+    skipped = _not_outlined(ids)
+    assert not skipped[1:4, 1:4].any() and not skipped[4:8, 2].any()
+    assert skipped[9, 5:11].all() and skipped[10:12, 0:2].all()
+
+
 def test_suspect_steps_are_marked_where_the_path_is_drawn_solid():
     """On a slice a path's steps away from it are faint; a suspect step
     among them is not marked there (it showed on every slice)."""
