@@ -55,7 +55,14 @@ from cdpm.maps.regions import (
 from cdpm.numerics import SUSPECT_LIPSCHITZ_SAFETY
 from cdpm.verdicts import STATUS_LABELS, VERDICT_LABELS, YES
 
-__all__ = ["POCPath", "NotConnectedError", "poc_path", "suspect_edges", "MARGIN_VARIABLES"]
+__all__ = [
+    "POCPath",
+    "NotConnectedError",
+    "poc_path",
+    "suspect_edges",
+    "suspect_region_steps",
+    "MARGIN_VARIABLES",
+]
 
 #: margin variables a path reads, in order of preference
 MARGIN_VARIABLES = ("reach_margin", "poc_margin")
@@ -116,7 +123,7 @@ class POCPath:
         suspect_steps: steps i (waypoint i to i+1) that may cross a NO set
             thinner than the map's resolution: r(i) + r(i+1) <= factor L h
             with r the reach margin (:func:`suspect_edges`); None when the
-            map has no ``reach_margin`` (not checked).
+            map has no reach margin computed (not checked).
         start_pose, goal_pose: the map poses nearest the start and the goal
             given, {axis: value} (the first and last waypoints).
     """
@@ -311,6 +318,52 @@ def _grid_graph(layout, index):
     return np.concatenate(edges, axis=1), np.concatenate(lengths)
 
 
+def _region_graph(ds, layout, radius: float | None) -> tuple:
+    """The graph of the map's POC poses, as regions and paths join them:
+    (yes (n,) bool per node, edges (2, E) between YES neighbours, their
+    lengths (E,), the margin at each node (n,) or None, which edges may
+    cross a NO set thinner than the map's resolution (E,) bool, or None
+    without reach_margin). Nodes are the distinct poses of a grid
+    (:func:`~cdpm.maps.regions.distinct`) or the samples (neighbours within
+    ``radius``)."""
+    poc = np.asarray(ds["poc"].transpose(*layout.dims).values)
+    margin, margin_name = _margin_values(ds, layout.dims)
+    # r_T decides the suspect steps; a map made without margins has none
+    computed = margin_name == "reach_margin" and bool(np.isfinite(margin).any())
+    reach = margin if computed else None
+    if layout.mode == "grid":
+        index = grid_index(layout)
+        yes = distinct(poc == YES, layout, index).reshape(-1)
+        edges, lengths = _grid_graph(layout, index)
+        node_margin = None if margin is None else distinct(margin, layout, index).reshape(-1)
+    else:
+        yes = poc == YES
+        # the edges to NO samples with an r_T enter the slope estimate
+        sampled = yes if reach is None else yes | np.isfinite(reach)
+        edges, lengths = sample_edges(layout, sampled, float(radius))
+        node_margin = margin
+    keep = yes[edges[0]] & yes[edges[1]]
+    suspect = None
+    if reach is not None:  # the node margins are r_T (distinct on a grid)
+        suspect = suspect_edges(edges, lengths, node_margin, keep)[keep]
+    return yes, edges[:, keep], lengths[keep], node_margin, suspect
+
+
+def suspect_region_steps(map: Any) -> int | None:
+    """How many steps between neighbouring POC poses of a map (the steps
+    its regions and paths are made of) may cross a NO set thinner than the
+    map's resolution (:func:`suspect_edges`): where its regions may really
+    be split; None for a map without the reach margin r_T."""
+    ds = as_dataset(map)
+    layout = map_layout(ds)
+    radius = None
+    if layout.mode == "sample":
+        radius = region_labels(ds).attrs.get("radius")
+        radius = default_radius(layout) if radius is None else radius
+    suspect = _region_graph(ds, layout, radius)[4]
+    return None if suspect is None else int(np.count_nonzero(suspect))
+
+
 def suspect_edges(
     edges: np.ndarray, lengths: np.ndarray, margins: np.ndarray, candidates: np.ndarray
 ) -> np.ndarray:
@@ -445,27 +498,14 @@ def poc_path(map: Any, start: Any, goal: Any, *, maximise_margin: bool = False) 
     s_label, g_label = int(labels[s_idx]), int(labels[g_idx])
     if s_label == 0 or g_label == 0 or s_label != g_label:
         raise _not_connected(ds, layout, labels, s_idx, g_idx)
-    poc = np.asarray(ds["poc"].transpose(*layout.dims).values)
+    yes, edges, lengths, node_margin, suspect = _region_graph(ds, layout, radius)
     margin, margin_name = _margin_values(ds, layout.dims)
-    reach = margin if margin_name == "reach_margin" else None
     if layout.mode == "grid":
         index = grid_index(layout)
-        yes = distinct(poc == YES, layout, index).reshape(-1)
-        edges, lengths = _grid_graph(layout, index)
         s, g = (_distinct_id(index, index.shape, i) for i in (s_idx, g_idx))
-        node_margin = None if margin is None else distinct(margin, layout, index).reshape(-1)
     else:
-        yes = poc == YES
-        sampled = yes if reach is None else yes | np.isfinite(reach)
-        edges, lengths = sample_edges(layout, sampled, float(radius))
         s, g = int(s_idx[0]), int(g_idx[0])
-        node_margin = margin
     n = yes.size
-    keep = yes[edges[0]] & yes[edges[1]]
-    suspect = None
-    if reach is not None:  # the node margins are r_T (distinct on a grid)
-        suspect = suspect_edges(edges, lengths, node_margin, keep)[keep]
-    edges, lengths = edges[:, keep], lengths[keep]
     if maximise_margin:
         if node_margin is None or not np.any(np.isfinite(node_margin[yes])):
             raise InputError(

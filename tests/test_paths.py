@@ -20,7 +20,7 @@ from cdpm import plotting
 from cdpm.cli import main
 from cdpm.errors import InputError
 from cdpm.maps.regions import attach_regions, label_regions
-from cdpm.paths import NotConnectedError, POCPath, poc_path
+from cdpm.paths import NotConnectedError, POCPath, poc_path, suspect_region_steps
 from cdpm.verdicts import NO, NOT_ANALYSED, YES
 from tests.conftest import MODELS, PAPER_SPEC
 
@@ -460,6 +460,25 @@ def test_path_command_exits_4_when_a_leg_misses(stores, capsys, monkeypatch):
             f"steered along 2 leg(s): 1 reached their waypoint's output; missed: leg 2 (waypoints "
             f"{leg.group(1)} to {leg.group(2)}) by "
         )
+    )
+
+
+def test_the_map_counts_the_steps_where_its_regions_may_be_split(stores, paper, capsys):
+    """The paper arm's thin diagonal NO lines are not resolved at 31 x 31:
+    one region, but steps of it may cross them. The map counts every such
+    step of its graph (a path's suspect steps are among them), and `cdpm
+    map` says so under the region count."""
+    count = suspect_region_steps(paper)
+    path = poc_path(paper, NOMINAL, [1.0, 0.5])
+    assert 0 < len(path.suspect_steps) <= count
+    no_margin = cdpm.workspace_map(PAPER_SPEC, {"q1": TURN, "q2": TURN}, workers=1, margin=False)
+    assert suspect_region_steps(no_margin) is None  # r_T decides; without it, nothing to say
+    store = stores["paper"].parent / "again.zarr"
+    argv = ["map", str(PAPER_SPEC), "--axis", "q1=-pi:pi:31", "--axis", "q2=-pi:pi:31"]
+    assert main([*argv, "--out", str(store), "--quiet"]) == 0
+    assert (
+        f"  {count} step(s) between neighbouring YES poses may cross a NO set thinner than the "
+        "map's resolution" in capsys.readouterr().out
     )
 
 

@@ -537,8 +537,16 @@ def run(args: argparse.Namespace) -> int:
         print(_some_tension_line(ds))
     if "poc_region" in ds:
         from cdpm.maps.regions import map_layout
+        from cdpm.paths import suspect_region_steps
 
         print(_regions_line(ds["poc_region"], "closed" in map_layout(ds).wrap))
+        thin = suspect_region_steps(ds)
+        if thin:
+            print(
+                f"  {thin} step(s) between neighbouring YES poses may cross a NO set thinner than "
+                "the map's resolution (r_T falls to 0 within a step's change): the regions may "
+                "be split there; `cdpm path` names such steps on a path"
+            )
     flagged = {n: int((status == c).sum()) for n, c in STATUS_CODES.items() if c > 0}
     flagged = {n: k for n, k in flagged.items() if k}
     if flagged:
