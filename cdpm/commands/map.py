@@ -22,7 +22,11 @@ the map chunk by chunk into a zarr store (--out) and/or draw it (--plot); one
 of them is required. Re-running the same command on the same store resumes an
 interrupted map; coordinates not on an axis stay at the base pose. Gravity,
 the cables' tension bounds and the pretension can be changed for the map
-without editing the spec; they are recorded in the store."""
+without editing the spec; they are recorded in the store. Prints how many
+poses each verdict has, the POC regions (connected YES poses, stored as
+poc_region) with their sizes, and how many steps between neighbouring YES
+poses may cross a NO set thinner than the map's resolution (where the
+regions may be split)."""
 EPILOG = """\
 examples:
   cdpm map models/two_link_planar/two_link_planar.yaml \\

@@ -23,14 +23,16 @@ to their nearest map poses and find a path of positive output controllable
 (POC) map poses joining them inside one POC region (seed paper Lemma 1 /
 Remark 10: along it pull-only cables can drive the output from pose to pose).
 Grid maps step between face-adjacent poses (wrapping around angles that span a
-full turn), sampled maps between samples within the neighbourhood radius.
+full turn), sampled maps between samples within the neighbourhood radius (over
+one axis, between consecutive samples).
 Prints the region, the number of waypoints, the length, the smallest margin
 and the waypoints, and warns of steps that may cross a NO set thinner than
 the map's resolution (where the reach margin r_T at both ends is within one
 step's change of 0); --maximin maximises the smallest margin along the path
 (of the waypoints between the two ends, whose margins are given) instead of
 taking the shortest, avoiding such steps where it can. --plot
-draws the map with the path, --view plays the path in the 3-D viewer,
+draws the map with the path (blue; the warned steps magenta; with --steer the
+title says which legs missed), --view plays the path in the 3-D viewer,
 --steer steers the simulated nonlinear robot from waypoint to waypoint and
 prints the miss at each."""
 EPILOG = """\
@@ -87,7 +89,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--maximin",
         action="store_true",
-        help="maximise the smallest margin along the path (then the shortest such path)",
+        help="maximise the smallest margin along the path, the ends' given (then the "
+        "shortest such path)",
     )
     parser.add_argument(
         "--plot",
