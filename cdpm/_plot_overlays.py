@@ -428,20 +428,21 @@ def draw_path(ax, x, y, near=None, periods=(None, None), suspect=()) -> None:
     ax.plot(x[-1], y[-1], "*", ms=13, mfc=PATH_COLOR, mec="white", mew=1.0, gid="goal", **ends)
 
 
-def path_handles(k: int, sliced: bool = False, suspect: int = 0) -> list:
-    """Legend entries of a path of k poses (line, start, goal, and with
-    ``suspect`` steps marked, theirs)."""
+def path_handles(path: PathCoordinates, sliced: bool = False, ends: bool = True) -> list:
+    """Legend entries of a path (:func:`check_path`'s): its line, with
+    ``ends`` its start and goal, and its suspect steps when it has any."""
     from matplotlib.lines import Line2D
 
-    label = f"path ({k} poses)"
+    label = f"path ({next(iter(path.values())).size} poses)"
     if sliced:
         label += "; dashed: away from this slice"
-    handles = [
-        Line2D([], [], color=PATH_COLOR, lw=1.8, label=label),
-        Line2D([], [], ls="", marker="o", ms=7, mfc="white", mec=PATH_COLOR, label="start"),
-        Line2D([], [], ls="", marker="*", ms=11, mfc=PATH_COLOR, mec="white", label="goal"),
-    ]
-    if suspect:
-        label = f"step that may cross a thin NO set ({suspect})"
+    handles = [Line2D([], [], color=PATH_COLOR, lw=1.8, label=label)]
+    if ends:
+        handles += [
+            Line2D([], [], ls="", marker="o", ms=7, mfc="white", mec=PATH_COLOR, label="start"),
+            Line2D([], [], ls="", marker="*", ms=11, mfc=PATH_COLOR, mec="white", label="goal"),
+        ]
+    if path.suspect:
+        label = f"step that may cross a thin NO set ({len(path.suspect)})"
         handles.append(Line2D([], [], color=SUSPECT_COLOR, lw=3.0, label=label))
     return handles

@@ -379,7 +379,7 @@ def _verdict_grid_panel(ax, ds, variable, dims, slices, k, path, regions) -> Non
         if regions:
             handles.append(region_handle(regions, all_numbered))
         if path is not None:
-            handles += path_handles(next(iter(path.values())).size, sliced, len(path.suspect))
+            handles += path_handles(path, sliced)
         legend_below(ax, handles, ncol=3)
 
 
@@ -436,8 +436,7 @@ def _margin_grid_panel(ax, fig, ds, variable, dims, slices, scale: MarginScale, 
     handles = margin_grid(ax, fig, x_edges, y_edges, values, status, codes, scale)
     sliced = _grid_path(ax, ds, dims, slices, k, path)
     if path is not None:
-        marks = path_handles(next(iter(path.values())).size, sliced, len(path.suspect))
-        handles += marks[:1] + marks[3:]  # the line and the suspect steps: no start, goal
+        handles += path_handles(path, sliced, ends=False)
     legend_below(ax, handles, ncol=1)
     ax.set_xlabel(coordinate_label(ds, x))
     ax.set_ylabel(coordinate_label(ds, y))
@@ -455,7 +454,8 @@ def _sample_panel(ax, fig, ds, variable, axes_names, kind, scale, path, regions)
     values = np.asarray(ds[variable].values).reshape(-1)
     size = max(3.0, min(40.0, 30000.0 / max(values.size, 1)))
     projected = f" ({values.size} samples, projected)" if len(axes_names) > 2 else ""
-    if kind == "verdict":
+    verdicts = kind == "verdict"
+    if verdicts:
         for c in DRAW_ORDER:
             sel = values == c
             if sel.any():
@@ -473,32 +473,17 @@ def _sample_panel(ax, fig, ds, variable, axes_names, kind, scale, path, regions)
             ids = np.asarray(ds["poc_region"].values)
             _, all_numbered = draw_regions_samples(ax, ids, xv, yv, len(axes_names) == 2)
             handles.append(region_handle(regions, all_numbered))
-        if path is not None:
-            draw_path(
-                ax,
-                path[xn],
-                path[yn],
-                periods=(_period(ds, xn), _period(ds, yn)),
-                suspect=path.suspect,
-            )
-            handles += path_handles(path[xn].size, suspect=len(path.suspect))
-        legend_below(ax, handles, ncol=3)
-        ax.set_title(verdict_title(variable) + projected, fontsize=10)
+        title = verdict_title(variable)
     else:
         margins = np.asarray(ds[scale.variable].values, dtype=float)
         handles = margin_scatter(ax, fig, xv, yv, margins, _status(ds), values, scale, size)
-        if path is not None:
-            draw_path(
-                ax,
-                path[xn],
-                path[yn],
-                periods=(_period(ds, xn), _period(ds, yn)),
-                suspect=path.suspect,
-            )
-            marks = path_handles(path[xn].size, suspect=len(path.suspect))
-            handles += marks[:1] + marks[3:]
-        legend_below(ax, handles, ncol=1)
-        ax.set_title(scale.title + projected, fontsize=10)
+        title = scale.title
+    if path is not None:
+        periods = (_period(ds, xn), _period(ds, yn))
+        draw_path(ax, path[xn], path[yn], periods=periods, suspect=path.suspect)
+        handles += path_handles(path, ends=verdicts)
+    legend_below(ax, handles, ncol=3 if verdicts else 1)
+    ax.set_title(title + projected, fontsize=10)
     ax.set_xlabel(coordinate_label(ds, xn))
     ax.set_ylabel(coordinate_label(ds, yn))
     ax.set_box_aspect(1)
@@ -549,7 +534,7 @@ def _plot_one_axis(ds, variable, name, scale, choice: OutputChoice | None, path,
             periods=(period, None),
             suspect=path.suspect,
         )
-        handles += path_handles(path[name].size, suspect=len(path.suspect))
+        handles += path_handles(path)
     # above the strip, in as many columns as fit its width: a wider legend
     # (a path's entries) set the width of the strip's column and squeezed it
     room = 0.9 * fig.get_figwidth() * fig.dpi * widths[0] / sum(widths)
