@@ -24,6 +24,7 @@ __all__ = [
     "connected",
     "grid_graph",
     "margin_values",
+    "neighbour_radius",
     "region_graph",
     "shortest_route",
     "suspect_edges",
@@ -66,16 +67,26 @@ def grid_graph(layout, index):
     return np.concatenate(edges, axis=1), np.concatenate(lengths)
 
 
-def region_graph(ds, layout, radius: float | None) -> tuple:
+def neighbour_radius(layout, labels) -> float | None:
+    """The neighbourhood radius of a sampled map: the one its region labels
+    ``labels`` (``poc_region``) were made with, else the default; None on a
+    grid."""
+    if layout.mode != "sample":
+        return None
+    radius = labels.attrs.get("radius")
+    return default_radius(layout) if radius is None else radius
+
+
+def region_graph(ds, layout, radius: float | None, margin, margin_name) -> tuple:
     """The graph of the map's POC poses, as regions and paths join them:
     (yes (n,) bool per node, edges (2, E) between YES neighbours, their
     lengths (E,), the margin at each node (n,) or None, which edges may
     cross a NO set thinner than the map's resolution (E,) bool, or None
     without reach_margin). Nodes are the distinct poses of a grid
     (:func:`~cdpm.maps.regions.distinct`) or the samples (neighbours within
-    ``radius``)."""
+    ``radius``). ``margin``, ``margin_name``: :func:`margin_values`' (read
+    once by the caller, which needs them too)."""
     poc = np.asarray(ds["poc"].transpose(*layout.dims).values)
-    margin, margin_name = margin_values(ds, layout.dims)
     # r_T decides the suspect steps; a map made without margins has none
     computed = margin_name == "reach_margin" and bool(np.isfinite(margin).any())
     reach = margin if computed else None
@@ -104,11 +115,8 @@ def suspect_region_steps(map: Any) -> int | None:
     be split; None for a map without the reach margin r_T."""
     ds = as_dataset(map)
     layout = map_layout(ds)
-    radius = None
-    if layout.mode == "sample":
-        radius = region_labels(ds).attrs.get("radius")
-        radius = default_radius(layout) if radius is None else radius
-    suspect = region_graph(ds, layout, radius)[4]
+    radius = neighbour_radius(layout, region_labels(ds)) if layout.mode == "sample" else None
+    suspect = region_graph(ds, layout, radius, *margin_values(ds, layout.dims))[4]
     return None if suspect is None else int(np.count_nonzero(suspect))
 
 

@@ -45,13 +45,14 @@ from cdpm._path_graph import (
     bottleneck,
     connected,
     margin_values,
+    neighbour_radius,
     region_graph,
     shortest_route,
     suspect_edges,
     suspect_region_steps,
 )
 from cdpm.errors import InputError
-from cdpm.maps._sampled import default_radius, sample_distance
+from cdpm.maps._sampled import sample_distance
 from cdpm.maps.regions import (
     as_dataset,
     grid_index,
@@ -325,16 +326,15 @@ def poc_path(map: Any, start: Any, goal: Any, *, maximise_margin: bool = False) 
     layout = map_layout(ds)
     labels_da = region_labels(ds)
     labels = np.asarray(labels_da.transpose(*layout.dims).values)
-    radius = labels_da.attrs.get("radius") if layout.mode == "sample" else None
-    if layout.mode == "sample" and radius is None:
-        radius = default_radius(layout)
+    radius = neighbour_radius(layout, labels_da)
     s_idx = nearest_index(ds, layout, start, radius)
     g_idx = nearest_index(ds, layout, goal, radius)
     s_label, g_label = int(labels[s_idx]), int(labels[g_idx])
     if s_label == 0 or g_label == 0 or s_label != g_label:
         raise _not_connected(ds, layout, labels, s_idx, g_idx)
-    yes, edges, lengths, node_margin, suspect = region_graph(ds, layout, radius)
     margin, margin_name = margin_values(ds, layout.dims)
+    graph = region_graph(ds, layout, radius, margin, margin_name)
+    yes, edges, lengths, node_margin, suspect = graph
     if layout.mode == "grid":
         index = grid_index(layout)
         s, g = (_distinct_id(index, index.shape, i) for i in (s_idx, g_idx))
