@@ -172,8 +172,10 @@ def render_pose(
     # taut cables in order of tension, the heaviest on top (cables whose
     # projections coincide, e.g. an upper and a lower one seen from above,
     # showed the lighter one's colour); a slack one above them all
-    rank = np.argsort(np.argsort(np.nan_to_num(np.asarray(state.tension, dtype=float))))
-    taut_z = 3.0 + 0.09 * rank / max(len(rank) - 1, 1)
+    m = len(state.cable_names)
+    tension = np.zeros(m) if state.tension is None else np.nan_to_num(state.tension)
+    rank = np.argsort(np.argsort(tension, kind="stable"), kind="stable")
+    taut_z = 3.0 + 0.09 * rank / max(m - 1, 1)
     offset = 0
     # cable names at their anchors; cables whose anchors coincide in this
     # projection (e.g. an upper and a lower cable seen from above) share one label

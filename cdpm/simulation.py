@@ -152,7 +152,7 @@ def tension_panel(ax, time, values, names, equilibrium=None) -> None:
     groups: dict[tuple, list[int]] = {}  # cables with equal tensions and f*: one line
     for j, name in enumerate(names):
         if name not in idle:
-            groups.setdefault((*values[:, j], f_eq[j]), []).append(j)
+            groups.setdefault((values[:, j].tobytes(), f_eq[j]), []).append(j)
     for members in groups.values():
         j, label = members[0], " = ".join(names[k] for k in members)
         if stepped:
