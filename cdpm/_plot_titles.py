@@ -109,6 +109,7 @@ def map_suptitle(
     ``drawn`` on the slices left out (maps of more than two axes), and a
     line when the margin was asked for but the map has none; then
     ``subtitle``."""
+    width = int(12 * fig.get_figwidth())  # characters: about 12 an inch at 11 points
     if title is None:
         tension = ds.attrs.get("tension", "?")
         try:
@@ -120,8 +121,6 @@ def map_suptitle(
         tail = f"equilibrium tension {tension}"
         if "poc_some_tension" in ds and bool((ds["poc_some_tension"] >= 0).any()):
             tail += " (and the tension search)"
-        # about 12 characters per inch at 11 points
-        width = int(12 * fig.get_figwidth())
         fits = len(head) + len(tail) + 2 <= width
         title = f"{head}, {tail}" if fits else f"{textwrap.fill(head, width)}\n{tail}"
         overrides = _overrides_text(ds)
@@ -133,5 +132,5 @@ def map_suptitle(
             what = "reach margin" if missing.variable == "reach_margin" else "POC margin"
             title += f"\n{what} not computed (map made with --no-margin): no margin panel"
     if subtitle:
-        title += "\n" + textwrap.fill(subtitle, int(12 * fig.get_figwidth()))
+        title += "\n" + textwrap.fill(subtitle, width)
     fig.suptitle(title, fontsize=11)
