@@ -47,16 +47,24 @@ KERNEL_MODULES = (
 )
 
 
+#: set once this process has loaded the kernels (:func:`load_kernels`)
+_LOADED = threading.Event()
+
+
 def load_kernels(notice: Callable[[str], None] | None = None) -> None:
     """Compile every kernel (first use after an install) or load it from the
     disk cache, through the functions that call them, on inputs of the
-    types maps pass (float64, C order).
+    types maps pass (float64, C order); once per process (later calls
+    return at once: a map calls it before its chunks, and calling every
+    kernel again cost 0.6 ms a map).
 
     Args:
         notice: called once with a sentence for the user when this takes
             longer than COMPILE_NOTICE_SECONDS (it is compiling), from a
             timer thread; None: say nothing.
     """
+    if _LOADED.is_set():
+        return
     timer = None
     if notice is not None:
         timer = threading.Timer(
@@ -68,6 +76,7 @@ def load_kernels(notice: Callable[[str], None] | None = None) -> None:
         timer.start()
     try:
         _load_kernels()
+        _LOADED.set()
     finally:
         if timer is not None:
             timer.cancel()
