@@ -529,14 +529,24 @@ def test_random_samples(paper_robot):
 # storage, resumption, parallel runs
 
 
+@pytest.mark.parametrize("kept", [True, False], ids=["returned-from-memory", "read-back"])
 @pytest.mark.parametrize("sampled", [False, True])
-def test_a_stored_map_reads_back_identical_to_the_map_in_memory(paper_robot, tmp_path, sampled):
+def test_a_stored_map_reads_back_identical_to_the_map_in_memory(
+    paper_robot, tmp_path, monkeypatch, sampled, kept
+):
     """The store's skeleton is written through zarr directly (not through
     xarray): read back, a map is the in-memory map, attributes, coordinates
-    (the sampled axes as non-dimension coordinates) and regions included."""
+    (the sampled axes as non-dimension coordinates) and regions included.
+    The run returns the map it kept in memory (``kept``: a small map) or
+    reads it back from the store (a map above RESULT_IN_MEMORY_MAX), and
+    either is the map open_map reads."""
     import xarray as xr
     import zarr
 
+    from cdpm.maps import _store
+
+    if not kept:
+        monkeypatch.setattr(_store, "RESULT_IN_MEMORY_MAX", 0)
     if sampled:
         axes, kw = {"q1": (-3, 3), "q2": (0, 1)}, {"samples": 200, "seed": 2}
     else:
@@ -550,8 +560,11 @@ def test_a_stored_map_reads_back_identical_to_the_map_in_memory(paper_robot, tmp
     assert {name: type(index) for name, index in stored.xindexes.items()} == {
         name: type(index) for name, index in opened.xindexes.items()
     }
+    # read back, the variables carry the store's encoding (chunks, codecs);
+    # kept in memory, none
+    assert ("chunks" in stored["poc"].encoding) is not kept
     for name in opened.variables:
-        if name != "poc_region":
+        if name != "poc_region" and not kept:
             got, read = stored[name].encoding, opened[name].encoding
             assert got.keys() == read.keys(), name
             for key, value in read.items():  # NaN fill values compare unequal
@@ -683,6 +696,7 @@ def test_a_resumed_map_is_read_from_its_store(paper_robot, tmp_path):
         zarr.open_array(str(store / "q1"), mode="r+")[:] = np.arange(9.0)  # edited by hand
     again = workspace_map(paper_robot, axes, workers=1, store=store)
     np.testing.assert_array_equal(again["q1"].values, np.arange(9.0))
+    assert "chunks" in again["poc"].encoding  # read back, not kept in memory
     xr.testing.assert_identical(
         again.drop_vars("poc_region"), open_map(store).drop_vars("poc_region")
     )
@@ -860,7 +874,8 @@ def test_default_chunks_under_load_are_few_and_even(tmp_path):
     axes = {"q1": np.linspace(-3.0, 3.0, 64), "q2": np.linspace(-3.0, 3.0, 64)}
     store = tmp_path / "v.zarr"
     ds = workspace_map(VERTICAL_SPEC, axes, workers=1, store=store, margin=False)
-    assert ds.attrs["chunk_size"] == 2048 and ds["poc"].encoding["chunks"] == (32, 64)
+    assert ds.attrs["chunk_size"] == 2048
+    assert open_map(store)["poc"].encoding["chunks"] == (32, 64)
     assert sorted(p.name for p in (store / "poc").iterdir()) == ["c.0.0", "c.1.0", "zarr.json"]
     assert sorted(p.name for p in (store / ".cdpm" / "done").iterdir()) == ["0", "1"]
     _same(ds, workspace_map(VERTICAL_SPEC, axes, workers=1, chunk_size=256, margin=False))
@@ -869,6 +884,36 @@ def test_default_chunks_under_load_are_few_and_even(tmp_path):
 def test_worker_processes_give_the_same_map(paper_robot, paper_map, tmp_path):
     ds = workspace_map(PAPER_SPEC, PAPER_AXES, workers=2, chunk_size=300, store=tmp_path / "p.zarr")
     _same(ds, paper_map)
+
+
+def test_a_map_whose_chunks_a_worker_wrote_is_read_back(paper_robot, tmp_path, monkeypatch):
+    """A small map is returned from this process's memory only when this
+    process wrote every chunk: a chunk a worker process wrote (through the
+    store's picklable writer, as ``_run_processes`` has it) is not there,
+    and the map is read back from the store."""
+    import pickle
+
+    import xarray as xr
+
+    from cdpm.maps import _store
+
+    own_write = _store.ZarrSink.write
+
+    def write(sink, index, data):
+        if index == 1:  # as a worker process writes its chunk
+            pickle.loads(pickle.dumps(sink.writer)).write(index, data)
+        else:
+            own_write(sink, index, data)
+
+    monkeypatch.setattr(_store.ZarrSink, "write", write)
+    axes = {"q1": np.linspace(-3, 3, 16), "q2": np.linspace(0, 1, 8)}
+    store = tmp_path / "m.zarr"
+    ds = workspace_map(paper_robot, axes, workers=1, store=store, chunk_size=64)
+    assert sorted(p.name for p in (store / ".cdpm" / "done").iterdir()) == ["0", "1"]
+    assert "chunks" in ds["poc"].encoding  # read back
+    xr.testing.assert_identical(ds, open_map(store))
+    monkeypatch.undo()
+    _same(ds, workspace_map(paper_robot, axes, workers=1))
 
 
 def test_this_process_computes_while_its_worker_processes_start(paper_map, monkeypatch):

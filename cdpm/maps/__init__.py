@@ -33,7 +33,12 @@ from cdpm.maps._plan import (
     sample_axes,
 )
 from cdpm.maps._runner import MapRunInfo
-from cdpm.maps._store import StoreSettingsError, open_map, store_path_problem
+from cdpm.maps._store import (
+    RESULT_IN_MEMORY_MAX,
+    StoreSettingsError,
+    open_map,
+    store_path_problem,
+)
 from cdpm.numerics import SPAN_TOL
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -50,6 +55,7 @@ __all__ = [
     "evaluate_poses",
     "VERDICT_CODES",
     "STATUS_CODES",
+    "RESULT_IN_MEMORY_MAX",
 ]
 
 
@@ -177,8 +183,12 @@ def workspace_map(
         (int8 codes, see :data:`VERDICT_CODES`), ``tension_min``,
         ``tension_max`` [N], ``y`` (..., output) [m],
         ``output_frame_position`` (..., xyz) [m] and ``status`` (see
-        :data:`STATUS_CODES`); provenance in ``attrs``. From a store the
-        dataset is lazily loaded.
+        :data:`STATUS_CODES`); provenance in ``attrs``. With a ``store``,
+        the dataset :func:`open_map` reads (values, coordinates, attributes,
+        ``encoding["source"]``): lazily loaded from the store, except a map
+        of at most :data:`RESULT_IN_MEMORY_MAX` bytes (64 MiB) whose every
+        chunk this process computed, which is returned from memory (its
+        variables without the store's chunk and codec encoding).
 
     Raises:
         InputError: unknown coordinates or bad values; ``workers`` with
