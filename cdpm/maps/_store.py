@@ -43,8 +43,8 @@ __all__ = [
 
 _META = ".cdpm"
 
-#: chunk files side by side (c.3.0), not nested folders (c/3/0): a chunk of
-#: a grid map then creates no folder (each data variable and the regions)
+#: chunk files side by side (c.3.0), not nested folders (c/3/0): a chunk
+#: then creates no folder (each coordinate, data variable and the regions)
 CHUNK_KEY_ENCODING = {"name": "default", "separator": "."}
 
 #: largest map [bytes of its variables] that the run writing it also keeps
@@ -382,6 +382,7 @@ class ZarrSink:
                     compressors=None,  # a few values: read without a codec's thread hop
                     dimension_names=[dim],
                     attributes=rest[0] if rest else {},
+                    chunk_key_encoding=CHUNK_KEY_ENCODING,
                 )
             )
         for name, (extra, dtype, fill, var_attrs) in self.specs.items():
