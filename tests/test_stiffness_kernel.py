@@ -84,3 +84,19 @@ def test_the_per_pose_stiffness_is_the_batch_of_one(robot):
     whole = robot.cable_stiffness_batch(kin, tension)
     for n in range(3):
         assert np.array_equal(robot.cable_stiffness(kin.qs[n], tension[n]), whole[n])
+
+
+def test_the_kernels_are_loaded_once_per_process(monkeypatch):
+    """load_kernels runs every kernel on tiny inputs the first time only
+    (the suite's fixture did): a map calls it before its chunks, and
+    later maps of a script pay nothing for it."""
+    from cdpm import compiled
+
+    assert compiled._LOADED.is_set()
+    calls = []
+    monkeypatch.setattr(compiled, "_load_kernels", lambda: calls.append(1))
+    compiled.load_kernels()
+    assert calls == []
+    monkeypatch.setattr(compiled, "_LOADED", compiled.threading.Event())  # a new process
+    compiled.load_kernels()
+    assert calls == [1] and compiled._LOADED.is_set()
