@@ -23,7 +23,7 @@ Prints, in one run (the machine's load average at its start and end):
    a fresh process warmed by a 64-pose map first (imports and compiled kernels
    are a process's cost, not a map's); what creating a file costs in the
    temporary folder where the stores go, right after these maps (a
-   2048-pose map creates about 75 files and folders); and, with no target,
+   2048-pose map creates about 70 files and folders); and, with no target,
    the same maps end to end with their stores on a RAM disk (/dev/shm);
 3. throughput of a map written to zarr with 1 and 2 local processes, each
    in a fresh Python process as a user's script or the CLI runs it (a
@@ -83,6 +83,8 @@ RAM_DISK = "/dev/shm"
 GRAVITY_MAP_SECONDS = 10.0
 #: least speed-up of 2 local processes over 1 (gravity map; paper map)
 TWO_WORKERS_TARGET = {"gravity": 1.8, "paper": 1.7}
+#: targets set here, not by the speed issue (counted apart in the summary)
+OWN_TARGET = " (own target)"
 
 
 def poses(robot, n: int, seed: int = 0, near_named: bool = False) -> np.ndarray:
@@ -432,7 +434,7 @@ def file_creation_cost(n: int = 200) -> float:
     a new folder of the temporary directory (where the maps' stores go):
     on some disks (ext4 without a journal) it grows twentyfold while many
     files were created or deleted there in the last seconds, and a
-    2048-pose map creates about 75 files and folders."""
+    2048-pose map creates about 70 files and folders."""
     with tempfile.TemporaryDirectory() as tmp:
         start = time.perf_counter()
         for i in range(n):
@@ -495,7 +497,7 @@ def small_map_section(args, targets: list) -> None:
     print(
         f"  creating a file in {tempfile.gettempdir()} (where the stores go), right after these "
         f"maps: {files_after * 1e3:.2f} ms (mean of 200; about 0.05 on a quiet disk, and a "
-        "2048-pose map creates about 75 files and folders)"
+        "2048-pose map creates about 70 files and folders)"
     )
     if os.access(RAM_DISK, os.W_OK):
         ram = _best_map_rates((small, large), rounds, folder=RAM_DISK)
@@ -537,9 +539,10 @@ def throughput_section(args, targets: list, gravity_cost: float | None) -> None:
             f"{r2:,.0f}: {r2 / r1:.2f}x (target >= {target:g}x) {verdict}; end to end (imports "
             f"and store creation included) {w1:,.0f} vs {w2:,.0f}: {w2 / w1:.2f}x"
         )
+        own = OWN_TARGET if key == "paper" else ""
         targets.append(
             (
-                f"2 processes vs 1, {label}, while chunks run",
+                f"2 processes vs 1, {label}, while chunks run{own}",
                 f"{r2 / r1:.2f}x",
                 f">= {target:g}x",
                 verdict,
@@ -592,10 +595,14 @@ def main(argv=None) -> int:
     width = max(len(t[0]) for t in targets)
     for what, value, target, verdict in targets:
         print(f"  {what:<{width}} {value:>12} {target:>8} {verdict}")
-    passes, misses = (sum(t[3] == v for t in targets) for v in ("PASS", "MISS"))
+    issue = [t for t in targets if not t[0].endswith(OWN_TARGET)]
+    own = [t for t in targets if t[0].endswith(OWN_TARGET)]
+    passes, misses = (sum(t[3] == v for t in issue) for v in ("PASS", "MISS"))
+    own_passes, own_misses = (sum(t[3] == v for t in own) for v in ("PASS", "MISS"))
     print(
-        f"{passes} pass, {misses} miss; "
-        f"load average at end {_load()}; {time.perf_counter() - start:.0f} s"
+        f"the issue's targets: {passes} pass, {misses} miss; own targets: {own_passes} pass, "
+        f"{own_misses} miss; load average at end {_load()}; "
+        f"{time.perf_counter() - start:.0f} s"
     )
     return 0
 
