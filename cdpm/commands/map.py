@@ -394,7 +394,7 @@ def _check_outputs(args: argparse.Namespace) -> None:
     import os
 
     from cdpm.errors import InputError
-    from cdpm.maps._store import store_path_problem
+    from cdpm.maps._store_names import store_path_problem
 
     if not args.out and not args.plot:
         raise InputError(

@@ -33,12 +33,8 @@ from cdpm.maps._plan import (
     sample_axes,
 )
 from cdpm.maps._runner import MapRunInfo
-from cdpm.maps._store import (
-    RESULT_IN_MEMORY_MAX,
-    StoreSettingsError,
-    open_map,
-    store_path_problem,
-)
+from cdpm.maps._store import RESULT_IN_MEMORY_MAX, StoreSettingsError, open_map
+from cdpm.maps._store_names import store_path_problem
 from cdpm.numerics import SPAN_TOL
 
 if TYPE_CHECKING:  # pragma: no cover
