@@ -723,6 +723,41 @@ def test_new_store_consolidated_metadata_is_zarrs_own(paper_robot, tmp_path, mon
     assert root.read_bytes() == written
 
 
+def test_every_array_document_is_the_one_zarr_creates(tmp_path):
+    """The data variables of a kind share the metadata zarr made for the
+    first of them, with their own attributes and dimension names: each
+    variable's zarr.json is the document zarr's create_array writes from its
+    shape, dtype, dimensions and attributes in the in-memory map, its
+    criterion's fill value and the map's chunks (a map under load with a
+    tension search: every kind of variable)."""
+    import zarr
+
+    from cdpm.maps.criteria import CRITERIA
+
+    axes = {"q1": np.linspace(-3, 3, 5), "q2": np.linspace(0, 1, 4)}
+    store = tmp_path / "m.zarr"
+    workspace_map(VERTICAL_SPEC, axes, workers=1, store=store, tension="best")
+    memory = workspace_map(VERTICAL_SPEC, axes, workers=1, tension="best")
+    for name, criterion in CRITERIA.items():
+        written = json.loads((store / name / "zarr.json").read_text())
+        variable = memory[name]
+        chunks = written["chunk_grid"]["configuration"]["chunk_shape"]
+        assert chunks[:2] == [5, 4] and chunks[2:] == list(variable.shape[2:]), name
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            made = zarr.create_array(
+                zarr.storage.MemoryStore(),
+                shape=variable.shape,
+                chunks=chunks,
+                dtype=variable.dtype,
+                fill_value=criterion.fill,
+                dimension_names=list(variable.dims),
+                attributes=variable.attrs,
+                chunk_key_encoding={"name": "default", "separator": "."},
+            )
+        assert json.loads(json.dumps(made.metadata.to_dict())) == written, name
+
+
 def test_regions_write_creates_nothing_on_a_wrong_path_and_consolidates_again(
     paper_robot, tmp_path
 ):

@@ -315,12 +315,23 @@ class ZarrSink:
         of a sampled map, an array along ``sample`` listed in the group's
         ``coordinates`` attribute.
 
+        zarr creates the first data variable of each kind (dtype, extra
+        dimensions' sizes, fill value); the others of that kind take its
+        metadata with their own attributes and dimension names, which is
+        what zarr makes for them (tested) at a sixth of the cost: a map has
+        16 data variables of 6 kinds, and zarr's creation of an array costs
+        about 0.2 ms of Python.
+
         Returns:
             (the group, every array {name: zarr AsyncArray}).
         """
         import asyncio
+        import dataclasses
 
+        from zarr import AsyncArray
         from zarr.api.asynchronous import create_group
+        from zarr.core.buffer import default_buffer_prototype
+        from zarr.storage import StorePath
 
         plan = self.plan
         coords = _coords(self.robot, plan)
@@ -343,8 +354,17 @@ class ZarrSink:
                     chunk_key_encoding=CHUNK_KEY_ENCODING,
                 )
             )
+        names = list(coords)
+        kinds: dict[tuple, str] = {}  # (dtype, extra sizes, fill) -> its first variable
+        alike: dict[str, tuple] = {}  # variable -> (first of its kind, dims, attrs)
         for name, (extra, dtype, fill, var_attrs) in self.specs.items():
             extra_shape = tuple(_extra_size(self.robot, d) for d in extra)
+            kind = (np.dtype(dtype).str, extra_shape, repr(fill))
+            if kind in kinds:
+                alike[name] = (kinds[kind], tuple(plan.dims + extra), var_attrs)
+                continue
+            kinds[kind] = name
+            names.append(name)
             creating.append(
                 group.create_array(
                     name,
@@ -357,8 +377,16 @@ class ZarrSink:
                     chunk_key_encoding=CHUNK_KEY_ENCODING,
                 )
             )
-        created = await asyncio.gather(*creating)
-        return group, dict(zip([*coords, *self.specs], created, strict=True))
+        created = dict(zip(names, await asyncio.gather(*creating), strict=True))
+        prototype = default_buffer_prototype()
+        for name, (first, dims, var_attrs) in alike.items():
+            metadata = dataclasses.replace(
+                created[first].metadata, attributes=var_attrs, dimension_names=dims
+            )
+            document = metadata.to_buffer_dict(prototype)["zarr.json"]
+            await store.set(f"{name}/zarr.json", document)
+            created[name] = AsyncArray(metadata, StorePath(store, name))
+        return group, {name: created[name] for name in [*coords, *self.specs]}
 
     def done(self) -> set[int]:
         """Indices of the chunks whose data is complete in the store."""
