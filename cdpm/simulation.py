@@ -195,6 +195,9 @@ class Trajectory:
             feedback law.
         output_units: each output's unit (``"m"``, ``"rad"``, ``"mixed"``
             or a spec's ``unit:``); empty: metres.
+        coordinate_units: each coordinate's unit (``"m"`` or ``"rad"``),
+            which gives each tangent velocity's (``velocity_units``); empty:
+            not recorded.
     """
 
     t: np.ndarray
@@ -210,11 +213,21 @@ class Trajectory:
     coordinate_names: tuple[str, ...]
     profile: TensionProfile | None = None
     output_units: tuple[str, ...] = ()
+    coordinate_units: tuple[str, ...] = ()
 
     @property
     def units(self) -> tuple[str, ...]:
         """Each output's unit (``output_units``, metres when not given)."""
         return self.output_units or ("m",) * len(self.output_names)
+
+    @property
+    def velocity_units(self) -> tuple[str, ...]:
+        """Each tangent velocity's unit (``"rad/s"`` or ``"m/s"``), in the
+        order of ``coordinate_names``; ``"rad/s or m/s"`` each when the
+        coordinates' units were not recorded."""
+        if len(self.coordinate_units) == self.v.shape[1]:
+            return tuple(f"{u}/s" for u in self.coordinate_units)
+        return ("rad/s or m/s",) * self.v.shape[1]
 
     @property
     def out_of_bounds(self) -> np.ndarray:
@@ -245,7 +258,10 @@ class Trajectory:
                 "v": (
                     ("time", "velocity"),
                     self.v,
-                    {"long_name": "tangent velocity", "units": "rad/s or m/s per coordinate"},
+                    {
+                        "long_name": "tangent velocity",
+                        "units": ", ".join(dict.fromkeys(self.velocity_units)),
+                    },
                 ),
                 "q": (
                     ("time", "q_index"),
@@ -260,6 +276,7 @@ class Trajectory:
                 "output": list(self.output_names),
                 "output_unit": ("output", list(self.units)),
                 "velocity": [f"{c}_dot" for c in self.coordinate_names],
+                "velocity_unit": ("velocity", list(self.velocity_units)),
                 "tension_min": ("cable", self.tension_min, {"units": "N"}),
                 "tension_max": ("cable", self.tension_max, {"units": "N"}),
             },
@@ -551,6 +568,8 @@ def simulate(
         def value(t, q_, v_):
             return constant
 
+    from cdpm.maps._plan import coordinate_units
+
     dyn = _Dynamics(robot)
     budget = _Budget(int(max_evaluations), nv)
     qs, vs, fs = [q.copy()], [v.copy()], [value(times[0], q, v)]
@@ -616,4 +635,5 @@ def simulate(
         coordinate_names=tuple(robot.coordinate_names),
         profile=profile,
         output_units=tuple(robot.output_units),
+        coordinate_units=tuple(coordinate_units(robot.model)),
     )

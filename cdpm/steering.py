@@ -167,8 +167,7 @@ class SteerResult:
             f"{self.tension.shape[0]} intervals",
             f"  peak tension {self.peak_tension:.4g} N; tensions "
             f"{'inside' if self.within_bounds else 'OUTSIDE'} the bounds; final velocity "
-            f"{np.array2string(self.final_velocity + 0.0, precision=3)} (rad/s or m/s: "
-            "the robot still moves at T)",
+            f"{_velocities(self.final_velocity, traj)} (the robot still moves at T)",
         ]
         if self.blocked_direction is not None:
             lines.append(
@@ -189,6 +188,15 @@ class SteerResult:
 
     def _repr_html_(self) -> str:
         return f"<pre>{html.escape(str(self))}</pre>"
+
+
+def _velocities(v: np.ndarray, traj) -> str:
+    """Tangent velocities ``v`` (nv,) named and in their units, as
+    ``"q1 0.012 rad/s, q2 -0.3 rad/s"`` (the trajectory's coordinates)."""
+    return ", ".join(
+        f"{name} {value + 0.0:.3g} {unit}"
+        for name, value, unit in zip(traj.coordinate_names, v, traj.velocity_units, strict=True)
+    )
 
 
 def _duration_bounds(lin: Linearisation) -> tuple[float, float, float]:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import numpy as np
@@ -169,6 +170,11 @@ def test_feedback_law_and_bounds_flags(paper):
     assert not pushing.within_bounds and pushing.out_of_bounds[:, 0].all()
     ds = const.to_dataset()
     assert ds["tension"].attrs["units"] == "N" and ds.sizes["cable"] == 4
+    # the paper arm's coordinates are angles: its velocities are in rad/s
+    assert const.velocity_units == ("rad/s", "rad/s") and ds["v"].attrs["units"] == "rad/s"
+    assert list(ds["velocity_unit"].values) == ["rad/s", "rad/s"]
+    unrecorded = dataclasses.replace(const, coordinate_units=())
+    assert unrecorded.velocity_units == ("rad/s or m/s",) * 2
 
 
 def test_profile_bounds_and_constant_pairs():
@@ -332,6 +338,18 @@ def test_motion_plots_show_each_output_in_its_unit_and_the_cables_that_pull():
     for name, unit in units.items():
         assert f"{name} [{'mm' if unit == 'm' else 'mrad'}]" in labels
     assert res.trajectory.to_dataset().y.attrs["units"] == "m, rad"
+    # a free-flyer's tangent velocities: linear in m/s, angular in rad/s,
+    # each named in the printout
+    assert res.trajectory.velocity_units == ("m/s",) * 3 + ("rad/s",) * 3
+    assert res.trajectory.to_dataset().v.attrs["units"] == "m/s, rad/s"
+    line = next(ln for ln in str(res).splitlines() if "final velocity" in ln)
+    speeds = line.split("final velocity ")[1].removesuffix(" (the robot still moves at T)")
+    parts = [part.split(" ") for part in speeds.split(", ")]
+    assert [p[0] for p in parts] == list(robot.coordinate_names)
+    assert [p[2] for p in parts] == ["m/s"] * 3 + ["rad/s"] * 3
+    np.testing.assert_allclose(
+        [float(p[1]) for p in parts], res.final_velocity, rtol=5e-3, atol=1e-12
+    )
     # cables with the same tensions throughout share a line named for all of them
     groups = [t.get_text().split(" = ") for t in ax_f.get_legend().get_texts()]
     names = list(robot.cable_names)

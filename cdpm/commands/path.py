@@ -355,6 +355,7 @@ def _path_trajectory(robot: CableRobot, ds, path):
     import numpy as np
 
     from cdpm.equilibrium import equilibrium_tension
+    from cdpm.maps._plan import coordinate_units
     from cdpm.simulation import Trajectory
 
     tension = _map_tension(ds)
@@ -377,6 +378,7 @@ def _path_trajectory(robot: CableRobot, ds, path):
         output_names=tuple(robot.output_names),
         coordinate_names=tuple(robot.coordinate_names),
         output_units=tuple(robot.output_units),
+        coordinate_units=tuple(coordinate_units(robot.model)),
     )
 
 
