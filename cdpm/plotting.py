@@ -396,9 +396,32 @@ def _grid_path(ax, ds, dims, slices, k, path) -> bool:
 
 
 def _slice_index(ds, third: str, values: np.ndarray) -> np.ndarray:
-    """The index of the map value of ``third`` nearest each of ``values``."""
+    """The index of the map value of ``third`` nearest each of ``values``;
+    along an axis that wraps, angles compare modulo 2 pi, and on a full
+    turn with both ends (closed) the last value is the first's pose, index
+    0 (:func:`_slice_key`)."""
     grid = np.asarray(ds[third].values, dtype=float)
-    return np.argmin(np.abs(np.asarray(values, dtype=float)[:, None] - grid[None, :]), axis=1)
+    diff = np.asarray(values, dtype=float)[:, None] - grid[None, :]
+    if _wrap(ds, third) is not None:
+        diff = np.remainder(diff + math.pi, 2.0 * math.pi) - math.pi
+    return _slice_key(ds, third, np.argmin(np.abs(diff), axis=1))
+
+
+def _wrap(ds, axis: str) -> str | None:
+    """How the grid axis wraps (``"closed"``, ``"open"`` or None; see
+    :class:`cdpm.maps.regions.MapLayout`)."""
+    from cdpm.maps.regions import map_layout
+
+    layout = map_layout(ds)
+    return layout.wrap[layout.axes.index(axis)]
+
+
+def _slice_key(ds, third: str, index):
+    """Slice indices of ``third`` with the last value of a closed axis
+    (the same pose as the first) read as the first."""
+    if _wrap(ds, third) != "closed":
+        return index
+    return np.where(np.asarray(index) == ds.sizes[third] - 1, 0, index)
 
 
 def _slice_picks(ds, third: str, max_slices: int, path) -> np.ndarray:
@@ -420,7 +443,7 @@ def _slice_picks(ds, third: str, max_slices: int, path) -> np.ndarray:
 def _near_slice(ds, third: str, values: np.ndarray, slices: list[dict], k: int) -> np.ndarray:
     """Which path poses lie in slice ``k`` (their nearest value of
     ``third`` is the slice's); the others are drawn dashed there."""
-    return _slice_index(ds, third, values) == slices[k][third]
+    return _slice_index(ds, third, values) == _slice_key(ds, third, slices[k][third])
 
 
 def _margin_grid_panel(ax, fig, ds, variable, dims, slices, scale: MarginScale, path) -> None:

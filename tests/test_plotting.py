@@ -792,6 +792,20 @@ def test_slices_of_a_three_axis_map_carry_regions_and_the_path(paper_map):
     assert "(not drawn: " in fig.get_suptitle()
     with pytest.raises(cdpm.InputError, match="max_slices must be a positive integer, got 0"):
         plot_map(eight, max_slices=0)
+    # a third axis over a full turn with both ends: pi and -pi are one pose,
+    # so a path pose at pi lies in the -pi slice (it was dashed there)
+    turn = xr.DataArray(np.linspace(-np.pi, np.pi, 5), dims="q3", name="q3", attrs={"units": "rad"})
+    closed = xr.concat([ds] * 5, dim=turn).transpose("q1", "q2", "q3", ...)
+    closed = _with_regions(closed.assign_attrs(axes=["q1", "q2", "q3"]))
+    path = {"q1": [-1.0, 0.0, 1.0], "q2": [0.5, 1.0, 1.5], "q3": [np.pi, np.pi, 0.1]}
+    fig = plot_map(closed, path=path, max_slices=3)
+    slices = [ax for ax in fig.axes if ax.get_title().startswith("POC verdict (q3 = ")]
+    drawn = [ax.get_title()[len("POC verdict (q3 = ") : -1] for ax in slices]
+    assert drawn == ["-3.14 rad", "0 rad", "3.14 rad"]
+    for ax, expected in zip(slices, [[1, 1, 0], [0, 0, 1], [1, 1, 0]], strict=True):
+        (line,) = [ln for ln in ax.get_lines() if ln.get_gid() == "path"]
+        solid = np.isfinite(np.asarray(line.get_xdata(), dtype=float))
+        np.testing.assert_array_equal(solid, np.array(expected, dtype=bool))
 
 
 def test_a_wide_area_outside_the_regions_is_outlined_all_round():
