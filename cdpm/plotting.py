@@ -67,6 +67,7 @@ from cdpm._plot_overlays import (
     region_count,
     region_handle,
 )
+from cdpm._plot_slabs import SampleSlab, sample_slabs, slabs_text
 from cdpm._plot_titles import map_suptitle, slices_text
 from cdpm.errors import InputError, is_integer
 from cdpm.verdicts import VERDICT_COLORS
@@ -256,14 +257,19 @@ def plot_map(
             two, or the one of a one-axis map). It is drawn over the verdict
             and margin panels as a blue line from a start circle to a goal
             star (on a one-axis map, along the margin line). Coordinates not
-            plotted are projected out: on the slices of a map of more than
-            two axes, the poses whose third coordinate is nearest the
-            slice's value are drawn solid and the rest dashed (all solid
-            without a third coordinate in ``path``); further coordinates are
-            ignored. A step across the seam of a full-turn angle (pi to -pi)
+            plotted are projected out: on the slices of a grid map of more
+            than two axes, the poses whose third coordinate is nearest the
+            slice's value are drawn solid and the rest dashed, and on the
+            slabs of a sampled map those whose third coordinate lies in the
+            slab (all solid without a third coordinate in ``path``); further
+            coordinates are ignored. A step across the seam of a full-turn angle (pi to -pi)
             is drawn the short way, out through one edge of the panel and
             back through the other.
-        max_slices: most slices drawn for maps of more than two axes.
+        max_slices: most slices drawn for grid maps of more than two axes;
+            most slabs for sampled ones, whose samples are cut along the
+            third coordinate into slabs of equal width (each of about
+            ``cdpm._plot_slabs.MIN_SLAB_SAMPLES`` = 300 samples at least), one
+            panel each; further coordinates are projected.
         title: figure title (default: spec name, poses, the base values of
             the coordinates off the axes, tension).
         subtitle: a line added under the figure title (e.g. how steering
@@ -311,7 +317,12 @@ def plot_map(
         return fig
     slices: list[dict] = [{}]
     drawn = ""
-    if not sample and len(dims) > 2:
+    slabs: list[SampleSlab] = [SampleSlab.everything(ds)] if sample else []
+    if sample and len(axes_names) > 2:
+        slabs = sample_slabs(ds, axes_names[2], max_slices)
+        slices = [{}] * len(slabs)
+        drawn = slabs_text(axes_names[2:], len(slabs))
+    elif not sample and len(dims) > 2:
         third = dims[2]
         picks = _slice_picks(ds, third, max_slices, path)
         rest = {d: ds.sizes[d] // 2 for d in dims[3:]}
@@ -330,7 +341,8 @@ def plot_map(
         if kind == "output":
             output_panel(ax, ds, variable, choice, axes_names[0])
         elif sample:
-            _sample_panel(ax, fig, ds, variable, axes_names, kind, scale, path, regions)
+            slab = slabs[k] if kind == "verdict" else slabs[len(slabs) // 2]
+            _sample_panel(ax, fig, ds, variable, axes_names, kind, scale, path, regions, slab)
         elif kind == "margin":
             _margin_grid_panel(ax, fig, ds, variable, dims, slices, scale, path)
         else:
@@ -468,15 +480,16 @@ def _margin_grid_panel(ax, fig, ds, variable, dims, slices, scale: MarginScale, 
     ax.set_title(scale.title + (f"\n({where})" if where else ""), fontsize=10)
 
 
-def _sample_panel(ax, fig, ds, variable, axes_names, kind, scale, path, regions) -> None:
-    """A scatter of the samples in their first two coordinates: verdicts
-    (with regions and the path) or margins."""
+def _sample_panel(ax, fig, ds, variable, axes_names, kind, scale, path, regions, slab) -> None:
+    """A scatter of the samples of ``slab`` (a :class:`SampleSlab`) in
+    their first two coordinates: verdicts (with regions and the path) or
+    margins."""
     xn, yn = axes_names[0], axes_names[1]
-    xv = np.asarray(ds[xn].values, dtype=float)
-    yv = np.asarray(ds[yn].values, dtype=float)
-    values = np.asarray(ds[variable].values).reshape(-1)
+    keep = slab.mask
+    xv = np.asarray(ds[xn].values, dtype=float)[keep]
+    yv = np.asarray(ds[yn].values, dtype=float)[keep]
+    values = np.asarray(ds[variable].values).reshape(-1)[keep]
     size = max(3.0, min(40.0, 30000.0 / max(values.size, 1)))
-    projected = f" ({values.size} samples, projected)" if len(axes_names) > 2 else ""
     verdicts = kind == "verdict"
     if verdicts:
         for c in DRAW_ORDER:
@@ -493,20 +506,23 @@ def _sample_panel(ax, fig, ds, variable, axes_names, kind, scale, path, regions)
                 )
         handles = verdict_handles(values)
         if regions:
-            ids = np.asarray(ds["poc_region"].values)
+            ids = np.asarray(ds["poc_region"].values).reshape(-1)[keep]
             _, all_numbered = draw_regions_samples(ax, ids, xv, yv, len(axes_names) == 2)
             handles.append(region_handle(regions, all_numbered))
         title = verdict_title(variable)
     else:
-        margins = np.asarray(ds[scale.variable].values, dtype=float)
-        handles = margin_scatter(ax, fig, xv, yv, margins, _status(ds), values, scale, size)
+        margins = np.asarray(ds[scale.variable].values, dtype=float)[keep]
+        status = _status(ds)
+        status = None if status is None else status.reshape(-1)[keep]
+        handles = margin_scatter(ax, fig, xv, yv, margins, status, values, scale, size)
         title = scale.title
     if path is not None:
         periods = (_period(ds, xn), _period(ds, yn))
-        draw_path(ax, path[xn], path[yn], periods=periods, suspect=path.suspect)
-        handles += path_handles(path, ends=verdicts)
+        near = slab.near(path)
+        draw_path(ax, path[xn], path[yn], near, periods=periods, suspect=path.suspect)
+        handles += path_handles(path, near is not None, ends=verdicts)
     legend_below(ax, handles, ncol=3 if verdicts else 1)
-    ax.set_title(title + projected, fontsize=10)
+    ax.set_title(title + slab.title(), fontsize=10)
     ax.set_xlabel(coordinate_label(ds, xn))
     ax.set_ylabel(coordinate_label(ds, yn))
     ax.set_box_aspect(1)

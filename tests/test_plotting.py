@@ -122,6 +122,62 @@ def test_plot_of_more_than_two_axes(tmp_path):
     assert titles == ["POC verdict (z = 0)", "POC verdict (z = 2)"]
 
 
+def test_a_sampled_map_of_three_axes_is_drawn_in_slabs_of_its_third():
+    """Samples of three coordinates were all drawn over the first two, every
+    value of the third over the others: they are cut along the third into
+    slabs of equal width (about MIN_SLAB_SAMPLES samples each at least), a
+    panel each, the path solid in the slab it lies in; a fourth coordinate
+    is projected, which the figure title says."""
+    from cdpm._plot_slabs import MIN_SLAB_SAMPLES
+    from cdpm.plotting import plot_map
+    from tests.conftest import MODELS
+
+    spec = MODELS / "multilink_arm" / "multilink_arm.yaml"
+    ranges = {"shoulder_x": (-0.6, 0.6), "shoulder_y": (-0.6, 0.6), "elbow": (-1.5, 0.0)}
+    ds = workspace_map(spec, ranges, samples=1000, seed=1, base="reach", workers=1)
+    path = {
+        "shoulder_x": [-0.4, -0.4, -0.3],
+        "shoulder_y": [0.4, 0.0, -0.5],
+        "elbow": [-1.4, -0.8, -0.1],
+    }
+    fig = plot_map(ds, path=path)
+    assert MIN_SLAB_SAMPLES == 300  # 1000 samples: 3 slabs
+    assert fig.get_suptitle().endswith("\nelbow cut into 3 slabs of equal width, one a panel")
+    panels = [ax for ax in fig.axes if ax.get_title().startswith("POC verdict")]
+    elbow = ds["elbow"].values
+    low, high = elbow.min(), elbow.max()
+    edges = np.linspace(low, high, 4)
+    counts = []
+    for k, ax in enumerate(panels):
+        inside = (elbow >= edges[k]) & (
+            (elbow <= edges[k + 1]) if k == 2 else (elbow < edges[k + 1])
+        )
+        counts.append(int(inside.sum()))
+        close = "]" if k == 2 else ")"
+        assert ax.get_title() == (
+            f"POC verdict\n(elbow in [{edges[k] + 0.0:.2f}, {edges[k + 1] + 0.0:.2f}{close} rad: "
+            f"{counts[-1]} samples)"
+        )
+        drawn = sum(len(c.get_offsets()) for c in ax.collections if c.get_gid() == "verdict")
+        assert drawn == counts[-1]
+        (line,) = [ln for ln in ax.get_lines() if ln.get_gid() == "path"]
+        solid = np.isfinite(np.asarray(line.get_xdata(), dtype=float))
+        np.testing.assert_array_equal(solid, np.arange(3) == k)
+    assert sum(counts) == 1000
+    margin = [ax for ax in fig.axes if ax.get_title().startswith("reach margin")]
+    assert margin[0].get_title().splitlines()[-1] == panels[1].get_title().splitlines()[-1]
+    # too few samples to cut: one panel, said so; a fourth axis projected
+    ranges["wrist_x"] = (-0.2, 0.2)
+    few = workspace_map(spec, ranges, samples=200, seed=1, base="reach", workers=1, margin=False)
+    fig = plot_map(few, output_view=False)
+    assert (
+        "elbow: every sample in one panel (too few samples to cut); wrist_x projected "
+        "(every value drawn)" in " ".join(fig.get_suptitle().split())
+    )
+    (panel,) = [ax for ax in fig.axes if ax.get_title().startswith("POC verdict")]
+    assert panel.get_title().endswith(": 200 samples)")
+
+
 def test_plot_title_names_the_maps_overrides_of_its_spec(paper_robot):
     """A map of a robot whose gravity, bounds or pretension differ from its
     spec says so in the figure title, as `cdpm map` printed it."""
