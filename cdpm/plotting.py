@@ -410,8 +410,8 @@ def _grid_path(ax, ds, dims, slices, k, path) -> bool:
 def _slice_index(ds, third: str, values: np.ndarray) -> np.ndarray:
     """The index of the map value of ``third`` nearest each of ``values``;
     along an axis that wraps, angles compare modulo 2 pi, and on a full
-    turn with both ends (closed) the last value is the first's pose, index
-    0 (:func:`_slice_key`)."""
+    turn with both ends (closed) the two ends' pose is its lower end's
+    index (:func:`_slice_key`)."""
     grid = np.asarray(ds[third].values, dtype=float)
     diff = np.asarray(values, dtype=float)[:, None] - grid[None, :]
     if _wrap(ds, third) is not None:
@@ -420,36 +420,49 @@ def _slice_index(ds, third: str, values: np.ndarray) -> np.ndarray:
 
 
 def _wrap(ds, axis: str) -> str | None:
-    """How the grid axis wraps (``"closed"``, ``"open"`` or None; see
-    :class:`cdpm.maps.regions.MapLayout`)."""
-    from cdpm.maps.regions import map_layout
+    """How the grid axis ``axis`` wraps: ``"closed"``, ``"open"`` or None
+    (:func:`cdpm.maps.regions.grid_wrap` of its values and unit)."""
+    from cdpm.maps.regions import grid_wrap
 
-    layout = map_layout(ds)
-    return layout.wrap[layout.axes.index(axis)]
+    values = np.asarray(ds[axis].values, dtype=float)
+    return grid_wrap(values, ds[axis].attrs.get("units", ""))
 
 
 def _slice_key(ds, third: str, index):
-    """Slice indices of ``third`` with the last value of a closed axis
-    (the same pose as the first) read as the first."""
+    """Slice indices of ``third``, the upper end of a closed axis (the same
+    pose as its lower end) read as the lower end."""
     if _wrap(ds, third) != "closed":
         return index
-    return np.where(np.asarray(index) == ds.sizes[third] - 1, 0, index)
+    values = np.asarray(ds[third].values, dtype=float)
+    return np.where(np.asarray(index) == np.argmax(values), np.argmin(values), index)
 
 
 def _slice_picks(ds, third: str, max_slices: int, path) -> np.ndarray:
     """Indices of the values of ``third`` drawn as slices: at most
     ``max_slices`` (at least the path's ends), evenly spread: with a path
     (giving ``third``), the slices of its start and goal, then each next
-    one the value farthest from those chosen (the axis' ends first)."""
+    one the value farthest from those chosen (the axis' ends first). On a
+    closed axis the upper end, the same pose as the lower, is left out,
+    and distances go round the turn."""
     n3 = ds.sizes[third]
+    closed = _wrap(ds, third) == "closed"
+    values = np.asarray(ds[third].values, dtype=float)
+    # the distinct values, in ascending order, and their positions in it
+    order = np.argsort(values, kind="stable")[: n3 - 1 if closed else n3]
+    n = order.size
     if path is None or third not in path:
-        return np.unique(np.linspace(0, n3 - 1, min(max_slices, n3)).round().astype(int))
-    picks = sorted({int(k) for k in _slice_index(ds, third, path[third][[0, -1]])})
-    while len(picks) < min(max_slices, n3):
-        others = np.setdiff1d(np.arange(n3), picks)
-        distance = np.min(np.abs(others[:, None] - np.array(picks)[None, :]), axis=1)
-        picks = sorted([*picks, int(others[np.argmax(distance)])])
-    return np.array(picks)
+        spread = np.linspace(0, n if closed else n - 1, min(max_slices, n), endpoint=not closed)
+        return np.unique(order[spread.round().astype(int) % n])
+    rank = np.empty(n3, dtype=int)
+    rank[order] = np.arange(n)
+    picks = sorted({int(rank[k]) for k in _slice_index(ds, third, path[third][[0, -1]])})
+    while len(picks) < min(max_slices, n):
+        others = np.setdiff1d(np.arange(n), picks)
+        apart = np.abs(others[:, None] - np.array(picks)[None, :])
+        if closed:
+            apart = np.minimum(apart, n - apart)
+        picks = sorted([*picks, int(others[np.argmax(apart.min(axis=1))])])
+    return np.sort(order[picks])
 
 
 def _near_slice(ds, third: str, values: np.ndarray, slices: list[dict], k: int) -> np.ndarray:

@@ -857,11 +857,22 @@ def test_slices_of_a_three_axis_map_carry_regions_and_the_path(paper_map):
     fig = plot_map(closed, path=path, max_slices=3)
     slices = [ax for ax in fig.axes if ax.get_title().startswith("POC verdict (q3 = ")]
     drawn = [ax.get_title()[len("POC verdict (q3 = ") : -1] for ax in slices]
-    assert drawn == ["-3.14 rad", "0 rad", "3.14 rad"]
-    for ax, expected in zip(slices, [[1, 1, 0], [0, 0, 1], [1, 1, 0]], strict=True):
+    # pi is drawn as -pi, and the third slice goes to the value farthest
+    # round the turn from both, not to pi again
+    assert drawn == ["-3.14 rad", "-1.57 rad", "0 rad"]
+    for ax, expected in zip(slices, [[1, 1, 0], [0, 0, 0], [0, 0, 1]], strict=True):
         (line,) = [ln for ln in ax.get_lines() if ln.get_gid() == "path"]
         solid = np.isfinite(np.asarray(line.get_xdata(), dtype=float))
         np.testing.assert_array_equal(solid, np.array(expected, dtype=bool))
+    titles = [ax.get_title() for ax in plot_map(closed, max_slices=4).axes]
+    assert [t for t in titles if t.startswith("POC verdict")] == [
+        f"POC verdict (q3 = {v} rad)" for v in ("-3.14", "-1.57", "0", "1.57")
+    ]
+    # a dataset without poc (another verdict plotted) draws its path: the
+    # wrap is read from the axis alone, not from the map's layout
+    other = closed.drop_vars(["poc", "poc_region"])
+    fig = plot_map(other, variable="wrench_closure", path=path, max_slices=3, margin=False)
+    assert len([ax for ax in fig.axes if ax.get_title().startswith("wrench")]) == 3
 
 
 def test_a_wide_area_outside_the_regions_is_outlined_all_round():

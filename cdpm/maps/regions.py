@@ -81,7 +81,7 @@ class MapLayout:
         return tuple(a for a, w in zip(self.axes, self.wrap, strict=True) if w)
 
 
-def _grid_wrap(values: np.ndarray, unit: str) -> str | None:
+def grid_wrap(values: np.ndarray, unit: str) -> str | None:
     """``"closed"``, ``"open"`` or None for a grid axis (see the module doc)."""
     if unit != "rad" or values.size < 2:
         return None
@@ -131,7 +131,7 @@ def map_layout(ds) -> MapLayout:
     if sampled:
         wrap = tuple("modulo" if u == "rad" else None for u in units)
     else:
-        wrap = tuple(_grid_wrap(v, u) for v, u in zip(values, units, strict=True))
+        wrap = tuple(grid_wrap(v, u) for v, u in zip(values, units, strict=True))
     mode, shape = "sample" if sampled else "grid", tuple(int(s) for s in ds["poc"].shape)
     return MapLayout(mode, axes, dims, values, units, wrap, shape)
 
