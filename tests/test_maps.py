@@ -563,6 +563,7 @@ def test_a_stored_map_reads_back_identical_to_the_map_in_memory(
     # read back, the variables carry the store's encoding (chunks, codecs);
     # kept in memory, none
     assert ("chunks" in stored["poc"].encoding) is not kept
+    assert list(stored.data_vars) == list(opened.data_vars)  # in the same order
     for name in opened.variables:
         if name != "poc_region" and not kept:
             got, read = stored[name].encoding, opened[name].encoding
@@ -919,6 +920,8 @@ def test_default_chunks_under_load_are_few_and_even(tmp_path):
 def test_worker_processes_give_the_same_map(paper_robot, paper_map, tmp_path):
     ds = workspace_map(PAPER_SPEC, PAPER_AXES, workers=2, chunk_size=300, store=tmp_path / "p.zarr")
     _same(ds, paper_map)
+    # worker processes write chunks: this one keeps none, and reads the map back
+    assert "chunks" in ds["poc"].encoding
 
 
 def test_a_map_whose_chunks_a_worker_wrote_is_read_back(paper_robot, tmp_path, monkeypatch):

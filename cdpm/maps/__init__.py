@@ -294,6 +294,8 @@ def workspace_map(
         sink = MemorySink(robot, plan) if store is None else ZarrSink(store, robot, plan, overwrite)
         done = sink.done()
         todo = [k for k in range(plan.n_chunks) if k not in done]
+        if store is not None and scheduler is None and workers > 1 and len(todo) > 1:
+            sink.keep = False  # worker processes write chunks this one never holds
         if progress is True:
             if announce is None:
                 announce = _print_to_stderr

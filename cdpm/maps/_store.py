@@ -221,10 +221,13 @@ class ZarrSink:
             else:
                 self._check_settings()
         self._writer: ChunkWriter | None = None
-        #: the chunks this process wrote, and their values while the map is
-        #: small enough (a MemorySink), when this run created the store
-        self._written: set[int] = set()
-        self._memory: MemorySink | None = None
+        #: keep the chunks this process writes in memory, for the map this
+        #: run returns (:meth:`dataset`): set when this run creates the store
+        #: and the map is at most RESULT_IN_MEMORY_MAX bytes; the caller
+        #: clears it when worker processes will write chunks too
+        self.keep = False
+        self._written: set[int] = set()  # the chunks this process wrote
+        self._memory: MemorySink | None = None  # their values, when kept
         #: the store's zarr AsyncGroup, with its consolidated metadata, when
         #: this run created the store (else None: it is opened when needed)
         self.group = None
@@ -264,8 +267,7 @@ class ZarrSink:
         self.group, arrays = _write_metadata(self._create_skeleton())
         # this process's chunks go straight into the arrays just made
         self._writer = ChunkWriter(str(self.path), self.plan, tuple(self.specs), arrays)
-        if _nbytes(self.robot, self.plan, self.specs) <= RESULT_IN_MEMORY_MAX:
-            self._memory = MemorySink(self.robot, self.plan)
+        self.keep = _nbytes(self.robot, self.plan, self.specs) <= RESULT_IN_MEMORY_MAX
         _touch(self.path / _META / "created")
 
     async def _create_skeleton(self) -> tuple:
@@ -405,7 +407,9 @@ class ZarrSink:
         if self._writer is None:
             self._writer = self.writer
         self._writer.write(index, data)
-        if self._memory is not None:
+        if self.keep:
+            if self._memory is None:
+                self._memory = MemorySink(self.robot, self.plan)
             self._memory.write(index, data)
         self._written.add(index)
 
@@ -415,7 +419,8 @@ class ZarrSink:
         RESULT_IN_MEMORY_MAX bytes), else read from the store (lazily).
         Either is the dataset :func:`open_map` reads: the same values,
         coordinates and attributes, with ``encoding["source"]``."""
-        if self._memory is not None and len(self._written) == self.plan.n_chunks:
+        done_here = len(self._written) == self.plan.n_chunks
+        if self.keep and self._memory is not None and done_here:
             ds = self._memory.dataset()
             ds.encoding["source"] = os.path.abspath(self.path)
             return ds

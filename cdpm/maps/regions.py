@@ -456,6 +456,7 @@ def attach_new_regions(ds, store, group):
         from cdpm.maps._store import write_variable
 
         write_variable(Path(store).expanduser(), labels, group)
+        out = out[sorted(out.data_vars)]  # as open_map lists them
     return out
 
 
