@@ -104,6 +104,33 @@ def coordinate_names(model) -> list[str]:
     return names
 
 
+def velocity_names(model) -> list[str]:
+    """Names of the ``nv`` components of a velocity (Pinocchio's ``v``), in
+    order: ``name_dot`` where ``v`` is the rate of a natural coordinate
+    (joints of one degree of freedom, and joints whose configuration is a
+    vector); for a free-flyer ``joint.v_x``, ``v_y``, ``v_z`` (linear)
+    and ``joint.w_x``, ``w_y``, ``w_z`` (angular), for a planar joint
+    ``joint.v_x``, ``v_y``, ``w_z``, for a spherical one ``joint.w_x``,
+    ``w_y``, ``w_z``: the body's velocity in its own frame, not the rates
+    of its x, y, z and roll, pitch, yaw."""
+    local = {
+        "freeflyer": ("v_x", "v_y", "v_z", "w_x", "w_y", "w_z"),
+        "spherical": ("w_x", "w_y", "w_z"),
+        "planar": ("v_x", "v_y", "w_z"),
+    }
+    names: list[str] = []
+    start = 0
+    coords = coordinate_names(model)
+    for jname, joint in _joints(model):
+        kind = _kind(joint)
+        if kind in local:
+            names.extend(f"{jname}.{s}" for s in local[kind])
+        else:
+            names.extend(f"{c}_dot" for c in coords[start : start + joint.nv])
+        start += joint.nv
+    return names
+
+
 def _rpy_to_quaternion(rpy: np.ndarray) -> np.ndarray:
     import pinocchio as pin
 

@@ -178,6 +178,13 @@ def tension_panel(ax, time, values, names, equilibrium=None) -> None:
         )
 
 
+def _one_unit(units: tuple[str, ...], coordinate: str) -> str:
+    """The unit of a variable whose components have ``units``: the one
+    they share, else a pointer to the ``coordinate`` that gives each."""
+    distinct = set(units)
+    return units[0] if len(distinct) == 1 else f"per component, see {coordinate}"
+
+
 @dataclass(frozen=True)
 class Trajectory:
     """A simulated motion, sampled at times t.
@@ -198,6 +205,10 @@ class Trajectory:
         coordinate_units: each coordinate's unit (``"m"`` or ``"rad"``),
             which gives each tangent velocity's (``velocity_units``); empty:
             not recorded.
+        velocity_names: each component of ``v``
+            (:func:`cdpm.configuration.velocity_names`: ``q1_dot``, or a
+            free-flyer's body-frame ``joint.v_x`` ... ``joint.w_z``); empty:
+            ``name_dot`` of each coordinate.
     """
 
     t: np.ndarray
@@ -214,6 +225,7 @@ class Trajectory:
     profile: TensionProfile | None = None
     output_units: tuple[str, ...] = ()
     coordinate_units: tuple[str, ...] = ()
+    velocity_names: tuple[str, ...] = ()
 
     @property
     def units(self) -> tuple[str, ...]:
@@ -241,9 +253,22 @@ class Trajectory:
         """Every tension inside its cable's bounds at every instant."""
         return not bool(self.out_of_bounds.any())
 
+    @property
+    def velocity_labels(self) -> tuple[str, ...]:
+        """The name of each component of ``v`` (``velocity_names``, else
+        ``name_dot`` of each coordinate, else ``v[i]``)."""
+        nv = self.v.shape[1]
+        if len(self.velocity_names) == nv:
+            return tuple(self.velocity_names)
+        if len(self.coordinate_names) == nv:
+            return tuple(f"{c}_dot" for c in self.coordinate_names)
+        return tuple(f"v[{i}]" for i in range(nv))
+
     def to_dataset(self):
         """The trajectory as an ``xarray.Dataset`` (dims time, cable, output,
-        coordinate; units in the attributes)."""
+        velocity (its components, ``velocity_labels``, each unit in the
+        coordinate ``velocity_unit``) and q_index (Pinocchio's configuration
+        vector); units in the attributes)."""
         import xarray as xr
 
         return xr.Dataset(
@@ -260,7 +285,7 @@ class Trajectory:
                     self.v,
                     {
                         "long_name": "tangent velocity",
-                        "units": ", ".join(dict.fromkeys(self.velocity_units)),
+                        "units": _one_unit(self.velocity_units, "velocity_unit"),
                     },
                 ),
                 "q": (
@@ -275,7 +300,7 @@ class Trajectory:
                 "cable": list(self.cable_names),
                 "output": list(self.output_names),
                 "output_unit": ("output", list(self.units)),
-                "velocity": [f"{c}_dot" for c in self.coordinate_names],
+                "velocity": list(self.velocity_labels),
                 "velocity_unit": ("velocity", list(self.velocity_units)),
                 "tension_min": ("cable", self.tension_min, {"units": "N"}),
                 "tension_max": ("cable", self.tension_max, {"units": "N"}),
@@ -568,6 +593,7 @@ def simulate(
         def value(t, q_, v_):
             return constant
 
+    from cdpm.configuration import velocity_names
     from cdpm.maps._plan import coordinate_units
 
     dyn = _Dynamics(robot)
@@ -636,4 +662,5 @@ def simulate(
         profile=profile,
         output_units=tuple(robot.output_units),
         coordinate_units=tuple(coordinate_units(robot.model)),
+        velocity_names=tuple(velocity_names(robot.model)),
     )

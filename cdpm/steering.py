@@ -141,6 +141,8 @@ class SteerResult:
             "peak_tension": self.peak_tension,
             "within_bounds": bool(self.within_bounds),
             "final_velocity": self.final_velocity.tolist(),
+            "velocity_names": list(self.trajectory.velocity_labels),
+            "velocity_units": list(self.trajectory.velocity_units),
             "time": self.time.tolist(),
             "tension": self.tension.tolist(),
             "cable_names": list(self.trajectory.cable_names),
@@ -159,15 +161,14 @@ class SteerResult:
         names = ", ".join(f"{n} [{u}]" for n, u in zip(traj.output_names, traj.units, strict=True))
         lines = [
             f"Steering: {word} ({self.status})",
-            f"  outputs ({names}): target {np.array2string(self.target, precision=6)} from "
-            f"y0 {np.array2string(self.y0, precision=6)}; y(T) "
-            f"{np.array2string(traj.y[-1], precision=6)}",
+            f"  outputs ({names}): target {_row(self.target)} from y0 {_row(self.y0)}; "
+            f"y(T) {_row(traj.y[-1])}",
             f"  miss {self.miss:.3g} {unit} (tolerance {self.tolerance:.3g} {unit}) after "
             f"{self.iterations} simulation(s); T = {self.duration:.4g} s, "
             f"{self.tension.shape[0]} intervals",
             f"  peak tension {self.peak_tension:.4g} N; tensions "
-            f"{'inside' if self.within_bounds else 'OUTSIDE'} the bounds; final velocity "
-            f"{_velocities(self.final_velocity, traj)} (the robot still moves at T)",
+            f"{'inside' if self.within_bounds else 'OUTSIDE'} the bounds",
+            *_velocity_lines(self.final_velocity, traj),
         ]
         if self.blocked_direction is not None:
             lines.append(
@@ -190,13 +191,34 @@ class SteerResult:
         return f"<pre>{html.escape(str(self))}</pre>"
 
 
-def _velocities(v: np.ndarray, traj) -> str:
-    """Tangent velocities ``v`` (nv,) named and in their units, as
-    ``"q1 0.012 rad/s, q2 -0.3 rad/s"`` (the trajectory's coordinates)."""
-    return ", ".join(
+def _row(values: np.ndarray) -> str:
+    """A vector on one line (numpy breaks a long one into lines of 75
+    characters, which in the printout started unindented)."""
+    return np.array2string(np.asarray(values), precision=6, max_line_width=10**6)
+
+
+#: longest line of the final velocity in a steering printout [characters]
+VELOCITY_LINE_WIDTH = 100
+
+
+def _velocity_lines(v: np.ndarray, traj) -> list[str]:
+    """The printout's lines on the final velocities ``v`` (nv,), each
+    named and in its unit (``q1_dot 0.012 rad/s``; the trajectory's
+    ``velocity_labels`` and ``velocity_units``: a free-flyer's in its body
+    frame), as many to a line as fit in VELOCITY_LINE_WIDTH."""
+    items = [
         f"{name} {value + 0.0:.3g} {unit}"
-        for name, value, unit in zip(traj.coordinate_names, v, traj.velocity_units, strict=True)
-    )
+        for name, value, unit in zip(traj.velocity_labels, v, traj.velocity_units, strict=True)
+    ]
+    lines = ["  final velocity (the robot still moves at T):"]
+    for item in items:
+        if len(lines[-1]) + len(item) + 2 > VELOCITY_LINE_WIDTH:
+            lines[-1] += ","
+            lines.append("    " + item)
+        else:
+            sep = " " if lines[-1].endswith(":") else ", "
+            lines[-1] += sep + item
+    return lines
 
 
 def _duration_bounds(lin: Linearisation) -> tuple[float, float, float]:

@@ -338,15 +338,30 @@ def test_motion_plots_show_each_output_in_its_unit_and_the_cables_that_pull():
     for name, unit in units.items():
         assert f"{name} [{'mm' if unit == 'm' else 'mrad'}]" in labels
     assert res.trajectory.to_dataset().y.attrs["units"] == "m, rad"
-    # a free-flyer's tangent velocities: linear in m/s, angular in rad/s,
-    # each named in the printout
-    assert res.trajectory.velocity_units == ("m/s",) * 3 + ("rad/s",) * 3
-    assert res.trajectory.to_dataset().v.attrs["units"] == "m/s, rad/s"
-    line = next(ln for ln in str(res).splitlines() if "final velocity" in ln)
-    speeds = line.split("final velocity ")[1].removesuffix(" (the robot still moves at T)")
-    parts = [part.split(" ") for part in speeds.split(", ")]
-    assert [p[0] for p in parts] == list(robot.coordinate_names)
+    # a free-flyer's velocity, its body frame's (not the rates of x ... yaw):
+    # linear in m/s, angular in rad/s, each named in the printout, a few to
+    # a line
+    traj = res.trajectory
+    assert traj.velocity_labels == tuple(
+        f"platform_joint.{c}" for c in ("v_x", "v_y", "v_z", "w_x", "w_y", "w_z")
+    )
+    assert traj.velocity_units == ("m/s",) * 3 + ("rad/s",) * 3
+    ds = traj.to_dataset()
+    assert list(ds["velocity"].values) == list(traj.velocity_labels)
+    assert ds.v.attrs["units"] == "per component, see velocity_unit"
+    lines = str(res).splitlines()
+    first = next(i for i, ln in enumerate(lines) if "final velocity" in ln)
+    rest = range(first + 1, len(lines))
+    last = next((i for i in rest if not lines[i].startswith("    ")), len(lines))
+    assert last - first > 1 and all(len(ln) <= 100 for ln in lines[first:last])
+    text = " ".join(lines[first:last])
+    speeds = text.split("(the robot still moves at T): ")[1]
+    parts = [part.split() for part in speeds.split(", ")]
+    assert [p[0] for p in parts] == list(traj.velocity_labels)
     assert [p[2] for p in parts] == ["m/s"] * 3 + ["rad/s"] * 3
+    as_json = res.as_dict()
+    assert as_json["velocity_names"] == list(traj.velocity_labels)
+    assert as_json["velocity_units"] == list(traj.velocity_units)
     np.testing.assert_allclose(
         [float(p[1]) for p in parts], res.final_velocity, rtol=5e-3, atol=1e-12
     )

@@ -354,6 +354,7 @@ def _path_trajectory(robot: CableRobot, ds, path):
     VIEW_STEP_SECONDS per step."""
     import numpy as np
 
+    from cdpm.configuration import velocity_names
     from cdpm.equilibrium import equilibrium_tension
     from cdpm.maps._plan import coordinate_units
     from cdpm.simulation import Trajectory
@@ -379,6 +380,7 @@ def _path_trajectory(robot: CableRobot, ds, path):
         coordinate_names=tuple(robot.coordinate_names),
         output_units=tuple(robot.output_units),
         coordinate_units=tuple(coordinate_units(robot.model)),
+        velocity_names=tuple(velocity_names(robot.model)),
     )
 
 
