@@ -418,16 +418,24 @@ def _grid_indices(layout, index, route, s_idx, g_idx):
                 out[i, axis] = last if at_end else order[0]
         if pos[-1, axis] == 0:
             out[-1, axis] = g_idx[axis]
-    return out, _seams(layout, [v[out[:, a]] for a, v in enumerate(layout.values)])
+    shown = [v[out[:, a]] for a, v in enumerate(layout.values)]
+    # a step that stays on a closed axis's seam pose (shown as pi, then as
+    # -pi where the goal was given so) does not move along it
+    moved = [np.diff(pos[:, a]) != 0 for a in range(d)]
+    return out, _seams(layout, shown, moved)
 
 
-def _seams(layout, shown: list[np.ndarray]) -> tuple[int, ...]:
+def _seams(layout, shown: list[np.ndarray], moved: list | None = None) -> tuple[int, ...]:
     """Steps i (waypoint i to i + 1) whose shown value of an axis that wraps
-    changes by more than half a turn: the step crosses the seam."""
+    changes by more than half a turn: the step crosses the seam. ``moved``:
+    per axis, which steps move along it (k - 1,) bool; default all."""
     seams: set[int] = set()
-    for values, w in zip(shown, layout.wrap, strict=True):
+    for a, (values, w) in enumerate(zip(shown, layout.wrap, strict=True)):
         if w:
-            seams.update(int(j) for j in np.flatnonzero(np.abs(np.diff(values)) > math.pi))
+            jump = np.abs(np.diff(values)) > math.pi
+            if moved is not None:
+                jump &= moved[a]
+            seams.update(int(j) for j in np.flatnonzero(jump))
     return tuple(sorted(seams))
 
 

@@ -192,6 +192,11 @@ def test_a_path_across_the_seam_takes_the_short_way(paper):
     onto_seam = poc_path(paper, [2.9, 0.5], [math.pi, 0.5])
     assert onto_seam.coordinates["q1"].tolist() == pytest.approx([TURN[-2], TURN[-1]])
     assert not onto_seam.seam_crossings
+    # along the seam pose, the goal given at -pi: its last step does not
+    # move in q1 (pi to -pi is one pose) and crosses no seam
+    along = poc_path(paper, [math.pi, TURN[3]], [-math.pi, TURN[6]])
+    assert along.coordinates["q1"].tolist() == pytest.approx([math.pi] * 3 + [-math.pi])
+    assert not along.seam_crossings and "crosses the seam" not in str(along)
 
 
 def test_same_start_and_goal_is_a_path_of_one_pose(paper):
