@@ -84,10 +84,25 @@ def coordinate_label(ds, name: str) -> str:
     return f"{name} [{units}]" if units else name
 
 
+#: a coordinate value within this fraction of its axis' largest magnitude
+#: of 0 is written 0 (a grid from -5 pi/6 by pi/6 steps has 4.4e-16 for 0)
+ROUNDOFF = 1e-12
+
+
+def clean_value(ds, name: str, value: float) -> float:
+    """``value`` of the coordinate ``name``, 0.0 when it is round-off of 0
+    (within ROUNDOFF of the axis' largest magnitude)."""
+    if name in ds.variables:
+        values = np.asarray(ds[name].values, dtype=float)
+        if values.size and abs(value) <= ROUNDOFF * float(np.max(np.abs(values))):
+            return 0.0
+    return float(value) + 0.0
+
+
 def coordinate_value(ds, name: str, value: float) -> str:
     """``"q3 = 0.5 rad"``: a coordinate value with its units."""
     units = ds[name].attrs.get("units") if name in ds.variables else None
-    return f"{name} = {value:.3g}" + (f" {units}" if units else "")
+    return f"{name} = {clean_value(ds, name, value):.3g}" + (f" {units}" if units else "")
 
 
 def verdict_title(variable: str) -> str:

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from cdpm._plot_common import coordinate_value
+from cdpm._plot_common import clean_value, coordinate_value
 from cdpm._plot_margin import MarginScale
 
 __all__ = ["map_suptitle", "slices_text"]
@@ -32,7 +32,8 @@ def slices_text(ds, third: str, picks: np.ndarray, rest: dict) -> str:
         units = ds[third].attrs.get("units", "")
         values = np.asarray(ds[third].values, dtype=float)[left]
         named = (
-            ", ".join(f"{v + 0.0:.3g}" for v in values) + (f" {units}" if units else "")
+            ", ".join(f"{clean_value(ds, third, v):.3g}" for v in values)
+            + (f" {units}" if units else "")
             if left.size <= _MAX_NAMED_SLICES
             else f"{left.size} values"
         )

@@ -875,6 +875,21 @@ def test_slices_of_a_three_axis_map_carry_regions_and_the_path(paper_map):
     assert len([ax for ax in fig.axes if ax.get_title().startswith("wrench")]) == 3
 
 
+def test_slice_values_that_are_round_off_of_zero_read_zero():
+    """np.linspace(-pi, 5 pi / 6, 12) has 4.4e-16 for 0: a slice title
+    said "q3 = 4.44e-16 rad"."""
+    import xarray as xr
+
+    from cdpm._plot_common import coordinate_value
+
+    values = np.linspace(-np.pi, 5 * np.pi / 6, 12)
+    assert 0 < abs(values[6]) < 1e-15
+    ds = xr.Dataset(coords={"q3": ("q3", values, {"units": "rad"})})
+    assert coordinate_value(ds, "q3", values[6]) == "q3 = 0 rad"
+    assert coordinate_value(ds, "q3", values[7]) == "q3 = 0.524 rad"
+    assert coordinate_value(ds, "q3", 1e-9) == "q3 = 1e-09 rad"  # small, not round-off
+
+
 def test_a_wide_area_outside_the_regions_is_outlined_all_round():
     """Where a wide area of poses outside every region narrows to one cell,
     its outline went on (it broke off cell by cell); a line one cell thin
