@@ -346,6 +346,10 @@ def _seams(x, y, periods) -> tuple[np.ndarray, np.ndarray]:
     return crossing, steps
 
 
+#: opacity of a path's start or goal marker on a slice the end is away from
+AWAY_ALPHA = 0.35
+
+
 def draw_path(ax, x, y, near=None, periods=(None, None), suspect=()) -> None:
     """The path through (x, y) (shape (k,)): a line from a start circle to a
     goal star.
@@ -422,10 +426,34 @@ def draw_path(ax, x, y, near=None, periods=(None, None), suspect=()) -> None:
     alone = solid & ~padded[:-2] & ~padded[2:]
     if alone.any() and x.size > 1:
         ax.plot(x[alone], y[alone], "o", ms=3.5, color=PATH_COLOR, zorder=5, clip_on=False)
-    # markers unclipped: a path that ends on the edge of the map keeps its star
+    # markers unclipped: a path that ends on the edge of the map keeps its
+    # star; faint, as the dashed line, where the end is away from the slice
     ends = {"zorder": 7, "clip_on": False}
-    ax.plot(x[0], y[0], "o", ms=8, mfc="white", mec=PATH_COLOR, mew=1.8, gid="start", **ends)
-    ax.plot(x[-1], y[-1], "*", ms=13, mfc=PATH_COLOR, mec="white", mew=1.0, gid="goal", **ends)
+    start, goal = (1.0 if solid[i] else AWAY_ALPHA for i in (0, -1))
+    ax.plot(
+        x[0],
+        y[0],
+        "o",
+        ms=8,
+        mfc="white",
+        mec=PATH_COLOR,
+        mew=1.8,
+        alpha=start,
+        gid="start",
+        **ends,
+    )
+    ax.plot(
+        x[-1],
+        y[-1],
+        "*",
+        ms=13,
+        mfc=PATH_COLOR,
+        mec="white",
+        mew=1.0,
+        alpha=goal,
+        gid="goal",
+        **ends,
+    )
 
 
 def path_handles(path: PathCoordinates, sliced: bool = False, ends: bool = True) -> list:

@@ -806,6 +806,7 @@ def test_plot_path_errors_name_the_fix(paper_map):
 def test_slices_of_a_three_axis_map_carry_regions_and_the_path(paper_map):
     import xarray as xr
 
+    from cdpm._plot_overlays import AWAY_ALPHA
     from cdpm.plotting import plot_map
 
     ds = paper_map.drop_vars("poc_region")
@@ -864,6 +865,10 @@ def test_slices_of_a_three_axis_map_carry_regions_and_the_path(paper_map):
         (line,) = [ln for ln in ax.get_lines() if ln.get_gid() == "path"]
         solid = np.isfinite(np.asarray(line.get_xdata(), dtype=float))
         np.testing.assert_array_equal(solid, np.array(expected, dtype=bool))
+        # the start and goal markers are faint where they are away from the slice
+        alpha = {ln.get_gid(): ln.get_alpha() for ln in ax.get_lines()}
+        assert alpha["start"] == (1.0 if expected[0] else AWAY_ALPHA)
+        assert alpha["goal"] == (1.0 if expected[-1] else AWAY_ALPHA)
     titles = [ax.get_title() for ax in plot_map(closed, max_slices=4).axes]
     assert [t for t in titles if t.startswith("POC verdict")] == [
         f"POC verdict (q3 = {v} rad)" for v in ("-3.14", "-1.57", "0", "1.57")
