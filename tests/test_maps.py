@@ -735,10 +735,15 @@ def test_every_array_document_is_the_one_zarr_creates(tmp_path):
 
     from cdpm.maps.criteria import CRITERIA
 
-    axes = {"q1": np.linspace(-3, 3, 5), "q2": np.linspace(0, 1, 4)}
+    # the arm's three outputs: y and output_frame_position are one kind with
+    # other dimension names
+    spec = MODELS / "multilink_arm" / "multilink_arm.yaml"
+    axes = {"shoulder_x": np.linspace(-0.3, 0.3, 5), "elbow": np.linspace(-1, 0, 4)}
     store = tmp_path / "m.zarr"
-    workspace_map(VERTICAL_SPEC, axes, workers=1, store=store, tension="best")
-    memory = workspace_map(VERTICAL_SPEC, axes, workers=1, tension="best")
+    kw = dict(base="reach", workers=1, tension="best")
+    workspace_map(spec, axes, store=store, **kw)
+    memory = workspace_map(spec, axes, **kw)
+    assert memory["y"].shape[2:] == memory["output_frame_position"].shape[2:] == (3,)
     for name, criterion in CRITERIA.items():
         written = json.loads((store / name / "zarr.json").read_text())
         variable = memory[name]
