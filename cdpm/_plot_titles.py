@@ -25,19 +25,29 @@ def slices_text(ds, third: str, picks: np.ndarray, rest: dict) -> str:
     """What the slices of a map of more than two axes leave out, or "":
     ``"slices: 6 of the 8 values of q3 (not drawn: -0.257, 0.257 rad); q4 =
     0 rad only (the middle of its 3 values)"``."""
+    from cdpm.maps.regions import grid_wrap
+
     parts = []
-    n3 = ds.sizes[third]
-    if picks.size < n3:
-        left = np.setdiff1d(np.arange(n3), picks)
-        units = ds[third].attrs.get("units", "")
-        values = np.asarray(ds[third].values, dtype=float)[left]
+    units = ds[third].attrs.get("units", "")
+    unit = f" {units}" if units else ""
+    every = np.asarray(ds[third].values, dtype=float)
+    poses = np.arange(every.size)
+    same = ""
+    if grid_wrap(every, units) == "closed":  # its upper end is its lower end's pose
+        poses = poses[poses != np.argmax(every)]
+        same = f"{every.max():.3g} = {every.min():.3g}{unit}; "
+    if picks.size < poses.size:
+        left = np.setdiff1d(poses, picks)
         named = (
-            ", ".join(f"{clean_value(ds, third, v):.3g}" for v in values)
-            + (f" {units}" if units else "")
+            ", ".join(f"{clean_value(ds, third, v):.3g}" for v in every[left]) + unit
             if left.size <= _MAX_NAMED_SLICES
             else f"{left.size} values"
         )
-        parts.append(f"slices: {picks.size} of the {n3} values of {third} (not drawn: {named})")
+        distinct = "distinct " if same else ""
+        parts.append(
+            f"slices: {picks.size} of the {poses.size} {distinct}values of {third} "
+            f"({same}not drawn: {named})"
+        )
     for d, i in rest.items():
         value = coordinate_value(ds, d, float(ds[d].values[i]))
         parts.append(f"{value} only (the middle of its {ds.sizes[d]} values)")

@@ -439,30 +439,46 @@ def _slice_key(ds, third: str, index):
 
 def _slice_picks(ds, third: str, max_slices: int, path) -> np.ndarray:
     """Indices of the values of ``third`` drawn as slices: at most
-    ``max_slices`` (at least the path's ends), evenly spread: with a path
-    (giving ``third``), the slices of its start and goal, then each next
-    one the value farthest from those chosen (the axis' ends first). On a
-    closed axis the upper end, the same pose as the lower, is left out,
-    and distances go round the turn."""
-    n3 = ds.sizes[third]
-    closed = _wrap(ds, third) == "closed"
+    ``max_slices`` of its distinct poses, evenly spread (round the turn on
+    an angle axis that wraps, whose upper end, on a closed axis, is the
+    lower end's pose and left out; else from end to end), each of the
+    slices of a path's start and goal (when ``path`` gives ``third``) in
+    place of the spread's nearest (both drawn, whatever ``max_slices``)."""
     values = np.asarray(ds[third].values, dtype=float)
-    # the distinct values, in ascending order, and their positions in it
-    order = np.argsort(values, kind="stable")[: n3 - 1 if closed else n3]
-    n = order.size
-    if path is None or third not in path:
-        spread = np.linspace(0, n if closed else n - 1, min(max_slices, n), endpoint=not closed)
-        return np.unique(order[spread.round().astype(int) % n])
-    rank = np.empty(n3, dtype=int)
-    rank[order] = np.arange(n)
-    picks = sorted({int(rank[k]) for k in _slice_index(ds, third, path[third][[0, -1]])})
-    while len(picks) < min(max_slices, n):
-        others = np.setdiff1d(np.arange(n), picks)
-        apart = np.abs(others[:, None] - np.array(picks)[None, :])
-        if closed:
-            apart = np.minimum(apart, n - apart)
-        picks = sorted([*picks, int(others[np.argmax(apart.min(axis=1))])])
+    wrap = _wrap(ds, third)
+    order = np.argsort(values, kind="stable")  # ascending; a closed axis without its upper end
+    if wrap == "closed":
+        order = order[:-1]
+    n, ring = order.size, wrap is not None
+    k = min(int(max_slices), n)
+    spread = np.linspace(0, n if ring else n - 1, k, endpoint=not ring).round().astype(int) % n
+    picks = [int(p) for p in dict.fromkeys(spread.tolist())]
+    if path is not None and third in path:
+        rank = np.empty(values.size, dtype=int)
+        rank[order] = np.arange(n)
+        ends = dict.fromkeys(int(rank[i]) for i in _slice_index(ds, third, path[third][[0, -1]]))
+        free = [p for p in picks if p not in ends]
+        for end in (e for e in ends if e not in picks):
+            apart = np.abs(np.array(free) - end)
+            if ring:
+                apart = np.minimum(apart, n - apart)
+            if free:  # the spread's slice nearest the end makes way for it
+                free.pop(int(np.argmin(apart)))
+        picks = [*free, *ends]
     return np.sort(order[picks])
+
+
+def _margin_slice(ds, third: str | None, slices: list[dict], path) -> int:
+    """The slice the margin panel shows: the path's start's, when the path
+    gives the third axis (its goal's, when the start's is not drawn), else
+    the middle one."""
+    if third is not None and path is not None and third in path:
+        at = _slice_index(ds, third, path[third][[0, -1]])
+        keys = [int(_slice_key(ds, third, s[third])) for s in slices]
+        for end in at:
+            if int(end) in keys:
+                return keys.index(int(end))
+    return len(slices) // 2
 
 
 def _near_slice(ds, third: str, values: np.ndarray, slices: list[dict], k: int) -> np.ndarray:
@@ -472,10 +488,11 @@ def _near_slice(ds, third: str, values: np.ndarray, slices: list[dict], k: int) 
 
 
 def _margin_grid_panel(ax, fig, ds, variable, dims, slices, scale: MarginScale, path) -> None:
-    """The margin over the middle slice of the first two grid coordinates,
-    with the path (where a maximin path matters)."""
+    """The margin over a slice of the first two grid coordinates (the
+    path's start's, else the middle one: :func:`_margin_slice`), with the
+    path (where a maximin path matters)."""
     x, y = dims[0], dims[1]
-    k = len(slices) // 2
+    k = _margin_slice(ds, dims[2] if len(dims) > 2 else None, slices, path)
     index = slices[k]
     values = ds[scale.variable].isel(index).transpose(x, y).values
     codes = ds[variable].isel(index).transpose(x, y).values

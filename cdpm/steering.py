@@ -161,8 +161,8 @@ class SteerResult:
         names = ", ".join(f"{n} [{u}]" for n, u in zip(traj.output_names, traj.units, strict=True))
         lines = [
             f"Steering: {word} ({self.status})",
-            f"  outputs ({names}): target {_row(self.target)} from y0 {_row(self.y0)}; "
-            f"y(T) {_row(traj.y[-1])}",
+            f"  outputs ({names}):",
+            f"    target {_row(self.target)}; from y0 {_row(self.y0)}; y(T) {_row(traj.y[-1])}",
             f"  miss {self.miss:.3g} {unit} (tolerance {self.tolerance:.3g} {unit}) after "
             f"{self.iterations} simulation(s); T = {self.duration:.4g} s, "
             f"{self.tension.shape[0]} intervals",
@@ -192,9 +192,11 @@ class SteerResult:
 
 
 def _row(values: np.ndarray) -> str:
-    """A vector on one line (numpy breaks a long one into lines of 75
-    characters, which in the printout started unindented)."""
-    return np.array2string(np.asarray(values), precision=6, max_line_width=10**6)
+    """A vector on one line, to 6 decimals (numpy breaks a long one into
+    lines of 75 characters, which in the printout started unindented, and
+    mixed 2.000000e-03 with -8.194993e-09)."""
+    shown = np.round(np.asarray(values, dtype=float), 6) + 0.0  # -8e-9 reads 0, not -0
+    return np.array2string(shown, precision=6, suppress_small=True, max_line_width=10**6)
 
 
 #: longest line of the final velocity in a steering printout [characters]

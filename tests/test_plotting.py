@@ -858,10 +858,27 @@ def test_slices_of_a_three_axis_map_carry_regions_and_the_path(paper_map):
     fig = plot_map(closed, path=path, max_slices=3)
     slices = [ax for ax in fig.axes if ax.get_title().startswith("POC verdict (q3 = ")]
     drawn = [ax.get_title()[len("POC verdict (q3 = ") : -1] for ax in slices]
-    # pi is drawn as -pi, and the third slice goes to the value farthest
-    # round the turn from both, not to pi again
-    assert drawn == ["-3.14 rad", "-1.57 rad", "0 rad"]
-    for ax, expected in zip(slices, [[1, 1, 0], [0, 0, 0], [0, 0, 1]], strict=True):
+    # pi is drawn as -pi; three of the four distinct poses, spread round the
+    # turn, the path's two among them
+    assert drawn == ["-3.14 rad", "0 rad", "1.57 rad"]
+    assert fig.get_suptitle().splitlines()[-1] == (
+        "slices: 3 of the 4 distinct values of q3 (3.14 = -3.14 rad; not drawn: -1.57 rad)"
+    )
+    # the margin panel shows the path's start's slice (it showed the middle one)
+    (margin,) = [ax for ax in fig.axes if ax.get_title().startswith("reach margin")]
+    assert margin.get_title().endswith("(q3 = -3.14 rad)")
+    # a full turn without its upper end wraps too: slices spread round it
+    # (5 pi / 6 is next to -pi), 0 among them
+    turn = xr.DataArray(
+        np.linspace(-np.pi, 5 * np.pi / 6, 12), dims="q3", name="q3", attrs={"units": "rad"}
+    )
+    open_turn = xr.concat([ds] * 12, dim=turn).transpose("q1", "q2", "q3", ...)
+    open_turn = _with_regions(open_turn.assign_attrs(axes=["q1", "q2", "q3"]))
+    titles = [ax.get_title() for ax in plot_map(open_turn, max_slices=6).axes]
+    assert [t for t in titles if t.startswith("POC verdict")] == [
+        f"POC verdict (q3 = {v} rad)" for v in ("-3.14", "-2.09", "-1.05", "0", "1.05", "2.09")
+    ]
+    for ax, expected in zip(slices, [[1, 1, 0], [0, 0, 1], [0, 0, 0]], strict=True):
         (line,) = [ln for ln in ax.get_lines() if ln.get_gid() == "path"]
         solid = np.isfinite(np.asarray(line.get_xdata(), dtype=float))
         np.testing.assert_array_equal(solid, np.array(expected, dtype=bool))

@@ -350,6 +350,11 @@ def test_motion_plots_show_each_output_in_its_unit_and_the_cables_that_pull():
     assert list(ds["velocity"].values) == list(traj.velocity_labels)
     assert ds.v.attrs["units"] == "per component, see velocity_unit"
     lines = str(res).splitlines()
+    # the outputs' values on a line of their own, to 6 decimals, no -0
+    values = lines[
+        lines.index(f"  outputs ({', '.join(f'{n} [{u}]' for n, u in units.items())}):") + 1
+    ]
+    assert values.startswith("    target [") and "e-" not in values and "-0. " not in values
     first = next(i for i, ln in enumerate(lines) if "final velocity" in ln)
     rest = range(first + 1, len(lines))
     last = next((i for i in rest if not lines[i].startswith("    ")), len(lines))

@@ -39,8 +39,7 @@ examples:
       --tension pretension --pretension 5 --tension-bounds 0:60 --out pre.zarr
   cdpm map SPEC --axis q1=-pi:pi:61 --gravity 0 0 0 --tension-bounds c1=0:inf --plot g0.png
   cdpm map models/spatial_8cable --axis platform_joint.x=-0.5:0.5:11 --tension best \\
-      --out best.zarr
-      (--tension best: also POC for some feasible tension, its tension and margin)
+      --out best.zarr    # also: POC for some feasible tension, its tension and margin
 
 AXIS is NAME=LOW:HIGH:COUNT (a grid of COUNT values), NAME=V1,V2,... (given
 values) or, with --samples, NAME=LOW:HIGH (a sampling range); values accept
