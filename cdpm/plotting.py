@@ -68,6 +68,7 @@ from cdpm._plot_overlays import (
     region_handle,
 )
 from cdpm._plot_slabs import SampleSlab, sample_slabs, slabs_text
+from cdpm._plot_slices import margin_slice, near_slice, slice_picks
 from cdpm._plot_titles import map_suptitle, slices_text
 from cdpm.errors import InputError, is_integer
 from cdpm.verdicts import VERDICT_COLORS
@@ -324,7 +325,7 @@ def plot_map(
         drawn = slabs_text(axes_names[2:], len(slabs))
     elif not sample and len(dims) > 2:
         third = dims[2]
-        picks = _slice_picks(ds, third, max_slices, path)
+        picks = slice_picks(ds, third, max_slices, path)
         rest = {d: ds.sizes[d] // 2 for d in dims[3:]}
         slices = [{third: int(k), **rest} for k in picks]
         drawn = slices_text(ds, third, picks, rest)
@@ -402,97 +403,17 @@ def _grid_path(ax, ds, dims, slices, k, path) -> bool:
         return False
     x, y = dims[0], dims[1]
     sliced = bool(slices[k]) and dims[2] in path
-    near = _near_slice(ds, dims[2], path[dims[2]], slices, k) if sliced else None
+    near = near_slice(ds, dims[2], path[dims[2]], slices, k) if sliced else None
     draw_path(ax, path[x], path[y], near, (_period(ds, x), _period(ds, y)), path.suspect)
     return sliced
 
 
-def _slice_index(ds, third: str, values: np.ndarray) -> np.ndarray:
-    """The index of the map value of ``third`` nearest each of ``values``;
-    along an axis that wraps, angles compare modulo 2 pi, and on a full
-    turn with both ends (closed) the two ends' pose is its lower end's
-    index (:func:`_slice_key`)."""
-    grid = np.asarray(ds[third].values, dtype=float)
-    diff = np.asarray(values, dtype=float)[:, None] - grid[None, :]
-    if _wrap(ds, third) is not None:
-        diff = np.remainder(diff + math.pi, 2.0 * math.pi) - math.pi
-    return _slice_key(ds, third, np.argmin(np.abs(diff), axis=1))
-
-
-def _wrap(ds, axis: str) -> str | None:
-    """How the grid axis ``axis`` wraps: ``"closed"``, ``"open"`` or None
-    (:func:`cdpm.maps.regions.grid_wrap` of its values and unit)."""
-    from cdpm.maps.regions import grid_wrap
-
-    values = np.asarray(ds[axis].values, dtype=float)
-    return grid_wrap(values, ds[axis].attrs.get("units", ""))
-
-
-def _slice_key(ds, third: str, index):
-    """Slice indices of ``third``, the upper end of a closed axis (the same
-    pose as its lower end) read as the lower end."""
-    if _wrap(ds, third) != "closed":
-        return index
-    values = np.asarray(ds[third].values, dtype=float)
-    return np.where(np.asarray(index) == np.argmax(values), np.argmin(values), index)
-
-
-def _slice_picks(ds, third: str, max_slices: int, path) -> np.ndarray:
-    """Indices of the values of ``third`` drawn as slices: at most
-    ``max_slices`` of its distinct poses, evenly spread (round the turn on
-    an angle axis that wraps, whose upper end, on a closed axis, is the
-    lower end's pose and left out; else from end to end), each of the
-    slices of a path's start and goal (when ``path`` gives ``third``) in
-    place of the spread's nearest (both drawn, whatever ``max_slices``)."""
-    values = np.asarray(ds[third].values, dtype=float)
-    wrap = _wrap(ds, third)
-    order = np.argsort(values, kind="stable")  # ascending; a closed axis without its upper end
-    if wrap == "closed":
-        order = order[:-1]
-    n, ring = order.size, wrap is not None
-    k = min(int(max_slices), n)
-    spread = np.linspace(0, n if ring else n - 1, k, endpoint=not ring).round().astype(int) % n
-    picks = [int(p) for p in dict.fromkeys(spread.tolist())]
-    if path is not None and third in path:
-        rank = np.empty(values.size, dtype=int)
-        rank[order] = np.arange(n)
-        ends = dict.fromkeys(int(rank[i]) for i in _slice_index(ds, third, path[third][[0, -1]]))
-        free = [p for p in picks if p not in ends]
-        for end in (e for e in ends if e not in picks):
-            apart = np.abs(np.array(free) - end)
-            if ring:
-                apart = np.minimum(apart, n - apart)
-            if free:  # the spread's slice nearest the end makes way for it
-                free.pop(int(np.argmin(apart)))
-        picks = [*free, *ends]
-    return np.sort(order[picks])
-
-
-def _margin_slice(ds, third: str | None, slices: list[dict], path) -> int:
-    """The slice the margin panel shows: the path's start's, when the path
-    gives the third axis (its goal's, when the start's is not drawn), else
-    the middle one."""
-    if third is not None and path is not None and third in path:
-        at = _slice_index(ds, third, path[third][[0, -1]])
-        keys = [int(_slice_key(ds, third, s[third])) for s in slices]
-        for end in at:
-            if int(end) in keys:
-                return keys.index(int(end))
-    return len(slices) // 2
-
-
-def _near_slice(ds, third: str, values: np.ndarray, slices: list[dict], k: int) -> np.ndarray:
-    """Which path poses lie in slice ``k`` (their nearest value of
-    ``third`` is the slice's); the others are drawn dashed there."""
-    return _slice_index(ds, third, values) == _slice_key(ds, third, slices[k][third])
-
-
 def _margin_grid_panel(ax, fig, ds, variable, dims, slices, scale: MarginScale, path) -> None:
     """The margin over a slice of the first two grid coordinates (the
-    path's start's, else the middle one: :func:`_margin_slice`), with the
+    path's start's, else the middle one: :func:`margin_slice`), with the
     path (where a maximin path matters)."""
     x, y = dims[0], dims[1]
-    k = _margin_slice(ds, dims[2] if len(dims) > 2 else None, slices, path)
+    k = margin_slice(ds, dims[2] if len(dims) > 2 else None, slices, path)
     index = slices[k]
     values = ds[scale.variable].isel(index).transpose(x, y).values
     codes = ds[variable].isel(index).transpose(x, y).values
