@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import re
 import shutil
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -197,7 +198,7 @@ def test_pretension_is_read_and_checked_as_an_option(value, message, tmp_path, c
     assert code == 0, err
 
 
-def test_override_robot_keeps_the_robot_and_workers_rebuild_it(paper_robot):
+def test_override_robot_keeps_the_robot_and_workers_rebuild_it(paper_robot, tmp_path):
     from cdpm.maps._runner import RobotSource
 
     robot = override_robot(paper_robot, gravity=[0, -9.81, 0], tension_bounds={"c2": (2, 40)})
@@ -214,6 +215,17 @@ def test_override_robot_keeps_the_robot_and_workers_rebuild_it(paper_robot):
     np.testing.assert_allclose(rebuilt.gravity_torque(q), robot.gravity_torque(q))
     assert np.any(robot.gravity_torque(q) != 0)
     assert RobotSource.from_robot(paper_robot).overrides == {}
+    # a worker without the spec file loads the shipped bytes from a temporary
+    # folder, which it deletes (one was left behind per worker process)
+    import dataclasses
+    import tempfile
+
+    elsewhere = dataclasses.replace(source, spec_path=str(tmp_path / "moved.yaml"))
+    before = set(Path(tempfile.gettempdir()).glob("cdpm-spec-*"))
+    shipped = elsewhere.load()
+    assert set(Path(tempfile.gettempdir()).glob("cdpm-spec-*")) == before
+    np.testing.assert_array_equal(shipped.tension_min, robot.tension_min)
+    np.testing.assert_allclose(shipped.gravity_torque(q), robot.gravity_torque(q))
     with pytest.raises(InputError, match="maximum 0 N leaves the cable no tension"):
         override_robot(paper_robot, tension_bounds=(0, 0))
 

@@ -91,19 +91,22 @@ class RobotSource:
     def load_spec_file(self):
         """The robot of the spec file as it is (no overrides): from the spec
         path if it is there and unchanged, else from the shipped bytes in a
-        temporary folder."""
+        temporary folder, deleted once the robot is loaded (a worker loads
+        one per process; the folders were left behind in the temporary
+        directory)."""
         from cdpm.robot import load_robot
 
         if Path(self.spec_path).is_file():
             robot = load_robot(self.spec_path)
             if robot.spec.sha256 == self.sha256:
                 return robot
-        folder = Path(tempfile.mkdtemp(prefix="cdpm-spec-"))
-        for rel, data in self.files:
-            target = folder / rel
-            target.parent.mkdir(parents=True, exist_ok=True)
-            target.write_bytes(data)
-        robot = load_robot(folder / self.spec_relpath)
+        with tempfile.TemporaryDirectory(prefix="cdpm-spec-") as name:
+            folder = Path(name)
+            for rel, data in self.files:
+                target = folder / rel
+                target.parent.mkdir(parents=True, exist_ok=True)
+                target.write_bytes(data)
+            robot = load_robot(folder / self.spec_relpath)
         if robot.spec.sha256 != self.sha256:
             raise CdpmError("the shipped cable spec does not match its hash")  # pragma: no cover
         return robot
