@@ -70,7 +70,9 @@ def test_killed_map_leaves_no_process_and_resumes_exactly(tmp_path, reference, t
     how = (signal.SIGKILL, signal.SIGTERM)[trial % 2]
     out = tmp_path / "m.zarr"
     marker = uuid.uuid4().hex
-    env = {**os.environ, "CDPM_TEST_MARK": marker}
+    # a process killed with SIGKILL leaves its temporary folders (Python's
+    # multiprocessing makes one): in tmp_path, not in the system's
+    env = {**os.environ, "CDPM_TEST_MARK": marker, "TMPDIR": str(tmp_path)}
     run = subprocess.Popen(_command(out), env=env, stderr=subprocess.PIPE, text=True)
     # kill once some chunks are done, at a random moment after
     end = time.monotonic() + 120
