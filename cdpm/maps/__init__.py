@@ -400,10 +400,10 @@ def _check_in_memory_size(robot: CableRobot, plan) -> None:
     """Refuse an in-memory map larger than IN_MEMORY_MAX before any work."""
     import numpy as np
 
-    n = int(np.prod(plan.shape))
-    from cdpm.maps.criteria import CRITERIA
+    from cdpm.maps.criteria import bytes_per_pose
 
-    per_pose = sum(c.itemsize(robot) for c in CRITERIA.values())
+    n = int(np.prod(plan.shape))
+    per_pose = bytes_per_pose(robot)
     if n * per_pose > IN_MEMORY_MAX:
         raise InputError(
             f"a map of {n:,} poses needs about {n * per_pose / 1024**3:.1f} GiB in memory; "

@@ -26,7 +26,7 @@ import numpy as np
 
 from cdpm.errors import InputError
 from cdpm.maps._plan import MapPlan, coordinate_units, settings_difference
-from cdpm.maps.criteria import CRITERIA
+from cdpm.maps.criteria import CRITERIA, bytes_per_pose, extra_size
 
 if TYPE_CHECKING:  # pragma: no cover
     from cdpm.robot import CableRobot
@@ -110,10 +110,6 @@ def _coords(robot: CableRobot, plan: MapPlan) -> dict:
     return coords
 
 
-def _extra_size(robot: CableRobot, dim: str) -> int:
-    return {"output": robot.n_outputs, "cable": robot.n_cables}.get(dim, 3)
-
-
 class MemorySink:
     """Chunks written into numpy arrays; :meth:`dataset` wraps them."""
 
@@ -122,7 +118,7 @@ class MemorySink:
         self.specs = variable_specs(robot, plan)
         self.arrays = {
             name: np.full(
-                plan.shape + tuple(_extra_size(robot, d) for d in extra), fill, dtype=dtype
+                plan.shape + tuple(extra_size(robot, d) for d in extra), fill, dtype=dtype
             )
             for name, (extra, dtype, fill, _) in self.specs.items()
         }
@@ -151,17 +147,6 @@ class MemorySink:
         return xr.Dataset(
             data_vars, coords=_coords(self.robot, self.plan), attrs=_attrs(self.robot, self.plan)
         )
-
-
-def _nbytes(robot: CableRobot, plan: MapPlan, specs: dict) -> int:
-    """Bytes of the map's data variables ``specs`` (variable_specs)."""
-    per_pose = 0
-    for extra, dtype, *_ in specs.values():
-        size = np.dtype(dtype).itemsize
-        for dim in extra:
-            size *= _extra_size(robot, dim)
-        per_pose += size
-    return per_pose * plan.n_poses
 
 
 class StoreSettingsError(InputError):
@@ -267,7 +252,7 @@ class ZarrSink:
         self.group, arrays = _write_metadata(self._create_skeleton())
         # this process's chunks go straight into the arrays just made
         self._writer = ChunkWriter(str(self.path), self.plan, tuple(self.specs), arrays)
-        self.keep = _nbytes(self.robot, self.plan, self.specs) <= RESULT_IN_MEMORY_MAX
+        self.keep = bytes_per_pose(self.robot) * self.plan.n_poses <= RESULT_IN_MEMORY_MAX
         _touch(self.path / _META / "created")
 
     async def _create_skeleton(self) -> tuple:
@@ -360,7 +345,7 @@ class ZarrSink:
         kinds: dict[tuple, str] = {}  # (dtype, extra sizes, fill) -> its first variable
         alike: dict[str, tuple] = {}  # variable -> (first of its kind, dims, attrs)
         for name, (extra, dtype, fill, var_attrs) in self.specs.items():
-            extra_shape = tuple(_extra_size(self.robot, d) for d in extra)
+            extra_shape = tuple(extra_size(self.robot, d) for d in extra)
             kind = (np.dtype(dtype).str, extra_shape, repr(fill))
             if kind in kinds:
                 alike[name] = (kinds[kind], tuple(plan.dims + extra), var_attrs)

@@ -36,6 +36,8 @@ __all__ = [
     "CRITERIA",
     "CRITERION_DIMS",
     "register",
+    "extra_size",
+    "bytes_per_pose",
     "verdict_criteria",
     "missing_criteria_error",
 ]
@@ -151,8 +153,19 @@ class Criterion:
         """Bytes per pose."""
         size = np.dtype(self.dtype).itemsize
         for dim in self.dims:
-            size *= {"output": robot.n_outputs, "cable": robot.n_cables}.get(dim, 3)
+            size *= extra_size(robot, dim)
         return size
+
+
+def extra_size(robot: CableRobot, dim: str) -> int:
+    """Length of a criterion's extra dimension ``dim`` (CRITERION_DIMS)
+    for ``robot``: its outputs, its cables, or 3 (``xyz``)."""
+    return {"output": robot.n_outputs, "cable": robot.n_cables}.get(dim, 3)
+
+
+def bytes_per_pose(robot: CableRobot) -> int:
+    """Bytes a map of ``robot`` holds per pose: every registered criterion's."""
+    return sum(c.itemsize(robot) for c in CRITERIA.values())
 
 
 #: name -> criterion, in store order
