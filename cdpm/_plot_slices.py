@@ -9,7 +9,15 @@ import math
 
 import numpy as np
 
-__all__ = ["axis_wrap", "margin_slice", "near_slice", "slice_index", "slice_key", "slice_picks"]
+__all__ = [
+    "axis_wrap",
+    "distinct_poses",
+    "margin_slice",
+    "near_slice",
+    "slice_index",
+    "slice_key",
+    "slice_picks",
+]
 
 
 def slice_index(ds, third: str, values: np.ndarray) -> np.ndarray:
@@ -42,6 +50,14 @@ def slice_key(ds, third: str, index):
     return np.where(np.asarray(index) == np.argmax(values), np.argmin(values), index)
 
 
+def distinct_poses(ds, third: str) -> np.ndarray:
+    """Indices of the values of ``third`` in ascending order, one per pose:
+    a closed axis's upper end (its lower end's pose) left out."""
+    values = np.asarray(ds[third].values, dtype=float)
+    order = np.argsort(values, kind="stable")
+    return order[:-1] if axis_wrap(ds, third) == "closed" else order
+
+
 def slice_picks(ds, third: str, max_slices: int, path) -> np.ndarray:
     """Indices of the values of ``third`` drawn as slices: at most
     ``max_slices`` of its distinct poses, evenly spread (round the turn on
@@ -49,17 +65,13 @@ def slice_picks(ds, third: str, max_slices: int, path) -> np.ndarray:
     lower end's pose and left out; else from end to end), each of the
     slices of a path's start and goal (when ``path`` gives ``third``) in
     place of the spread's nearest (both drawn, whatever ``max_slices``)."""
-    values = np.asarray(ds[third].values, dtype=float)
-    wrap = axis_wrap(ds, third)
-    order = np.argsort(values, kind="stable")  # ascending; a closed axis without its upper end
-    if wrap == "closed":
-        order = order[:-1]
-    n, ring = order.size, wrap is not None
+    order = distinct_poses(ds, third)
+    n, ring = order.size, axis_wrap(ds, third) is not None
     k = min(int(max_slices), n)
     spread = np.linspace(0, n if ring else n - 1, k, endpoint=not ring).round().astype(int) % n
     picks = [int(p) for p in dict.fromkeys(spread.tolist())]
     if path is not None and third in path:
-        rank = np.empty(values.size, dtype=int)
+        rank = np.empty(ds.sizes[third], dtype=int)
         rank[order] = np.arange(n)
         ends = dict.fromkeys(int(rank[i]) for i in slice_index(ds, third, path[third][[0, -1]]))
         free = [p for p in picks if p not in ends]

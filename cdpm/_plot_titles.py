@@ -13,6 +13,7 @@ import numpy as np
 
 from cdpm._plot_common import clean_value, coordinate_value
 from cdpm._plot_margin import MarginScale
+from cdpm._plot_slices import distinct_poses
 
 __all__ = ["map_suptitle", "slices_text"]
 
@@ -25,16 +26,13 @@ def slices_text(ds, third: str, picks: np.ndarray, rest: dict) -> str:
     """What the slices of a map of more than two axes leave out, or "":
     ``"slices: 6 of the 8 values of q3 (not drawn: -0.257, 0.257 rad); q4 =
     0 rad only (the middle of its 3 values)"``."""
-    from cdpm.maps.regions import grid_wrap
-
     parts = []
     units = ds[third].attrs.get("units", "")
     unit = f" {units}" if units else ""
     every = np.asarray(ds[third].values, dtype=float)
-    poses = np.arange(every.size)
+    poses = distinct_poses(ds, third)
     same = ""
-    if grid_wrap(every, units) == "closed":  # its upper end is its lower end's pose
-        poses = poses[poses != np.argmax(every)]
+    if poses.size < every.size:  # a closed axis: its upper end is its lower end's pose
         same = f"{every.max():.3g} = {every.min():.3g}{unit}; "
     if picks.size < poses.size:
         left = np.setdiff1d(poses, picks)
