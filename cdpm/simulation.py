@@ -39,7 +39,7 @@ from cdpm.numerics import MAX_TENSION, MAX_TIME_SPAN
 if TYPE_CHECKING:  # pragma: no cover
     from cdpm.robot import CableRobot
 
-__all__ = ["TensionProfile", "Trajectory", "simulate"]
+__all__ = ["TensionProfile", "Trajectory", "simulate", "trajectory_labels"]
 
 #: default error tolerances of the integrator (relative, absolute)
 SIM_RTOL = 1e-10
@@ -593,9 +593,6 @@ def simulate(
         def value(t, q_, v_):
             return constant
 
-    from cdpm.configuration import velocity_names
-    from cdpm.maps._plan import coordinate_units
-
     dyn = _Dynamics(robot)
     budget = _Budget(int(max_evaluations), nv)
     qs, vs, fs = [q.copy()], [v.copy()], [value(times[0], q, v)]
@@ -654,13 +651,25 @@ def simulate(
         f=fs,
         y=np.array(kin.output),
         lengths=np.array(kin.lengths),
-        tension_min=robot.tension_min.copy(),
-        tension_max=robot.tension_max.copy(),
-        cable_names=tuple(robot.cable_names),
-        output_names=tuple(robot.output_names),
-        coordinate_names=tuple(robot.coordinate_names),
         profile=profile,
-        output_units=tuple(robot.output_units),
-        coordinate_units=tuple(coordinate_units(robot.model)),
-        velocity_names=tuple(velocity_names(robot.model)),
+        **trajectory_labels(robot),
     )
+
+
+def trajectory_labels(robot: CableRobot) -> dict:
+    """What a :class:`Trajectory` of ``robot`` records besides its samples:
+    the cables' bounds [N], and the names and units of its cables, outputs,
+    coordinates and velocities (keyword arguments of Trajectory)."""
+    from cdpm.configuration import velocity_names
+    from cdpm.maps._plan import coordinate_units
+
+    return {
+        "tension_min": robot.tension_min.copy(),
+        "tension_max": robot.tension_max.copy(),
+        "cable_names": tuple(robot.cable_names),
+        "output_names": tuple(robot.output_names),
+        "coordinate_names": tuple(robot.coordinate_names),
+        "output_units": tuple(robot.output_units),
+        "coordinate_units": tuple(coordinate_units(robot.model)),
+        "velocity_names": tuple(velocity_names(robot.model)),
+    }

@@ -354,10 +354,8 @@ def _path_trajectory(robot: CableRobot, ds, path):
     VIEW_STEP_SECONDS per step."""
     import numpy as np
 
-    from cdpm.configuration import velocity_names
     from cdpm.equilibrium import equilibrium_tension
-    from cdpm.maps._plan import coordinate_units
-    from cdpm.simulation import Trajectory
+    from cdpm.simulation import Trajectory, trajectory_labels
 
     tension = _map_tension(ds)
     qs = np.array([robot.from_natural(x) for x in path.natural])
@@ -373,14 +371,7 @@ def _path_trajectory(robot: CableRobot, ds, path):
         f=fs,
         y=np.array([robot.output(q) for q in qs]),
         lengths=np.array([robot.cable_lengths(q) for q in qs]),
-        tension_min=robot.tension_min,
-        tension_max=robot.tension_max,
-        cable_names=tuple(robot.cable_names),
-        output_names=tuple(robot.output_names),
-        coordinate_names=tuple(robot.coordinate_names),
-        output_units=tuple(robot.output_units),
-        coordinate_units=tuple(coordinate_units(robot.model)),
-        velocity_names=tuple(velocity_names(robot.model)),
+        **trajectory_labels(robot),
     )
 
 
