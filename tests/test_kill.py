@@ -118,7 +118,7 @@ def test_an_interrupted_store_write_stops_before_the_interrupt_goes_on():
     event loop" when the write was slower than that (a loaded machine)."""
     import asyncio
 
-    from cdpm.maps._store import _sync
+    from cdpm.maps._zarr_calls import sync
 
     stopped = []
 
@@ -136,7 +136,7 @@ def test_an_interrupted_store_write_stops_before_the_interrupt_goes_on():
         signal.setitimer(signal.ITIMER_REAL, 0.2)
         start = time.monotonic()
         with pytest.raises(KeyboardInterrupt):
-            _sync(slow_write())
+            sync(slow_write())
         assert stopped, "the write was still running when the interrupt went on"
         assert stopped[0] - start < 2.0
     finally:

@@ -653,31 +653,34 @@ def test_a_map_to_a_store_silences_only_zarrs_warnings(paper_robot, tmp_path, mo
 
 def test_a_run_stopped_while_creating_its_store_is_made_again(paper_robot, tmp_path, monkeypatch):
     """A run stopped while it writes the new store's files (written in
-    place, not renamed; here by a full disk) leaves a store without its
-    created marker; the next run makes the store again instead of refusing
-    it as not a map."""
+    place, not renamed, in a thread of their own; here by a full disk)
+    raises the error and leaves a store without its created marker; the
+    next run makes the store again instead of refusing it as not a map."""
+    import threading
+
     import xarray as xr
 
-    from cdpm.maps._filestore import MapFileStore
+    import cdpm.maps._filestore
 
     axes = {"q1": np.linspace(-3, 3, 9), "q2": np.linspace(0, 1, 7)}
     store = tmp_path / "m.zarr"
-    set_new, calls = MapFileStore.set_new, []
+    write_new_file, calls = cdpm.maps._filestore.write_new_file, []
 
-    async def full_after_five(self, key, value):
-        calls.append(key)
+    def full_after_five(path, data):
+        calls.append(path)
         if len(calls) > 5:
             raise OSError(28, "No space left on device")
-        await set_new(self, key, value)
+        write_new_file(path, data)
 
-    monkeypatch.setattr(MapFileStore, "set_new", full_after_five)
+    monkeypatch.setattr(cdpm.maps._filestore, "write_new_file", full_after_five)
     with pytest.raises(OSError, match="No space left"):
         workspace_map(paper_robot, axes, workers=1, store=store)
+    assert not [t for t in threading.enumerate() if t.name == "cdpm-store-files"]
     assert (store / ".cdpm").is_dir() and not (store / ".cdpm" / "created").exists()
     assert sum(p.is_file() for p in store.rglob("*") if ".cdpm" not in p.parts) == 5
     with pytest.raises(InputError, match="incomplete cdpm map .* run the same `cdpm map"):
         open_map(store)  # its files may be half written
-    monkeypatch.setattr(MapFileStore, "set_new", set_new)
+    monkeypatch.setattr(cdpm.maps._filestore, "write_new_file", write_new_file)
     again = workspace_map(paper_robot, axes, workers=1, store=store)
     xr.testing.assert_identical(again.load(), workspace_map(paper_robot, axes, workers=1))
 
@@ -722,6 +725,38 @@ def test_new_store_consolidated_metadata_is_zarrs_own(paper_robot, tmp_path, mon
         warnings.simplefilter("ignore")  # consolidated metadata: not in the v3 spec yet
         zarr.consolidate_metadata(str(tmp_path / "m.zarr"))
     assert root.read_bytes() == written
+
+
+def test_the_new_stores_regions_are_the_ones_zarr_writes(paper_robot, tmp_path):
+    """The run that creates a store writes its POC regions without opening
+    it (the array made in memory, the group's document updated): the
+    store's files are those the general write (zarr's creation of the array
+    in the opened store) leaves, and the root document is the one zarr's
+    consolidation writes from the files."""
+    import zarr
+
+    from cdpm.maps.regions import attach_regions
+
+    axes = {"q1": np.linspace(-3, 3, 9), "q2": np.linspace(0, 1, 7)}
+    store = tmp_path / "m.zarr"
+    workspace_map(paper_robot, axes, workers=1, store=store)
+
+    def files() -> dict:
+        return {
+            p.relative_to(store).as_posix(): p.read_bytes()
+            for p in sorted(store.rglob("*"))
+            if p.is_file() and ".cdpm" not in p.parts
+        }
+
+    written = files()
+    assert "poc_region/zarr.json" in written and "poc_region/c.0.0" in written
+    assert "poc_region" in json.loads(written["zarr.json"])["consolidated_metadata"]["metadata"]
+    attach_regions(open_map(store), store)
+    assert files() == written
+    with warnings.catch_warnings(), zarr.config.set({"json_indent": None}):
+        warnings.simplefilter("ignore")  # consolidated metadata: not in the v3 spec yet
+        zarr.consolidate_metadata(str(store))
+    assert files() == written
 
 
 def test_every_array_document_is_the_one_zarr_creates(tmp_path):

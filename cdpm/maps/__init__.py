@@ -312,11 +312,14 @@ def workspace_map(
         )
         try:
             run_chunks(robot, plan, job, todo, sink, workers, scheduler, progress, announce, source)
+            return attach_new_regions(sink.dataset(), store, sink.group)
         except KeyboardInterrupt:
             if isinstance(progress, ProgressPrinter):
                 progress.stopped()
             raise
-        return attach_new_regions(sink.dataset(), store, sink.group)
+        finally:
+            if store is not None:  # the store's files, under its lock
+                sink.close()
 
 
 def _print_to_stderr(info: MapRunInfo) -> None:

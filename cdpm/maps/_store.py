@@ -6,7 +6,9 @@ region write into its own zarr chunks; coordinates and provenance attributes
 are written when the store is created. Resumption bookkeeping lives beside
 the arrays, in ``<store>/.cdpm/`` (zarr ignores it):
 
-- ``created``: written once the skeleton (every array and attribute) exists;
+- ``created``: written once the skeleton (every array and attribute) exists
+  (its files are written in a thread of their own while the first chunk is
+  computed, :class:`ZarrSink`);
 - ``done/<k>``: written after chunk k's data is in the store. Files appear
   in that order, so after a crash (Ctrl-C, SIGKILL) every chunk with a
   marker is complete and the others are recomputed from scratch.
@@ -18,6 +20,7 @@ import contextlib
 import json
 import os
 import shutil
+import threading
 import warnings
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -26,6 +29,7 @@ import numpy as np
 
 from cdpm.errors import InputError
 from cdpm.maps._plan import MapPlan, coordinate_units, settings_difference
+from cdpm.maps._zarr_calls import file_store, sync, write_metadata, zarr_warnings_silenced
 from cdpm.maps.criteria import CRITERIA, bytes_per_pose, extra_size
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -37,7 +41,6 @@ __all__ = [
     "ChunkWriter",
     "open_map",
     "variable_specs",
-    "write_variable",
 ]
 
 _META = ".cdpm"
@@ -51,10 +54,6 @@ CHUNK_KEY_ENCODING = {"name": "default", "separator": "."}
 #: computed every chunk itself: reading a store back costs about 6 ms
 #: whatever its size, a third of a 2048-pose map under load
 RESULT_IN_MEMORY_MAX = 64 * 1024**2
-
-#: longest wait [s], after an interrupt (Ctrl-C, SIGTERM), for a store write
-#: under way in zarr's event loop to stop (:func:`_sync`)
-INTERRUPT_SETTLE_SECONDS = 10.0
 
 
 def variable_specs(robot: CableRobot, plan: MapPlan) -> dict[str, tuple]:
@@ -216,6 +215,9 @@ class ZarrSink:
         #: the store's zarr AsyncGroup, with its consolidated metadata, when
         #: this run created the store (else None: it is opened when needed)
         self.group = None
+        #: the thread writing the files of the store this run creates,
+        #: until a write, the map or close() has waited for it
+        self._creating: _Background | None = None
         if not created.is_file():
             self._create()
         self._done_dir = self.path / _META / "done"
@@ -238,7 +240,7 @@ class ZarrSink:
     def _check_settings(self) -> None:
         import zarr
 
-        group = zarr.open_group(_file_store(self.path, read_only=True), mode="r")
+        group = zarr.open_group(file_store(self.path, read_only=True), mode="r")
         stored = json.loads(group.attrs.get("cdpm_settings", "{}"))
         diff = settings_difference(stored, self.plan.settings)
         if diff:
@@ -249,22 +251,42 @@ class ZarrSink:
         # skeleton leaves a store without its created marker, which the
         # next run makes again
         (self.path / _META / "done").mkdir(parents=True, exist_ok=True)
-        self.group, arrays = _write_metadata(self._create_skeleton())
+        self.group, arrays, files = write_metadata(self._create_skeleton())
         # this process's chunks go straight into the arrays just made
         self._writer = ChunkWriter(str(self.path), self.plan, tuple(self.specs), arrays)
         self.keep = bytes_per_pose(self.robot) * self.plan.n_poses <= RESULT_IN_MEMORY_MAX
-        _touch(self.path / _META / "created")
+        # the files go out while the first chunk is computed: they are
+        # mostly waits on the file system (0.05-0.5 ms a file, four dozen
+        # files), in which the thread holds no GIL
+        self._creating = _Background(lambda: _write_skeleton(self.path, files))
+
+    def _created(self) -> None:
+        """Wait until the store's files are written and it is marked
+        created (when this run creates it); raises the error that stopped
+        the writing (a full disk)."""
+        if self._creating is not None:
+            creating, self._creating = self._creating, None
+            creating.wait()
+
+    def close(self) -> None:
+        """Wait for the store's files to be written, if this run creates
+        the store and nothing has waited yet (a run stopped before its
+        first chunk was written); their errors are not raised here, as the
+        run is failing already."""
+        if self._creating is not None:
+            with contextlib.suppress(Exception):
+                self._created()
 
     async def _create_skeleton(self) -> tuple:
-        """Build the store's skeleton in memory (:meth:`_create_arrays`),
-        then write its files to disk all at once; returns the group and the
-        data variables' arrays {name: zarr AsyncArray}, in the store on disk.
+        """Build the store's skeleton in memory (:meth:`_create_arrays`);
+        returns the group and the data variables' arrays {name: zarr
+        AsyncArray}, in the store on disk, and the files to write there
+        {key: bytes}.
 
         Zarr creates an array in a local store through several file-system
         round trips one after another (checks, parents, metadata), about
-        1 ms an array; in memory they cost little, and the two dozen files
-        then go out in one pass: a map store is made in about 15 ms
-        instead of 40 (two-output map).
+        1 ms an array; in memory they cost little, and the four dozen files
+        then go out in one pass.
 
         The group's consolidated metadata is made from the metadata of the
         arrays just created, as ``zarr.consolidate_metadata`` makes it from
@@ -284,13 +306,17 @@ class ZarrSink:
         )
         metadata = dataclasses.replace(group.metadata, consolidated_metadata=consolidated)
         await AsyncGroup(metadata, group.store_path)._save_metadata()
-        keys = [key async for key in memory.list()]
+        keys = sorted([key async for key in memory.list()])
         files = await asyncio.gather(*(memory.get(key) for key in keys))
-        local = _file_store(self.path)
-        await asyncio.gather(*(local.set_new(k, f) for k, f in zip(keys, files, strict=True)))
-        return AsyncGroup(metadata, StorePath(local, "")), {
-            name: AsyncArray(arrays[name].metadata, StorePath(local, name)) for name in self.specs
-        }
+        local = file_store(self.path)
+        return (
+            AsyncGroup(metadata, StorePath(local, "")),
+            {
+                name: AsyncArray(arrays[name].metadata, StorePath(local, name))
+                for name in self.specs
+            },
+            {key: file.to_bytes() for key, file in zip(keys, files, strict=True)},
+        )
 
     async def _create_arrays(self, store) -> tuple:
         """Create, in the zarr ``store``, the group with the map's
@@ -384,11 +410,13 @@ class ZarrSink:
     @property
     def writer(self) -> ChunkWriter:
         """A picklable writer of this store's chunks, for worker processes
-        that see the same file system."""
+        that see the same file system (once the store's files are written)."""
+        self._created()
         return ChunkWriter(str(self.path), self.plan, tuple(self.specs))
 
     def write(self, index: int, data: dict) -> None:
         """Write chunk ``index`` (region write), then its done marker."""
+        self._created()
         if self._writer is None:
             self._writer = self.writer
         self._writer.write(index, data)
@@ -404,6 +432,7 @@ class ZarrSink:
         RESULT_IN_MEMORY_MAX bytes), else read from the store (lazily).
         Either is the dataset :func:`open_map` reads: the same values,
         coordinates and attributes, with ``encoding["source"]``."""
+        self._created()
         done_here = len(self._written) == self.plan.n_chunks
         if self.keep and self._memory is not None and done_here:
             ds = self._memory.dataset()
@@ -415,6 +444,37 @@ class ZarrSink:
         # these values instead of reading each array back
         coords = _coords(self.robot, self.plan)
         return _open_map(self.path, {name: c[1] for name, c in coords.items() if c[0] == name})
+
+
+def _write_skeleton(path: Path, files: dict[str, bytes]) -> None:
+    """Write a new store's files {key: bytes} at ``path``, then mark it
+    created."""
+    from cdpm.maps._filestore import write_new_files
+
+    write_new_files(path, files)
+    _touch(path / _META / "created")
+
+
+class _Background:
+    """``run()`` in a thread of its own, from construction; :meth:`wait`
+    waits for its end and raises its error."""
+
+    def __init__(self, run):
+        self._error: BaseException | None = None
+
+        def target() -> None:
+            try:
+                run()
+            except BaseException as exc:  # raised in the waiting thread
+                self._error = exc
+
+        self._thread = threading.Thread(target=target, name="cdpm-store-files")
+        self._thread.start()
+
+    def wait(self) -> None:
+        self._thread.join()
+        if self._error is not None:
+            raise self._error
 
 
 class ChunkWriter:
@@ -455,7 +515,7 @@ class ChunkWriter:
         for name in self.names:
             value = data[name]
             values[name] = value.reshape(shape + value.shape[1:])
-        _sync(self._write_regions(region, values))
+        sync(self._write_regions(region, values))
         _touch(Path(self.path) / _META / "done" / str(index))
 
     async def _write_regions(self, region: tuple[slice, ...], values: dict) -> None:
@@ -466,80 +526,12 @@ class ChunkWriter:
         if self._arrays is None:
             from zarr.api.asynchronous import open_group
 
-            group = await open_group(_file_store(Path(self.path)), mode="r+")
+            group = await open_group(file_store(Path(self.path)), mode="r+")
             arrays = await asyncio.gather(*(group.getitem(name) for name in self.names))
             self._arrays = dict(zip(self.names, arrays, strict=True))
         await asyncio.gather(
             *(self._arrays[name].setitem(region, value) for name, value in values.items())
         )
-
-
-def _write_metadata(coro):
-    """Run the coroutine ``coro``, which writes zarr metadata, in zarr's
-    event loop; its result.
-
-    Metadata documents are written without indentation: zarr indents them
-    by default, and Python encodes indented JSON in pure Python, several
-    times slower (a map store's root document, with the consolidated
-    metadata of every array, is 15-30 kB). zarr's warnings about them are
-    silenced (:func:`_zarr_warnings_silenced`)."""
-    import zarr
-
-    with _zarr_warnings_silenced(), zarr.config.set({"json_indent": None}):
-        return _sync(coro)
-
-
-@contextlib.contextmanager
-def _zarr_warnings_silenced():
-    """Silence, while the context lasts, zarr's warnings that a map
-    store's string coordinates and consolidated metadata are not in the
-    zarr v3 specification yet (xarray and zarr-python read both): only
-    warnings raised in zarr's modules, since other threads of the process
-    may warn meanwhile."""
-    with warnings.catch_warnings():
-        warnings.filterwarnings("ignore", category=UserWarning, module=r"zarr\.")
-        warnings.filterwarnings("ignore", category=FutureWarning, module=r"zarr\.")
-        yield
-
-
-def _sync(coro):
-    """Run the coroutine ``coro`` in zarr's event loop
-    (``zarr.core.sync.sync``) and return its result. Interrupted while it
-    runs (Ctrl-C, or SIGTERM, which cdpm reads as Ctrl-C), it is cancelled
-    and waited for (at most INTERRUPT_SETTLE_SECONDS) before the interrupt
-    goes on: zarr's exit handler closes its loop, and printed a traceback
-    ("Cannot close a running event loop") when a write was still running
-    in it 0.2 s after the interrupt, as on a loaded machine. A cancelled
-    write leaves no partial file, and its chunk no done marker."""
-    import asyncio
-    import time
-
-    from zarr.core.sync import sync
-
-    running = []
-
-    async def tracked():
-        running.append(asyncio.current_task())
-        return await coro
-
-    try:
-        return sync(tracked())
-    except KeyboardInterrupt:
-        if running:
-            task = running[0]
-            task.get_loop().call_soon_threadsafe(task.cancel)
-            deadline = time.monotonic() + INTERRUPT_SETTLE_SECONDS
-            while not task.done() and time.monotonic() < deadline:
-                time.sleep(0.005)
-        raise
-
-
-def _file_store(path: Path, read_only: bool = False):
-    """The zarr store of the map store at ``path``
-    (:class:`cdpm.maps._filestore.MapFileStore`)."""
-    from cdpm.maps._filestore import MapFileStore
-
-    return MapFileStore(path, read_only=read_only)
 
 
 def _touch(path: Path) -> None:
@@ -575,8 +567,6 @@ def _open_map(path, index_values: dict | None = None):
     if not p.exists():
         raise InputError(f"map store {p} not found; {make}")
     fix = "give a store written by `cdpm map SPEC ... --out STORE` (or cdpm.workspace_map)"
-    if not (p / "zarr.json").is_file() and not (p / ".zgroup").is_file():
-        raise InputError(f"map store {p} is not a zarr store; {fix}")
 
     def incomplete(why: str = "") -> InputError:
         return InputError(
@@ -585,14 +575,17 @@ def _open_map(path, index_values: dict | None = None):
         )
 
     if (p / _META).is_dir() and not (p / _META / "created").is_file():
-        # its files are written in place (MapFileStore.set_new): maybe not all, or half
+        # its files are written in place (write_new_files): maybe not all, or
+        # half, or not yet its group's document
         raise incomplete()
+    if not (p / "zarr.json").is_file() and not (p / ".zgroup").is_file():
+        raise InputError(f"map store {p} is not a zarr store; {fix}")
     try:
-        with _zarr_warnings_silenced():
+        with zarr_warnings_silenced():
             # a store without consolidated metadata reads as well, only slower
             warnings.filterwarnings("ignore", "Failed to open Zarr", RuntimeWarning)
             ds = xr.open_zarr(
-                _file_store(p, read_only=True),
+                file_store(p, read_only=True),
                 chunks=None,
                 create_default_indexes=index_values is None,
             )
@@ -623,63 +616,3 @@ def _open_map(path, index_values: dict | None = None):
             )
         )
     return ds
-
-
-def write_variable(path: Path, values, group=None) -> None:
-    """Write the named ``xarray.DataArray`` ``values`` (dims as ``poc``'s)
-    as the store's array of that name (fill value 0), chunked like ``poc``, replacing
-    any, and add it to the store's consolidated metadata: one call into
-    zarr's event loop (the POC regions of a finished map, ``poc_region``).
-    ``group``: the store's zarr AsyncGroup with its consolidated metadata,
-    if at hand (the run that created the store), else the store is opened.
-
-    Raises:
-        InputError: ``path`` is not a map store.
-    """
-    _write_metadata(_write_variable(path, values, group))
-
-
-async def _write_variable(path: Path, values, group=None) -> None:
-    from zarr.api.asynchronous import consolidate_metadata, open_group
-
-    store = _file_store(path)
-    if group is None:
-        try:
-            if not (path / "zarr.json").is_file():  # opening would create the folder
-                raise FileNotFoundError(f"no zarr group at {path}")
-            group = await open_group(store, mode="r+")
-        except (FileNotFoundError, ValueError, KeyError, TypeError, OSError) as exc:
-            raise InputError(
-                f"cannot write {values.name} into map store {path} ({type(exc).__name__}: "
-                f"{exc}); give the store the map was written to"
-            ) from exc
-        if not await group.contains("poc"):
-            raise InputError(f"{path} is not a cdpm map store (no 'poc' array)")
-    poc = await group.getitem("poc")
-    # overwrite: replaces the values of an earlier run, and the array a run
-    # killed mid-write leaves without metadata
-    array = await group.create_array(
-        values.name,
-        shape=values.shape,
-        chunks=poc.chunks,
-        dtype=values.dtype,
-        fill_value=0,
-        dimension_names=list(values.dims),
-        attributes=dict(values.attrs),
-        chunk_key_encoding=CHUNK_KEY_ENCODING,
-        overwrite=True,
-    )
-    await array.setitem(..., values.values)
-    consolidated = group.metadata.consolidated_metadata
-    members = {p.name for p in path.iterdir() if (p / "zarr.json").is_file()}
-    if consolidated is None or set(consolidated.metadata) | {values.name} != members:
-        # metadata never consolidated, or arrays added or removed since
-        await consolidate_metadata(store)
-        return
-    # add the array to the consolidated metadata of the group (as read when
-    # it was opened, or as this run created it) and save the group's
-    # metadata (update_attributes writes it, consolidated part included):
-    # one file written, where consolidating again reads every array's
-    # metadata back from disk
-    consolidated.metadata[values.name] = array.metadata
-    await group.update_attributes({})

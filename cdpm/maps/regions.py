@@ -449,11 +449,11 @@ def attach_new_regions(ds, store, group):
     """:func:`attach_regions`, at the end of the run that wrote the map:
     ``group`` is the store's zarr group if that run created the store, and
     the regions are written through it without opening the store again
-    (:func:`cdpm.maps._store.write_variable`); None opens the store."""
+    (:func:`cdpm.maps._store_variables.write_variable`); None opens the store."""
     labels = label_regions(ds)
     out = ds.drop_vars(REGION_VARIABLE, errors="ignore").assign({REGION_VARIABLE: labels})
     if store is not None:
-        from cdpm.maps._store import write_variable
+        from cdpm.maps._store_variables import write_variable
 
         write_variable(Path(store).expanduser(), labels, group)
         out = out[sorted(out.data_vars)]  # as open_map lists them

@@ -1,0 +1,90 @@
+"""Calls into zarr's event loop, for the map stores: interrupt-safe
+(:func:`sync`), metadata written compactly with zarr's warnings about the
+stores' layout silenced (:func:`write_metadata`), and the store object of a
+map store's folder (:func:`file_store`)."""
+
+from __future__ import annotations
+
+import contextlib
+import warnings
+from pathlib import Path
+
+__all__ = [
+    "INTERRUPT_SETTLE_SECONDS",
+    "file_store",
+    "sync",
+    "write_metadata",
+    "zarr_warnings_silenced",
+]
+
+#: longest wait [s], after an interrupt (Ctrl-C, SIGTERM), for a store write
+#: under way in zarr's event loop to stop (:func:`sync`)
+INTERRUPT_SETTLE_SECONDS = 10.0
+
+
+def write_metadata(coro):
+    """Run the coroutine ``coro``, which writes zarr metadata, in zarr's
+    event loop; its result.
+
+    Metadata documents are written without indentation: zarr indents them
+    by default, and Python encodes indented JSON in pure Python, several
+    times slower (a map store's root document, with the consolidated
+    metadata of every array, is 15-30 kB). zarr's warnings about them are
+    silenced (:func:`zarr_warnings_silenced`)."""
+    import zarr
+
+    with zarr_warnings_silenced(), zarr.config.set({"json_indent": None}):
+        return sync(coro)
+
+
+@contextlib.contextmanager
+def zarr_warnings_silenced():
+    """Silence, while the context lasts, zarr's warnings that a map
+    store's string coordinates and consolidated metadata are not in the
+    zarr v3 specification yet (xarray and zarr-python read both): only
+    warnings raised in zarr's modules, since other threads of the process
+    may warn meanwhile."""
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", category=UserWarning, module=r"zarr\.")
+        warnings.filterwarnings("ignore", category=FutureWarning, module=r"zarr\.")
+        yield
+
+
+def sync(coro):
+    """Run the coroutine ``coro`` in zarr's event loop
+    (``zarr.core.sync.sync``) and return its result. Interrupted while it
+    runs (Ctrl-C, or SIGTERM, which cdpm reads as Ctrl-C), it is cancelled
+    and waited for (at most INTERRUPT_SETTLE_SECONDS) before the interrupt
+    goes on: zarr's exit handler closes its loop, and printed a traceback
+    ("Cannot close a running event loop") when a write was still running
+    in it 0.2 s after the interrupt, as on a loaded machine. A cancelled
+    write leaves no partial file, and its chunk no done marker."""
+    import asyncio
+    import time
+
+    from zarr.core import sync as zarr_sync
+
+    running = []
+
+    async def tracked():
+        running.append(asyncio.current_task())
+        return await coro
+
+    try:
+        return zarr_sync.sync(tracked())
+    except KeyboardInterrupt:
+        if running:
+            task = running[0]
+            task.get_loop().call_soon_threadsafe(task.cancel)
+            deadline = time.monotonic() + INTERRUPT_SETTLE_SECONDS
+            while not task.done() and time.monotonic() < deadline:
+                time.sleep(0.005)
+        raise
+
+
+def file_store(path: Path, read_only: bool = False):
+    """The zarr store of the map store at ``path``
+    (:class:`cdpm.maps._filestore.MapFileStore`)."""
+    from cdpm.maps._filestore import MapFileStore
+
+    return MapFileStore(path, read_only=read_only)
