@@ -104,6 +104,20 @@ def coordinate_names(model) -> list[str]:
     return names
 
 
+#: the components of a multi-DOF joint's tangent displacement and of its
+#: velocity, in Pinocchio's order and in the joint's own frame:
+#: translations d_x [m] with velocities v_x [m/s], rotations th_x [rad]
+#: (a rotation vector) with angular velocities w_x [rad/s]
+_LOCAL_TANGENT = {
+    "freeflyer": (
+        ("d_x", "d_y", "d_z", "th_x", "th_y", "th_z"),
+        ("v_x", "v_y", "v_z", "w_x", "w_y", "w_z"),
+    ),
+    "spherical": (("th_x", "th_y", "th_z"), ("w_x", "w_y", "w_z")),
+    "planar": (("d_x", "d_y", "th_z"), ("v_x", "v_y", "w_z")),
+}
+
+
 def velocity_names(model) -> list[str]:
     """Names of the ``nv`` components of a velocity (Pinocchio's ``v``), in
     order: ``name_dot`` where ``v`` is the rate of a natural coordinate
@@ -113,20 +127,33 @@ def velocity_names(model) -> list[str]:
     ``joint.v_x``, ``v_y``, ``w_z``, for a spherical one ``joint.w_x``,
     ``w_y``, ``w_z``: the body's velocity in its own frame, not the rates
     of its x, y, z and roll, pitch, yaw."""
-    local = {
-        "freeflyer": ("v_x", "v_y", "v_z", "w_x", "w_y", "w_z"),
-        "spherical": ("w_x", "w_y", "w_z"),
-        "planar": ("v_x", "v_y", "w_z"),
-    }
+    return _tangent_names(model, 1, "_dot")
+
+
+def displacement_names(model) -> list[str]:
+    """Names of the ``nv`` components of a tangent displacement ``dq``
+    (``q = pin.integrate(q0, dq)``), in order: the natural coordinate's
+    name where ``dq`` is its change (as for :func:`velocity_names`); for a
+    free-flyer ``joint.d_x``, ``d_y``, ``d_z`` (translation) and
+    ``joint.th_x``, ``th_y``, ``th_z`` (rotation vector), for a planar joint
+    ``joint.d_x``, ``d_y``, ``th_z``, for a spherical one ``joint.th_x``,
+    ``th_y``, ``th_z``: in the body's own frame, not changes of its x, y, z
+    and roll, pitch, yaw."""
+    return _tangent_names(model, 0, "")
+
+
+def _tangent_names(model, which: int, suffix: str) -> list[str]:
+    """:func:`displacement_names` (``which`` 0) or :func:`velocity_names`
+    (1, ``suffix`` "_dot" on natural coordinates' names)."""
     names: list[str] = []
     start = 0
     coords = coordinate_names(model)
     for jname, joint in _joints(model):
         kind = _kind(joint)
-        if kind in local:
-            names.extend(f"{jname}.{s}" for s in local[kind])
+        if kind in _LOCAL_TANGENT:
+            names.extend(f"{jname}.{s}" for s in _LOCAL_TANGENT[kind][which])
         else:
-            names.extend(f"{c}_dot" for c in coords[start : start + joint.nv])
+            names.extend(f"{c}{suffix}" for c in coords[start : start + joint.nv])
         start += joint.nv
     return names
 

@@ -36,6 +36,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from cdpm.configuration import displacement_names, velocity_names
 from cdpm.equilibrium import (
     EQUILIBRIUM_METHODS,
     EquilibriumResult,
@@ -446,9 +447,13 @@ def linearise_batch(
 
 
 def state_names(robot: CableRobot) -> tuple[str, ...]:
-    """Names of the 2 nv states: each coordinate, then its rate (``name_dot``)."""
-    coords = list(robot.coordinate_names)
-    return tuple(coords + [f"{c}_dot" for c in coords])
+    """Names of the 2 nv states: the tangent displacement's components
+    (:func:`cdpm.configuration.displacement_names`: a coordinate's name,
+    or ``joint.d_x`` ... ``joint.th_z`` for a free-flyer's body-frame
+    translation and rotation), then the velocity's
+    (:func:`cdpm.configuration.velocity_names`: ``name_dot``, or
+    ``joint.v_x`` ... ``joint.w_z``)."""
+    return tuple(displacement_names(robot.model) + velocity_names(robot.model))
 
 
 def _equilibrium(robot: CableRobot, q, tension, pretension) -> EquilibriumResult:

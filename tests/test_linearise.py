@@ -89,3 +89,34 @@ def test_round_off_output_jacobian_is_no_output_direction(q):
     # a genuine direction nearby is kept
     near = cdpm.linearise(robot, np.array(q) + 1e-6)
     assert np.any(near.C)
+
+
+def test_a_free_flyers_states_are_named_in_its_own_frame():
+    """The states of a free-flyer platform are its tangent displacement
+    dq (q = pin.integrate(q0, dq)) and velocity, both in the platform's own
+    frame: d_x moves it along its own x axis, th_z turns it about its own z
+    axis, at a tilted pose where those differ from the world's x, z and yaw."""
+    import pinocchio as pin
+
+    from tests.conftest import MODELS
+
+    robot = cdpm.load_robot(MODELS / "spatial_8cable" / "spatial_8cable.yaml")
+    lin = cdpm.linearise(robot, robot.configuration([0.0, 0.0, 1.0, 0.1, -0.05, 0.1]))
+    joint = robot.model.names[1]
+    displacement = [f"{joint}.{c}" for c in ("d_x", "d_y", "d_z", "th_x", "th_y", "th_z")]
+    velocity = [f"{joint}.{c}" for c in ("v_x", "v_y", "v_z", "w_x", "w_y", "w_z")]
+    assert lin.state_names == tuple(displacement + velocity)
+    q0 = lin.q
+    rotation = pin.XYZQUATToSE3(q0).rotation
+    assert not np.allclose(rotation, np.eye(3), atol=0.05)
+    for k, axis in ((0, [1.0, 0.0, 0.0]), (5, [0.0, 0.0, 1.0])):
+        dq = np.zeros(6)
+        dq[k] = 1e-3
+        moved = pin.XYZQUATToSE3(pin.integrate(robot.model, q0, dq))
+        if k < 3:  # along the platform's own axis, not the world's
+            np.testing.assert_allclose(
+                moved.translation - q0[:3], 1e-3 * rotation @ axis, atol=1e-12
+            )
+        else:  # about the platform's own axis
+            turned = pin.log3(rotation.T @ moved.rotation)
+            np.testing.assert_allclose(turned, 1e-3 * np.array(axis), atol=1e-12)
