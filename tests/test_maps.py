@@ -564,6 +564,10 @@ def test_a_stored_map_reads_back_identical_to_the_map_in_memory(
     # kept in memory, none
     assert ("chunks" in stored["poc"].encoding) is not kept
     assert list(stored.data_vars) == list(opened.data_vars)  # in the same order
+    # coordinates as the map lists them (axes first), not by name as zarr does
+    first = ["sample", "q1", "q2"] if sampled else ["q1", "q2"]
+    for ds in (memory, stored, opened):
+        assert list(ds.coords) == [*first, "output", "xyz", "cable"]
     for name in opened.variables:
         if name != "poc_region" and not kept:
             got, read = stored[name].encoding, opened[name].encoding

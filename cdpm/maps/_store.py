@@ -30,7 +30,7 @@ import numpy as np
 from cdpm.errors import InputError
 from cdpm.maps._plan import MapPlan, coordinate_units, settings_difference
 from cdpm.maps._zarr_calls import file_store, sync, write_metadata, zarr_warnings_silenced
-from cdpm.maps.criteria import CRITERIA, bytes_per_pose, extra_size
+from cdpm.maps.criteria import CRITERIA, CRITERION_DIMS, bytes_per_pose, extra_size
 
 if TYPE_CHECKING:  # pragma: no cover
     from cdpm.robot import CableRobot
@@ -615,4 +615,27 @@ def _open_map(path, index_values: dict | None = None):
                 }
             )
         )
-    return ds
+    return _in_map_order(ds)
+
+
+def _in_map_order(ds):
+    """``ds`` with its coordinates listed in the order the map lists them
+    (:func:`_coords`: ``sample`` of a sampled map, the axes, then
+    ``output``, ``xyz``, ``cable``), not by name as zarr lists a store's
+    arrays; the same variables (lazily loaded), indexes and attributes."""
+    import xarray as xr
+
+    axes = ds.attrs.get("axes", [])
+    axes = [axes] if isinstance(axes, str) else list(axes)
+    first = ["sample", *axes, *CRITERION_DIMS]
+    order = [c for c in first if c in ds.coords] + [c for c in ds.coords if c not in first]
+    if list(ds.coords) == order:
+        return ds
+    coords = xr.Coordinates(
+        {name: ds.coords[name].variable for name in order},
+        indexes={name: ds.xindexes[name] for name in order if name in ds.xindexes},
+    )
+    data_vars = {name: value.variable for name, value in ds.data_vars.items()}
+    out = xr.Dataset(data_vars, coords=coords, attrs=ds.attrs)
+    out.encoding = dict(ds.encoding)
+    return out
