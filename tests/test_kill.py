@@ -142,3 +142,64 @@ def test_an_interrupted_store_write_stops_before_the_interrupt_goes_on():
     finally:
         signal.setitimer(signal.ITIMER_REAL, 0)
         signal.signal(signal.SIGALRM, previous)
+
+
+@pytest.mark.parametrize("twice", [False, True], ids=["once", "again-while-closing"])
+def test_an_interrupt_while_the_store_is_written_waits_for_its_files(tmp_path, monkeypatch, twice):
+    """A new store's files are written by a thread while the first chunk is
+    computed. Ctrl-C while the run waits for them (a slow disk) reaches the
+    caller only once they are written and the thread has ended (also when
+    a second Ctrl-C comes while it waits again): no write outlives the run
+    or its lock, and the next run resumes the store. Before, the interrupted
+    wait let the thread write on into the store the next run made."""
+    import threading
+
+    import cdpm.maps._filestore
+    from cdpm.maps import _store
+
+    write = cdpm.maps._filestore.write_new_file
+    alarms = [0.1, 0.05] if twice else [0.05]
+
+    def slow(path, data):  # 27 files: about half a second
+        if len(alarms) == (2 if twice else 1):  # the first file: an interrupt soon
+            signal.setitimer(signal.ITIMER_REAL, alarms.pop())
+        time.sleep(0.02)
+        write(path, data)
+
+    monkeypatch.setattr(cdpm.maps._filestore, "write_new_file", slow)
+
+    def interrupt(signum, frame):
+        if alarms:
+            signal.setitimer(signal.ITIMER_REAL, alarms.pop())
+        raise KeyboardInterrupt
+
+    out = tmp_path / "m.zarr"
+    axes = {"q1": np.linspace(-3, 3, 9), "q2": np.linspace(0, 1, 7)}
+    cdpm.workspace_map(VERTICAL, axes, workers=1)  # imports: not in the half second
+    previous = signal.signal(signal.SIGALRM, interrupt)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            cdpm.workspace_map(VERTICAL, axes, store=out, workers=1)
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, previous)
+    assert not [t for t in threading.enumerate() if t.name == "cdpm-store-files"]
+    assert (out / ".cdpm" / "created").is_file()  # every file written
+    assert not alarms  # each interrupt came while the run waited
+    monkeypatch.setattr(cdpm.maps._filestore, "write_new_file", write)
+    again = cdpm.workspace_map(VERTICAL, axes, store=out, workers=1)
+    assert "chunks" in again["poc"].encoding  # the store was resumed, not made again
+    np.testing.assert_array_equal(
+        again["poc"].values, cdpm.workspace_map(VERTICAL, axes, workers=1)["poc"].values
+    )
+    assert _store.INTERRUPT_SETTLE_SECONDS > 1  # the waits above stayed well within it
+
+
+def test_a_map_goes_into_an_empty_folder(tmp_path):
+    """An empty folder at the store's path (made for the map, or left by a
+    run killed at once) takes the map, without --overwrite."""
+    out = tmp_path / "m.zarr"
+    out.mkdir()
+    axes = {"q1": np.linspace(-3, 3, 5), "q2": np.linspace(0, 1, 4)}
+    ds = cdpm.workspace_map(VERTICAL, axes, store=out, workers=1)
+    assert (out / ".cdpm" / "created").is_file() and ds.sizes["q1"] == 5

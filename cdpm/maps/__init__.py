@@ -292,25 +292,27 @@ def workspace_map(
     owner = nullcontext() if store is None else store_lock(store)
     with owner:
         sink = MemorySink(robot, plan) if store is None else ZarrSink(store, robot, plan, overwrite)
-        done = sink.done()
-        todo = [k for k in range(plan.n_chunks) if k not in done]
-        if store is not None and scheduler is None and workers > 1 and len(todo) > 1:
-            sink.keep = False  # worker processes write chunks this one never holds
-        if progress is True:
-            if announce is None:
-                announce = _print_to_stderr
-            progress = ProgressPrinter(sum(plan.chunk_size(k) for k in todo)) if todo else None
-        elif progress is False:
-            progress = None
-        job = MapJob(
-            setting,
-            bool(margin),
-            float(tol),
-            tuple(plan.settings["variables"]),
-            reach,
-            None if search is None else (search, reach_settings(robot, horizon, tension_budget)),
-        )
         try:
+            done = sink.done()
+            todo = [k for k in range(plan.n_chunks) if k not in done]
+            if store is not None and scheduler is None and workers > 1 and len(todo) > 1:
+                sink.keep = False  # worker processes write chunks this one never holds
+            if progress is True:
+                if announce is None:
+                    announce = _print_to_stderr
+                progress = ProgressPrinter(sum(plan.chunk_size(k) for k in todo)) if todo else None
+            elif progress is False:
+                progress = None
+            job = MapJob(
+                setting,
+                bool(margin),
+                float(tol),
+                tuple(plan.settings["variables"]),
+                reach,
+                None
+                if search is None
+                else (search, reach_settings(robot, horizon, tension_budget)),
+            )
             run_chunks(robot, plan, job, todo, sink, workers, scheduler, progress, announce, source)
             return attach_new_regions(sink.dataset(), store, sink.group)
         except KeyboardInterrupt:
@@ -318,8 +320,7 @@ def workspace_map(
                 progress.stopped()
             raise
         finally:
-            if store is not None:  # the store's files, under its lock
-                sink.close()
+            sink.close()  # the store's files written, under its lock
 
 
 def _print_to_stderr(info: MapRunInfo) -> None:

@@ -439,9 +439,8 @@ def run_chunks(
             for index in todo:
                 finished(index, job.evaluate(robot, plan.natural(index)))
         else:
-            writer = getattr(sink, "writer", None)
             _run_processes(
-                robot, plan, job, todo, finished, workers, writer, source, started, kernels
+                robot, plan, job, todo, finished, workers, sink.writer, source, started, kernels
             )
 
 

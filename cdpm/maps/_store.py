@@ -16,11 +16,11 @@ the arrays, in ``<store>/.cdpm/`` (zarr ignores it):
 
 from __future__ import annotations
 
-import contextlib
 import json
 import os
 import shutil
 import threading
+import time
 import warnings
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -29,7 +29,13 @@ import numpy as np
 
 from cdpm.errors import InputError
 from cdpm.maps._plan import MapPlan, coordinate_units, settings_difference
-from cdpm.maps._zarr_calls import file_store, sync, write_metadata, zarr_warnings_silenced
+from cdpm.maps._zarr_calls import (
+    INTERRUPT_SETTLE_SECONDS,
+    file_store,
+    sync,
+    write_metadata,
+    zarr_warnings_silenced,
+)
 from cdpm.maps.criteria import CRITERIA, CRITERION_DIMS, bytes_per_pose, extra_size
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -132,8 +138,12 @@ class MemorySink:
             value = data[name]
             arr[region] = value.reshape(shape + value.shape[1:])
 
-    #: no zarr group (see ZarrSink.group)
-    group = None
+    #: no zarr group (see ZarrSink.group), nor a writer for workers
+    #: (they return their chunks to this process)
+    group = writer = None
+
+    def close(self) -> None:
+        """Nothing to wait for (see :meth:`ZarrSink.close`)."""
 
     def dataset(self):
         import xarray as xr
@@ -192,7 +202,9 @@ class ZarrSink:
         self.robot, self.plan = robot, plan
         self.specs = variable_specs(robot, plan)
         created = self.path / _META / "created"
-        if self.path.exists():
+        if self.path.is_dir() and not any(self.path.iterdir()):
+            pass  # an empty folder (made for the map, or a run killed at once)
+        elif self.path.exists():
             is_map = created.is_file()
             if overwrite or (not is_map and (self.path / _META).is_dir()):
                 # a map killed while its skeleton was written is remade
@@ -218,9 +230,9 @@ class ZarrSink:
         #: the thread writing the files of the store this run creates,
         #: until a write, the map or close() has waited for it
         self._creating: _Background | None = None
-        if not created.is_file():
-            self._create()
         self._done_dir = self.path / _META / "done"
+        if not created.is_file():
+            self._create()  # last: it starts that thread
 
     def _remove(self) -> None:
         if (
@@ -256,26 +268,40 @@ class ZarrSink:
         self._writer = ChunkWriter(str(self.path), self.plan, tuple(self.specs), arrays)
         self.keep = bytes_per_pose(self.robot) * self.plan.n_poses <= RESULT_IN_MEMORY_MAX
         # the files go out while the first chunk is computed: they are
-        # mostly waits on the file system (0.05-0.5 ms a file, four dozen
-        # files), in which the thread holds no GIL
+        # mostly waits on the file system (0.05-0.5 ms a file; 27 files in
+        # 21 folders on a two-link model), in which the thread holds no GIL
         self._creating = _Background(lambda: _write_skeleton(self.path, files))
 
     def _created(self) -> None:
         """Wait until the store's files are written and it is marked
         created (when this run creates it); raises the error that stopped
-        the writing (a full disk)."""
+        the writing (a full disk). Interrupted while it waits, it leaves
+        the wait to :meth:`close`."""
         if self._creating is not None:
+            self._creating.wait()
             creating, self._creating = self._creating, None
-            creating.wait()
+            creating.raise_error()
 
     def close(self) -> None:
         """Wait for the store's files to be written, if this run creates
-        the store and nothing has waited yet (a run stopped before its
-        first chunk was written); their errors are not raised here, as the
-        run is failing already."""
-        if self._creating is not None:
-            with contextlib.suppress(Exception):
-                self._created()
+        the store and nothing has waited for them to the end (a run
+        stopped before its first chunk was written, or while it waited):
+        through interrupts too, for at most INTERRUPT_SETTLE_SECONDS, so
+        that no write outlives the run and its lock on the store; an
+        interrupt is raised once they are written. Their errors are not
+        raised here: the run is failing already."""
+        creating, interrupted = self._creating, None
+        if creating is None:
+            return
+        deadline = time.monotonic() + INTERRUPT_SETTLE_SECONDS
+        while not creating.finished and time.monotonic() < deadline:
+            try:
+                creating.wait(deadline - time.monotonic())
+            except KeyboardInterrupt as exc:
+                interrupted = exc
+        self._creating = None
+        if interrupted is not None:
+            raise interrupted
 
     async def _create_skeleton(self) -> tuple:
         """Build the store's skeleton in memory (:meth:`_create_arrays`);
@@ -456,23 +482,35 @@ def _write_skeleton(path: Path, files: dict[str, bytes]) -> None:
 
 
 class _Background:
-    """``run()`` in a thread of its own, from construction; :meth:`wait`
-    waits for its end and raises its error."""
+    """``run()`` in a thread of its own, from construction. Its end is
+    waited for on an event, not by joining the thread: a join that an
+    interrupt stops marks the thread as ended in Python 3.11 while it still
+    runs, and no later join waits for it."""
 
     def __init__(self, run):
         self._error: BaseException | None = None
+        self._ended = threading.Event()
 
         def target() -> None:
             try:
                 run()
             except BaseException as exc:  # raised in the waiting thread
                 self._error = exc
+            finally:
+                self._ended.set()
 
-        self._thread = threading.Thread(target=target, name="cdpm-store-files")
-        self._thread.start()
+        threading.Thread(target=target, name="cdpm-store-files").start()
 
-    def wait(self) -> None:
-        self._thread.join()
+    @property
+    def finished(self) -> bool:
+        return self._ended.is_set()
+
+    def wait(self, timeout: float | None = None) -> None:
+        """Wait for ``run()`` to end (at most ``timeout`` seconds)."""
+        self._ended.wait(timeout)
+
+    def raise_error(self) -> None:
+        """Raise what stopped ``run()``, if anything did."""
         if self._error is not None:
             raise self._error
 

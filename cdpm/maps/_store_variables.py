@@ -35,18 +35,17 @@ async def _write_variable(path: Path, values, group=None) -> None:
         await _add_variable(group, values)
         return
     store = file_store(path)
-    if group is None:
-        try:
-            if not (path / "zarr.json").is_file():  # opening would create the folder
-                raise FileNotFoundError(f"no zarr group at {path}")
-            group = await open_group(store, mode="r+")
-        except (FileNotFoundError, ValueError, KeyError, TypeError, OSError) as exc:
-            raise InputError(
-                f"cannot write {values.name} into map store {path} ({type(exc).__name__}: "
-                f"{exc}); give the store the map was written to"
-            ) from exc
-        if not await group.contains("poc"):
-            raise InputError(f"{path} is not a cdpm map store (no 'poc' array)")
+    try:
+        if not (path / "zarr.json").is_file():  # opening would create the folder
+            raise FileNotFoundError(f"no zarr group at {path}")
+        group = await open_group(store, mode="r+")
+    except (FileNotFoundError, ValueError, KeyError, TypeError, OSError) as exc:
+        raise InputError(
+            f"cannot write {values.name} into map store {path} ({type(exc).__name__}: "
+            f"{exc}); give the store the map was written to"
+        ) from exc
+    if not await group.contains("poc"):
+        raise InputError(f"{path} is not a cdpm map store (no 'poc' array)")
     poc = await group.getitem("poc")
     # overwrite: replaces the values of an earlier run, and the array a run
     # killed mid-write leaves without metadata
