@@ -203,3 +203,34 @@ def test_a_map_goes_into_an_empty_folder(tmp_path):
     axes = {"q1": np.linspace(-3, 3, 5), "q2": np.linspace(0, 1, 4)}
     ds = cdpm.workspace_map(VERTICAL, axes, store=out, workers=1)
     assert (out / ".cdpm" / "created").is_file() and ds.sizes["q1"] == 5
+
+
+@pytest.mark.parametrize("given", ["maker", "coroutine"])
+def test_an_interrupt_before_a_store_write_starts_leaves_no_coroutine_behind(monkeypatch, given):
+    """Ctrl-C before a store write reaches zarr's event loop (the loop
+    starting, an import): the write never starts, and no "coroutine ... was
+    never awaited" warning follows it (it did, from the store's skeleton,
+    on a Ctrl-C in a map's first half second)."""
+    import gc
+    import warnings
+
+    from zarr.core import sync as zarr_sync
+
+    from cdpm.maps._zarr_calls import sync
+
+    started = []
+
+    async def write():
+        started.append(True)
+
+    def interrupted(coro, *args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(zarr_sync, "sync", interrupted)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        with pytest.raises(KeyboardInterrupt):
+            sync(write if given == "maker" else write())
+        gc.collect()
+    assert not started
+    assert [str(w.message) for w in caught if "never awaited" in str(w.message)] == []

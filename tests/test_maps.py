@@ -689,6 +689,24 @@ def test_a_run_stopped_while_creating_its_store_is_made_again(paper_robot, tmp_p
     xr.testing.assert_identical(again.load(), workspace_map(paper_robot, axes, workers=1))
 
 
+def test_a_finished_map_is_read_not_written_again(paper_robot, tmp_path):
+    """A run that finds its map finished, regions included, reads it and
+    writes nothing into the store (which may then be read-only)."""
+    import xarray as xr
+
+    axes = {"q1": np.linspace(-3, 3, 9), "q2": np.linspace(0, 1, 7)}
+    store = tmp_path / "m.zarr"
+    first = workspace_map(paper_robot, axes, workers=1, store=store)
+
+    def files() -> dict:
+        return {p: p.stat().st_mtime_ns for p in store.rglob("*") if p.is_file()}
+
+    before = files()
+    again = workspace_map(paper_robot, axes, workers=1, store=store)
+    assert files() == before
+    xr.testing.assert_identical(again.load(), first)
+
+
 def test_a_resumed_map_is_read_from_its_store(paper_robot, tmp_path):
     """A run that finds its map finished (or resumes it) returns the map as
     open_map reads it, coordinates included: only the run that created the
@@ -1165,3 +1183,18 @@ def test_map_arguments_that_failed_deep_inside_are_refused_first():
     # drawn before the check: a MemoryError
     with pytest.raises(cdpm.InputError, match=r"1,000,000,000,000 samples need 7,450\.6 GiB"):
         cdpm.sample_axes({"q1": (0.0, 1.0)}, 10**12)
+
+
+@pytest.mark.parametrize("overwrite", [False, True])
+def test_a_folder_of_other_files_is_neither_written_nor_deleted(paper_robot, tmp_path, overwrite):
+    """A non-empty folder that is not a zarr store is refused with the one
+    fix that works (another path): --overwrite would not delete it either,
+    so the message does not offer it."""
+    folder = tmp_path / "results"
+    folder.mkdir()
+    (folder / "notes.txt").write_text("mine")
+    axes = {"q1": np.linspace(-3, 3, 3), "q2": np.linspace(0, 1, 2)}
+    with pytest.raises(InputError, match="folder of other files.*choose another output") as err:
+        workspace_map(paper_robot, axes, workers=1, store=folder, overwrite=overwrite)
+    assert "overwrite=True" not in str(err.value)
+    assert [p.name for p in folder.iterdir()] == ["notes.txt"]

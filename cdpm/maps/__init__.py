@@ -199,7 +199,7 @@ def workspace_map(
     from cdpm.maps._plan import make_plan
     from cdpm.maps._runner import ProgressPrinter, RobotSource, prestart_workers, run_chunks
     from cdpm.maps._store import MemorySink, ZarrSink
-    from cdpm.maps.regions import attach_new_regions
+    from cdpm.maps.regions import REGION_VARIABLE, attach_new_regions
     from cdpm.reach import reach_settings
     from cdpm.robot import CableRobot, load_robot
 
@@ -314,7 +314,12 @@ def workspace_map(
                 else (search, reach_settings(robot, horizon, tension_budget)),
             )
             run_chunks(robot, plan, job, todo, sink, workers, scheduler, progress, announce, source)
-            return attach_new_regions(sink.dataset(), store, sink.group)
+            ds = sink.dataset()
+            if not todo and REGION_VARIABLE in ds.data_vars:
+                # a finished map, regions included (the same cdpm made them:
+                # its version is a setting): read, not written again
+                return ds
+            return attach_new_regions(ds, store, sink.group)
         except KeyboardInterrupt:
             if isinstance(progress, ProgressPrinter):
                 progress.stopped()

@@ -206,6 +206,7 @@ class ZarrSink:
             pass  # an empty folder (made for the map, or a run killed at once)
         elif self.path.exists():
             is_map = created.is_file()
+            self._refuse_a_folder_of_other_files()
             if overwrite or (not is_map and (self.path / _META).is_dir()):
                 # a map killed while its skeleton was written is remade
                 self._remove()
@@ -234,16 +235,22 @@ class ZarrSink:
         if not created.is_file():
             self._create()  # last: it starts that thread
 
-    def _remove(self) -> None:
+    def _refuse_a_folder_of_other_files(self) -> None:
+        """Refuse a non-empty folder that is not a zarr store: neither
+        written into nor deleted, even with overwrite."""
         if (
             self.path.is_dir()
             and not ((self.path / "zarr.json").is_file() or (self.path / _META).is_dir())
             and any(self.path.iterdir())
         ):
             raise InputError(
-                f"{self.path} is a non-empty directory that is not a zarr store; refusing to "
-                "delete it: choose another output path (--out)"
+                f"{self.path} is a folder of other files, not a zarr store; cdpm neither writes "
+                "into it nor deletes it (not even with --overwrite): choose another output "
+                "path (--out)"
             )
+
+    def _remove(self) -> None:
+        self._refuse_a_folder_of_other_files()
         if self.path.is_dir():
             shutil.rmtree(self.path)
         else:
@@ -263,7 +270,7 @@ class ZarrSink:
         # skeleton leaves a store without its created marker, which the
         # next run makes again
         (self.path / _META / "done").mkdir(parents=True, exist_ok=True)
-        self.group, arrays, files = write_metadata(self._create_skeleton())
+        self.group, arrays, files = write_metadata(self._create_skeleton)
         # this process's chunks go straight into the arrays just made
         self._writer = ChunkWriter(str(self.path), self.plan, tuple(self.specs), arrays)
         self.keep = bytes_per_pose(self.robot) * self.plan.n_poses <= RESULT_IN_MEMORY_MAX
@@ -553,7 +560,7 @@ class ChunkWriter:
         for name in self.names:
             value = data[name]
             values[name] = value.reshape(shape + value.shape[1:])
-        sync(self._write_regions(region, values))
+        sync(lambda: self._write_regions(region, values))
         _touch(Path(self.path) / _META / "done" / str(index))
 
     async def _write_regions(self, region: tuple[slice, ...], values: dict) -> None:

@@ -25,7 +25,7 @@ def write_variable(path: Path, values, group=None) -> None:
     Raises:
         InputError: ``path`` is not a map store.
     """
-    write_metadata(_write_variable(path, values, group))
+    write_metadata(lambda: _write_variable(path, values, group))
 
 
 async def _write_variable(path: Path, values, group=None) -> None:

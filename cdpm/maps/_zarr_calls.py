@@ -22,9 +22,9 @@ __all__ = [
 INTERRUPT_SETTLE_SECONDS = 10.0
 
 
-def write_metadata(coro):
-    """Run the coroutine ``coro``, which writes zarr metadata, in zarr's
-    event loop; its result.
+def write_metadata(make):
+    """Run the coroutine that writes zarr metadata (``make()``, or
+    ``make``: :func:`sync`) in zarr's event loop; its result.
 
     Metadata documents are written without indentation: zarr indents them
     by default, and Python encodes indented JSON in pure Python, several
@@ -34,7 +34,7 @@ def write_metadata(coro):
     import zarr
 
     with zarr_warnings_silenced(), zarr.config.set({"json_indent": None}):
-        return sync(coro)
+        return sync(make)
 
 
 @contextlib.contextmanager
@@ -50,35 +50,50 @@ def zarr_warnings_silenced():
         yield
 
 
-def sync(coro):
-    """Run the coroutine ``coro`` in zarr's event loop
-    (``zarr.core.sync.sync``) and return its result. Interrupted while it
-    runs (Ctrl-C, or SIGTERM, which cdpm reads as Ctrl-C), it is cancelled
-    and waited for (at most INTERRUPT_SETTLE_SECONDS) before the interrupt
-    goes on: zarr's exit handler closes its loop, and printed a traceback
-    ("Cannot close a running event loop") when a write was still running
-    in it 0.2 s after the interrupt, as on a loaded machine. A cancelled
-    write leaves no partial file, and its chunk no done marker."""
+def sync(make):
+    """Run a coroutine in zarr's event loop (``zarr.core.sync.sync``) and
+    return its result: the one ``make()`` returns (made in the loop), or
+    ``make`` itself.
+
+    Interrupted while it runs (Ctrl-C, or SIGTERM, which cdpm reads as
+    Ctrl-C), it is cancelled and waited for (at most
+    INTERRUPT_SETTLE_SECONDS) before the interrupt goes on: zarr's exit
+    handler closes its loop, and printed a traceback ("Cannot close a
+    running event loop") when a write was still running in it 0.2 s after
+    the interrupt, as on a loaded machine. A cancelled write leaves no
+    partial file, and its chunk no done marker. Interrupted before it
+    started (zarr's loop starting, an import), it never starts, and no
+    "coroutine ... was never awaited" warning follows: hence ``make``, which
+    makes the coroutine only once it runs."""
     import asyncio
     import time
 
     from zarr.core import sync as zarr_sync
 
-    running = []
+    running, abandoned = [], []
 
     async def tracked():
+        if abandoned:  # the caller was interrupted before this started
+            return None
         running.append(asyncio.current_task())
-        return await coro
+        return await (make() if callable(make) else make)
 
+    outer = tracked()
     try:
-        return zarr_sync.sync(tracked())
+        return zarr_sync.sync(outer)
     except KeyboardInterrupt:
+        abandoned.append(True)
         if running:
             task = running[0]
             task.get_loop().call_soon_threadsafe(task.cancel)
             deadline = time.monotonic() + INTERRUPT_SETTLE_SECONDS
             while not task.done() and time.monotonic() < deadline:
                 time.sleep(0.005)
+        else:  # not started: closed, it never starts (it may be starting: left to run)
+            with contextlib.suppress(ValueError, RuntimeError):
+                outer.close()
+                if not callable(make):
+                    make.close()
         raise
 
 
