@@ -109,11 +109,22 @@ def main(argv: list[str] | None = None) -> int:
     except OSError as exc:
         # a file or folder the system refused (unwritable, missing parent,
         # name too long...): one line naming it, never a traceback
+        import errno
+
         name = exc.filename if exc.filename is not None else ""
         what = f" {name!r}" if name else ""
+        out = getattr(args, "out", None)
+        if exc.errno in (errno.ENOSPC, errno.EDQUOT):
+            what = f" {str(out)!r}" if out else what
+            problem = f"cannot write{what}"
+            fix = "free some space, or write elsewhere"
+        else:
+            if out and str(out) != str(name):  # the output being written, if not that file
+                what += f" (writing {out})"
+            problem = f"cannot use{what}"
+            fix = "choose a path you can write to (its folder must exist)"
         print(
-            f"cdpm {args.command}: error: cannot use{what}: {exc.strerror or exc}; "
-            "choose a path you can write to (its folder must exist)",
+            f"cdpm {args.command}: error: {problem}: {exc.strerror or exc}; {fix}",
             file=sys.stderr,
         )
         return 1

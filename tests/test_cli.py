@@ -181,7 +181,7 @@ def test_map_interrupted_ends_the_progress_line_and_resumes(tmp_path, capsys, mo
     assert main(argv) == 130
     err = capsys.readouterr().err
     assert "map 4/12 poses\ncdpm map: interrupted; " in err and "\n\n" not in err
-    assert f"the finished chunks are kept in {store}: run the same command again" in err
+    assert f"the 1 finished chunk is kept in {store}: run the same command again" in err
     # the same command again computes only the 8 poses of the two chunks left
     totals = []
 
@@ -298,3 +298,40 @@ def test_map_pretension_method_needs_the_spec_pretension(tmp_path, capsys):
     )
     assert "set equilibrium: {pretension: N} in the spec" in err
     assert not (tmp_path / "m.zarr").exists()
+
+
+def test_map_interrupted_before_a_chunk_says_nothing_was_kept(tmp_path, capsys, monkeypatch):
+    """Ctrl-C before the first chunk is finished (or before the store is
+    made) does not claim finished chunks in a store that may not exist."""
+    import cdpm.maps
+
+    def interrupted_at_once(robot, axes, **kwargs):
+        raise KeyboardInterrupt
+
+    store = tmp_path / "m.zarr"
+    monkeypatch.setattr(cdpm.maps, "workspace_map", interrupted_at_once)
+    argv = ["map", str(PAPER_SPEC), "--axis", "q1=0:1:12", "--out", str(store), "--workers", "1"]
+    assert main(argv) == 130
+    err = capsys.readouterr().err
+    assert "no chunk was finished yet: run the same command again to make" in err
+    assert "kept" not in err and not store.exists()
+
+
+def test_a_full_disk_names_the_output_and_the_fix(tmp_path, capsys, monkeypatch):
+    """A write the system refuses for want of space names the output being
+    written (the error itself names no file) and says to free space, not to
+    choose a path whose folder exists."""
+    import errno
+
+    import cdpm.maps
+
+    def full(robot, axes, **kwargs):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    store = tmp_path / "m.zarr"
+    monkeypatch.setattr(cdpm.maps, "workspace_map", full)
+    argv = ["map", str(PAPER_SPEC), "--axis", "q1=0:1:12", "--out", str(store), "--workers", "1"]
+    assert main(argv) == 1
+    err = capsys.readouterr().err
+    assert f"cannot write {str(store)!r}: No space left on device; free some space" in err
+    assert "folder must exist" not in err

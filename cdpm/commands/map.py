@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 from cdpm.commands._reach import add_reach_arguments, reach_from_args
@@ -433,10 +434,16 @@ def _interrupted(args: argparse.Namespace) -> int:
     """Say how to go on (the progress bar ends its own line when the map is
     interrupted: cdpm.maps._runner.ProgressPrinter.stopped)."""
     if args.out:
-        hint = (
-            f"the finished chunks are kept in {args.out}: run the same command again to "
-            "resume from them"
-        )
+        done = Path(args.out).expanduser() / ".cdpm" / "done"
+        finished = sum(p.name.isdigit() for p in done.iterdir()) if done.is_dir() else 0
+        if finished:
+            chunks = "chunk is" if finished == 1 else "chunks are"
+            hint = (
+                f"the {finished} finished {chunks} kept in {args.out}: run the same command "
+                "again to resume from them"
+            )
+        else:
+            hint = f"no chunk was finished yet: run the same command again to make {args.out}"
     else:
         hint = "nothing was kept: add --out STORE to keep finished chunks and resume later"
     print(f"cdpm map: interrupted; {hint}", file=sys.stderr)
