@@ -13,6 +13,7 @@ raising.
 from __future__ import annotations
 
 import html
+import textwrap
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -214,6 +215,13 @@ class PoseReport:
         lines += [
             "",
             "Linearisation (state = (dq, dq'))",
+            textwrap.fill(
+                ", ".join(lin.state_names),
+                width=100,
+                initial_indent="  states: ",
+                subsequent_indent="          ",
+                break_on_hyphens=False,
+            ),
             indent(f"A =\n{matrix_text(lin.A)}"),
             indent(f"B =\n{matrix_text(lin.B)}"),
             indent(f"C =\n{matrix_text(lin.C)}"),

@@ -146,6 +146,10 @@ def test_wide_matrices_keep_one_line_per_row(capsys):
     a_rows = out[out.index("  A =\n") : out.index("  B =\n")].splitlines()[1:]
     assert len(a_rows) == 12, a_rows  # 12 states, not wrapped
     assert all(len(row) <= 200 for row in a_rows)
+    # the states named above A, in the platform's own frame, on lines of at most 100
+    states = out[out.index("  states: ") : out.index("  A =\n")]
+    assert "platform_joint.d_x, " in states and states.rstrip().endswith("platform_joint.w_z")
+    assert all(len(line) <= 100 for line in states.splitlines())
     # B is of order 0.03: more decimals keep its small entries readable
     assert "-0.028443" in out
 
