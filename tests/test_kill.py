@@ -234,3 +234,27 @@ def test_an_interrupt_before_a_store_write_starts_leaves_no_coroutine_behind(mon
         gc.collect()
     assert not started
     assert [str(w.message) for w in caught if "never awaited" in str(w.message)] == []
+
+
+def test_the_fork_server_ignores_ctrl_c_only_while_it_imports():
+    """The fork server of local workers imports its modules with Ctrl-C
+    ignored (an early Ctrl-C printed its traceback beside the map's
+    one-line message) and gives Ctrl-C back to Python's handler after them;
+    a process importing the two modules, as the server does, ends with
+    Python's handler."""
+    from multiprocessing import forkserver
+
+    from cdpm.maps import _runner
+
+    _runner._context(kernels=True)  # sets the fork server's imports
+    preload = forkserver._forkserver._preload_modules
+    assert preload[0] == _runner._QUIET_START and preload[-1] == _runner._QUIET_END
+    code = (
+        "import signal, importlib\n"
+        f"importlib.import_module({_runner._QUIET_START!r})\n"
+        "print(signal.getsignal(signal.SIGINT) is signal.SIG_IGN)\n"
+        f"importlib.import_module({_runner._QUIET_END!r})\n"
+        "print(signal.getsignal(signal.SIGINT) is signal.default_int_handler)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.split() == ["True", "True"]

@@ -470,6 +470,11 @@ _PRELOAD = [
 #: about half a second
 _PRELOAD_KERNELS = ["numba", *KERNEL_MODULES]
 
+#: the fork server's first and last imports: Ctrl-C is ignored between
+#: them, so that it does not interrupt the imports with a traceback
+_QUIET_START = "cdpm.maps._fork_server_quiet"
+_QUIET_END = "cdpm.maps._fork_server_ready"
+
 
 def _context(kernels: bool = True):
     """The multiprocessing context of local workers: the fork server where
@@ -478,7 +483,8 @@ def _context(kernels: bool = True):
     methods = multiprocessing.get_all_start_methods()
     if "forkserver" in methods:
         ctx = multiprocessing.get_context("forkserver")
-        ctx.set_forkserver_preload(_PRELOAD + (_PRELOAD_KERNELS if kernels else []))
+        modules = _PRELOAD + (_PRELOAD_KERNELS if kernels else [])
+        ctx.set_forkserver_preload([_QUIET_START, *modules, _QUIET_END])
         return ctx
     return multiprocessing.get_context("spawn")
 
