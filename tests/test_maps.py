@@ -506,8 +506,11 @@ def test_bad_axes_are_rejected(paper_robot, tmp_path):
         workspace_map(paper_robot, huge)
     (tmp_path / "junk").mkdir()
     (tmp_path / "junk" / "file.txt").write_text("x")
-    with pytest.raises(InputError, match="not a cdpm map store"):
+    with pytest.raises(InputError, match="is a folder of other files, not a zarr store"):
         workspace_map(paper_robot, {"q1": [0.0]}, store=tmp_path / "junk")
+    (tmp_path / "plain.zarr").write_text("x")  # a file: replaced only when asked
+    with pytest.raises(InputError, match="exists and is not a cdpm map store.*--overwrite"):
+        workspace_map(paper_robot, {"q1": [0.0]}, store=tmp_path / "plain.zarr")
 
 
 def test_random_samples(paper_robot):
