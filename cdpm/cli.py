@@ -110,17 +110,20 @@ def main(argv: list[str] | None = None) -> int:
         # a file or folder the system refused (unwritable, missing parent,
         # name too long...): one line naming it, never a traceback
         import errno
+        import os
 
         name = exc.filename if exc.filename is not None else ""
         what = f" {name!r}" if name else ""
         out = getattr(args, "out", None)
+        if out and name and os.sep not in str(name):  # a store's file named by its key
+            what += f" (writing {out})"
         if exc.errno in (errno.ENOSPC, errno.EDQUOT):
-            what = f" {str(out)!r}" if out else what
+            if not name and out:  # the error names no file: the command's outputs
+                plot = getattr(args, "plot", None)
+                what = f" {str(out)!r}" + (f" or {str(plot)!r}" if plot else "")
             problem = f"cannot write{what}"
             fix = "free some space, or write elsewhere"
         else:
-            if out and str(out) != str(name):  # the output being written, if not that file
-                what += f" (writing {out})"
             problem = f"cannot use{what}"
             fix = "choose a path you can write to (its folder must exist)"
         print(

@@ -313,7 +313,7 @@ def test_map_interrupted_before_a_chunk_says_nothing_was_kept(tmp_path, capsys, 
     argv = ["map", str(PAPER_SPEC), "--axis", "q1=0:1:12", "--out", str(store), "--workers", "1"]
     assert main(argv) == 130
     err = capsys.readouterr().err
-    assert "no chunk was finished yet: run the same command again to make" in err
+    assert f"{store} was not opened yet: run the same command again to make or resume it" in err
     assert "kept" not in err and not store.exists()
 
 

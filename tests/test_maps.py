@@ -740,7 +740,7 @@ def test_new_store_consolidated_metadata_is_zarrs_own(paper_robot, tmp_path, mon
 
     import cdpm.maps.regions
 
-    monkeypatch.setattr(cdpm.maps.regions, "attach_new_regions", lambda ds, *args: ds)
+    monkeypatch.setattr(cdpm.maps.regions, "attach_new_regions", lambda ds, *args, **kw: ds)
     axes = {"q1": np.linspace(-3, 3, 9), "q2": np.linspace(0, 1, 7)}
     workspace_map(paper_robot, axes, workers=1, store=tmp_path / "m.zarr")
     root = tmp_path / "m.zarr" / "zarr.json"
@@ -1201,3 +1201,21 @@ def test_a_folder_of_other_files_is_neither_written_nor_deleted(paper_robot, tmp
         workspace_map(paper_robot, axes, workers=1, store=folder, overwrite=overwrite)
     assert "overwrite=True" not in str(err.value)
     assert [p.name for p in folder.iterdir()] == ["notes.txt"]
+
+
+def test_regions_lost_from_a_finished_store_are_written_again(paper_robot, tmp_path):
+    """A finished store whose regions no longer match its map (a rewrite of
+    them stopped part-way, leaving their chunks dropped) gets them written
+    again by the next run, which computes nothing else."""
+    import zarr
+
+    axes = {"q1": np.linspace(-3, 3, 9), "q2": np.linspace(0, 1, 7)}
+    store = tmp_path / "m.zarr"
+    first = workspace_map(paper_robot, axes, workers=1, store=store)
+    assert first["poc_region"].values.max() > 0
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        zarr.open_array(str(store / "poc_region"), mode="r+")[...] = 0
+    again = workspace_map(paper_robot, axes, workers=1, store=store)
+    np.testing.assert_array_equal(again["poc_region"].values, first["poc_region"].values)
+    np.testing.assert_array_equal(open_map(store)["poc_region"].values, first["poc_region"].values)

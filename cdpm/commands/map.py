@@ -430,12 +430,18 @@ def _check_outputs(args: argparse.Namespace) -> None:
         check_scheduler_address(args.scheduler)  # before the model is loaded
 
 
-def _interrupted(args: argparse.Namespace) -> int:
+def _interrupted(args: argparse.Namespace, store: str | None) -> int:
     """Say how to go on (the progress bar ends its own line when the map is
-    interrupted: cdpm.maps._runner.ProgressPrinter.stopped)."""
-    if args.out:
-        done = Path(args.out).expanduser() / ".cdpm" / "done"
-        finished = sum(p.name.isdigit() for p in done.iterdir()) if done.is_dir() else 0
+    interrupted: cdpm.maps._runner.ProgressPrinter.stopped); ``store``: the
+    store the run had opened (``map_store`` of the interrupt), else None."""
+    if args.out and store is None:
+        hint = f"{args.out} was not opened yet: run the same command again to make or resume it"
+    elif args.out:
+        done = Path(store) / ".cdpm" / "done"
+        try:
+            finished = sum(p.name.isdigit() for p in done.iterdir()) if done.is_dir() else 0
+        except OSError:
+            finished = 0
         if finished:
             chunks = "chunk is" if finished == 1 else "chunks are"
             hint = (
@@ -529,8 +535,8 @@ def run(args: argparse.Namespace) -> int:
             announce=announce,
             tension_objective=args.objective or "poc",
         )
-    except KeyboardInterrupt:
-        return _interrupted(args)
+    except KeyboardInterrupt as exc:
+        return _interrupted(args, getattr(exc, "map_store", None))
     except StoreSettingsError as exc:
         raise InputError(
             exc.explain("re-run with the stored settings", "add --overwrite", "--out path")

@@ -199,7 +199,7 @@ def workspace_map(
     from cdpm.maps._plan import make_plan
     from cdpm.maps._runner import ProgressPrinter, RobotSource, prestart_workers, run_chunks
     from cdpm.maps._store import MemorySink, ZarrSink
-    from cdpm.maps.regions import REGION_VARIABLE, attach_new_regions
+    from cdpm.maps.regions import attach_new_regions
     from cdpm.reach import reach_settings
     from cdpm.robot import CableRobot, load_robot
 
@@ -314,15 +314,14 @@ def workspace_map(
                 else (search, reach_settings(robot, horizon, tension_budget)),
             )
             run_chunks(robot, plan, job, todo, sink, workers, scheduler, progress, announce, source)
-            ds = sink.dataset()
-            if not todo and REGION_VARIABLE in ds.data_vars:
-                # a finished map, regions included (the same cdpm made them:
-                # its version is a setting): read, not written again
-                return ds
-            return attach_new_regions(ds, store, sink.group)
-        except KeyboardInterrupt:
+            # a store this run did not create is read back (sink.dataset)
+            read = store is not None and sink.group is None
+            return attach_new_regions(sink.dataset(), store, sink.group, read_from_store=read)
+        except KeyboardInterrupt as exc:
             if isinstance(progress, ProgressPrinter):
                 progress.stopped()
+            if store is not None:  # the store this run opened, its chunks kept
+                exc.map_store = str(sink.path)
             raise
         finally:
             sink.close()  # the store's files written, under its lock

@@ -445,12 +445,20 @@ def attach_regions(ds, store: str | os.PathLike | None = None):
     return attach_new_regions(ds, store, None)
 
 
-def attach_new_regions(ds, store, group):
+def attach_new_regions(ds, store, group, read_from_store: bool = False):
     """:func:`attach_regions`, at the end of the run that wrote the map:
     ``group`` is the store's zarr group if that run created the store, and
     the regions are written through it without opening the store again
-    (:func:`cdpm.maps._store_variables.write_variable`); None opens the store."""
+    (:func:`cdpm.maps._store_variables.write_variable`); None opens the
+    store. With ``read_from_store`` (``ds`` was just read from ``store``),
+    regions the store holds already, equal to the labels computed now
+    (values and attributes), are not written again: a finished map's store
+    may be read-only."""
     labels = label_regions(ds)
+    stored = ds.get(REGION_VARIABLE) if read_from_store else None
+    if store is not None and stored is not None and stored.attrs == labels.attrs:
+        if np.array_equal(stored.values, labels.values):
+            return ds
     out = ds.drop_vars(REGION_VARIABLE, errors="ignore").assign({REGION_VARIABLE: labels})
     if store is not None:
         from cdpm.maps._store_variables import write_variable
