@@ -472,8 +472,8 @@ _PRELOAD_KERNELS = ["numba", *KERNEL_MODULES]
 
 #: the fork server's first and last imports: Ctrl-C is ignored between
 #: them, so that it does not interrupt the imports with a traceback
-_QUIET_START = "cdpm.maps._fork_server_quiet"
-_QUIET_END = "cdpm.maps._fork_server_ready"
+_QUIET_START = "cdpm._fork_server_quiet"
+_QUIET_END = "cdpm._fork_server_ready"
 
 
 def _context(kernels: bool = True):

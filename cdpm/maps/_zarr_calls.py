@@ -66,34 +66,43 @@ def sync(make):
     "coroutine ... was never awaited" warning follows: hence ``make``, which
     makes the coroutine only once it runs."""
     import asyncio
+    import threading
     import time
 
     from zarr.core import sync as zarr_sync
 
-    running, abandoned = [], []
+    # the loop's start of the work and the caller's giving up on it are
+    # decided under one lock: either the work started (and is cancelled and
+    # waited for) or it never will (and is closed unstarted)
+    lock = threading.Lock()
+    state: dict = {"task": None, "abandoned": False}
 
     async def tracked():
-        if abandoned:  # the caller was interrupted before this started
-            return None
-        running.append(asyncio.current_task())
+        with lock:
+            if state["abandoned"]:  # the caller was interrupted before this started
+                return None
+            state["task"] = asyncio.current_task()
         return await (make() if callable(make) else make)
 
     outer = tracked()
     try:
         return zarr_sync.sync(outer)
     except KeyboardInterrupt:
-        abandoned.append(True)
-        if running:
-            task = running[0]
+        with lock:
+            task = state["task"]
+            state["abandoned"] = task is None
+        if task is not None:
             task.get_loop().call_soon_threadsafe(task.cancel)
             deadline = time.monotonic() + INTERRUPT_SETTLE_SECONDS
             while not task.done() and time.monotonic() < deadline:
                 time.sleep(0.005)
-        else:  # not started: closed, it never starts (it may be starting: left to run)
+        else:  # never started, and never will: closed, no "never awaited" warning
+            # (the loop may be running its first step, which now returns:
+            # closing it then raises ValueError, and is not needed)
             with contextlib.suppress(ValueError, RuntimeError):
                 outer.close()
-                if not callable(make):
-                    make.close()
+            if not callable(make):
+                make.close()
         raise
 
 

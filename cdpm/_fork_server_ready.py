@@ -1,5 +1,5 @@
 """Last of the modules the fork server of a map's local workers imports:
-Ctrl-C goes back to Python's own handler (:mod:`cdpm.maps._fork_server_quiet`
+Ctrl-C goes back to Python's own handler (:mod:`cdpm._fork_server_quiet`
 ignored it while the server imported the rest). The server then protects
 itself from Ctrl-C as multiprocessing has it, and the processes it forks
 start with Python's handler, as without cdpm's imports; cdpm's workers
