@@ -300,18 +300,23 @@ def test_map_pretension_method_needs_the_spec_pretension(tmp_path, capsys):
     assert not (tmp_path / "m.zarr").exists()
 
 
+def _map_raising(exc: BaseException, store, monkeypatch) -> int:
+    """``cdpm map`` to ``store`` with a workspace_map that raises ``exc``
+    at once; the exit status."""
+    import cdpm.maps
+
+    def raising(robot, axes, **kwargs):
+        raise exc
+
+    monkeypatch.setattr(cdpm.maps, "workspace_map", raising)
+    return main(["map", str(PAPER_SPEC), "--axis", "q1=0:1:12", "--out", str(store)])
+
+
 def test_map_interrupted_before_a_chunk_says_nothing_was_kept(tmp_path, capsys, monkeypatch):
     """Ctrl-C before the first chunk is finished (or before the store is
     made) does not claim finished chunks in a store that may not exist."""
-    import cdpm.maps
-
-    def interrupted_at_once(robot, axes, **kwargs):
-        raise KeyboardInterrupt
-
     store = tmp_path / "m.zarr"
-    monkeypatch.setattr(cdpm.maps, "workspace_map", interrupted_at_once)
-    argv = ["map", str(PAPER_SPEC), "--axis", "q1=0:1:12", "--out", str(store), "--workers", "1"]
-    assert main(argv) == 130
+    assert _map_raising(KeyboardInterrupt(), store, monkeypatch) == 130
     err = capsys.readouterr().err
     assert f"{store} was not opened yet: run the same command again to make or resume it" in err
     assert "kept" not in err and not store.exists()
@@ -323,15 +328,9 @@ def test_a_full_disk_names_the_output_and_the_fix(tmp_path, capsys, monkeypatch)
     choose a path whose folder exists."""
     import errno
 
-    import cdpm.maps
-
-    def full(robot, axes, **kwargs):
-        raise OSError(errno.ENOSPC, "No space left on device")
-
     store = tmp_path / "m.zarr"
-    monkeypatch.setattr(cdpm.maps, "workspace_map", full)
-    argv = ["map", str(PAPER_SPEC), "--axis", "q1=0:1:12", "--out", str(store), "--workers", "1"]
-    assert main(argv) == 1
+    full = OSError(errno.ENOSPC, "No space left on device")
+    assert _map_raising(full, store, monkeypatch) == 1
     err = capsys.readouterr().err
     assert f"cannot write {str(store)!r}: No space left on device; free some space" in err
     assert "folder must exist" not in err

@@ -108,10 +108,10 @@ def _coords(robot: CableRobot, plan: MapPlan) -> dict:
         coords["sample"] = ("sample", np.arange(plan.shape[0]))
         for name, v in zip(plan.names, plan.values, strict=True):
             coords[name] = ("sample", v, {"units": units[name], "long_name": name})
-    coords["output"] = ("output", np.array(robot.output_names, dtype=str))
-    coords["xyz"] = ("xyz", np.array(["x", "y", "z"]))
-    if any("cable" in c.dims for c in CRITERIA.values()):
-        coords["cable"] = ("cable", np.array(robot.cable_names, dtype=str))
+    labels = {"output": robot.output_names, "xyz": ["x", "y", "z"], "cable": robot.cable_names}
+    for dim in CRITERION_DIMS:  # the order _in_map_order lists them in
+        if any(dim in c.dims for c in CRITERIA.values()):
+            coords[dim] = (dim, np.array(labels[dim], dtype=str))
     return coords
 
 
@@ -318,8 +318,8 @@ class ZarrSink:
 
         Zarr creates an array in a local store through several file-system
         round trips one after another (checks, parents, metadata), about
-        1 ms an array; in memory they cost little, and the four dozen files
-        then go out in one pass.
+        1 ms an array; in memory they cost little, and the files then go
+        out in one pass, from a thread of their own (:meth:`_create`).
 
         The group's consolidated metadata is made from the metadata of the
         arrays just created, as ``zarr.consolidate_metadata`` makes it from

@@ -50,15 +50,7 @@ async def _write_variable(path: Path, values, group=None) -> None:
     # overwrite: replaces the values of an earlier run, and the array a run
     # killed mid-write leaves without metadata
     array = await group.create_array(
-        values.name,
-        shape=values.shape,
-        chunks=poc.chunks,
-        dtype=values.dtype,
-        fill_value=0,
-        dimension_names=list(values.dims),
-        attributes=dict(values.attrs),
-        chunk_key_encoding=CHUNK_KEY_ENCODING,
-        overwrite=True,
+        values.name, **_array_options(values, poc.chunks), overwrite=True
     )
     await array.setitem(..., values.values)
     consolidated = group.metadata.consolidated_metadata
@@ -89,19 +81,25 @@ async def _add_variable(group, values) -> None:
     from zarr.storage import MemoryStore, StorePath
 
     poc = group.metadata.consolidated_metadata.metadata["poc"]
-    made = await create_array(
-        MemoryStore(),
-        shape=values.shape,
-        chunks=poc.chunk_grid.chunk_shape,
-        dtype=values.dtype,
-        fill_value=0,
-        dimension_names=list(values.dims),
-        attributes=dict(values.attrs),
-        chunk_key_encoding=CHUNK_KEY_ENCODING,
-    )
+    made = await create_array(MemoryStore(), **_array_options(values, poc.chunk_grid.chunk_shape))
     where = StorePath(group.store_path.store, values.name)
     document = made.metadata.to_buffer_dict(default_buffer_prototype())["zarr.json"]
     await (where / "zarr.json").set(document)
     await AsyncArray(made.metadata, where).setitem(..., values.values)
     group.metadata.consolidated_metadata.metadata[values.name] = made.metadata
     await group.update_attributes({})
+
+
+def _array_options(values, chunks) -> dict:
+    """zarr's options for the array of ``values`` (a named DataArray), in
+    ``chunks`` (``poc``'s), fill value 0: one set for both ways of writing
+    it."""
+    return {
+        "shape": values.shape,
+        "chunks": chunks,
+        "dtype": values.dtype,
+        "fill_value": 0,
+        "dimension_names": list(values.dims),
+        "attributes": dict(values.attrs),
+        "chunk_key_encoding": CHUNK_KEY_ENCODING,
+    }
