@@ -22,6 +22,24 @@ from cdpm.linearisation import largest_magnitude, named_values, round_to_scale
 #: scale is round-off of 0
 ROUND_OFF_RTOL = 1e-12
 
+#: longest line of a list of named values in a printout [characters]
+LIST_LINE_WIDTH = 100
+
+
+def packed_lines(head: str, items: list[str], indent: str = "    ") -> list[str]:
+    """``head`` and then ``items`` (each kept whole: ``q1_dot 0.012
+    rad/s``), separated by commas, as many to a line as fit in
+    LIST_LINE_WIDTH; further lines start with ``indent``."""
+    lines, first = [head], True
+    for item in items:
+        if not first and len(lines[-1]) + len(item) + 2 > LIST_LINE_WIDTH:
+            lines[-1] += ","
+            lines.append(indent + item)
+        else:
+            lines[-1] += (" " if first else ", ") + item
+        first = False
+    return lines
+
 
 # "margin -1.5e-33": a label followed by one number
 _NUMBER = r"-?\d+(?:\.\d*)?(?:e[+-]?\d+)?"

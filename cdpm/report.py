@@ -13,7 +13,6 @@ raising.
 from __future__ import annotations
 
 import html
-import textwrap
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -24,6 +23,7 @@ from cdpm._report_text import (
     impulse_scale,
     indent,
     labelled,
+    packed_lines,
     pose_head,
     tension_table,
     units_of_outputs,
@@ -215,13 +215,7 @@ class PoseReport:
         lines += [
             "",
             "Linearisation (state = (dq, dq'))",
-            textwrap.fill(
-                ", ".join(lin.state_names),
-                width=100,
-                initial_indent="  states: ",
-                subsequent_indent="          ",
-                break_on_hyphens=False,
-            ),
+            *packed_lines("  states:", list(lin.state_names)),
             indent(f"A =\n{matrix_text(lin.A)}"),
             indent(f"B =\n{matrix_text(lin.B)}"),
             indent(f"C =\n{matrix_text(lin.C)}"),

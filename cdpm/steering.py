@@ -199,28 +199,18 @@ def _row(values: np.ndarray) -> str:
     return np.array2string(shown, precision=6, suppress_small=True, max_line_width=10**6)
 
 
-#: longest line of the final velocity in a steering printout [characters]
-VELOCITY_LINE_WIDTH = 100
-
-
 def _velocity_lines(v: np.ndarray, traj) -> list[str]:
     """The printout's lines on the final velocities ``v`` (nv,), each
     named and in its unit (``q1_dot 0.012 rad/s``; the trajectory's
     ``velocity_labels`` and ``velocity_units``: a free-flyer's in its body
-    frame), as many to a line as fit in VELOCITY_LINE_WIDTH."""
+    frame), as many to a line as fit (:func:`cdpm._report_text.packed_lines`)."""
+    from cdpm._report_text import packed_lines
+
     items = [
         f"{name} {value + 0.0:.3g} {unit}"
         for name, value, unit in zip(traj.velocity_labels, v, traj.velocity_units, strict=True)
     ]
-    lines = ["  final velocity (the robot still moves at T):"]
-    for item in items:
-        if len(lines[-1]) + len(item) + 2 > VELOCITY_LINE_WIDTH:
-            lines[-1] += ","
-            lines.append("    " + item)
-        else:
-            sep = " " if lines[-1].endswith(":") else ", "
-            lines[-1] += sep + item
-    return lines
+    return packed_lines("  final velocity (the robot still moves at T):", items)
 
 
 def _duration_bounds(lin: Linearisation) -> tuple[float, float, float]:
