@@ -115,7 +115,8 @@ def main(argv: list[str] | None = None) -> int:
         name = exc.filename if exc.filename is not None else ""
         what = f" {name!r}" if name else ""
         out = getattr(args, "out", None)
-        if out and name and os.sep not in str(name):  # a store's file named by its key
+        if out and name and os.sep not in str(name) and str(name) != str(out):
+            # a store's file named by its key (c.0.0)
             what += f" (writing {out})"
         if exc.errno in (errno.ENOSPC, errno.EDQUOT):
             if not name and out:  # the error names no file: the command's outputs
