@@ -146,8 +146,8 @@ def baseline_verdicts(robot, natural: np.ndarray, tension=None) -> list[bool | N
     from scipy.linalg import expm
     from scipy.optimize import linprog
 
+    from cdpm.dynamics.linearisation import linearise
     from cdpm.errors import CdpmError
-    from cdpm.linearisation import linearise
 
     out = []
     times = np.linspace(0.0, 5.0, 50)
@@ -364,7 +364,7 @@ def per_pose_section(args, targets: list) -> dict[tuple[str, bool], float]:
     """Section 1; returns (model, margin) -> our cost [s/pose]."""
     import cdpm
     from cdpm.errors import CdpmError
-    from cdpm.maps._evaluate import single_threaded_blas
+    from cdpm.pipeline.evaluate import single_threaded_blas
 
     n_paper = 4096 if args.quick else 16384
     n_loaded = 2048 if args.quick else 16384  # the speed issue measured 16384
@@ -570,7 +570,7 @@ def main(argv=None) -> int:
     import cdpm
 
     try:
-        from cdpm.compiled import load_kernels
+        from cdpm.pipeline.compiled import load_kernels
     except ImportError:  # a cdpm from before the compiled kernels (PYTHONPATH)
         pass
     else:

@@ -27,8 +27,8 @@ def main() -> None:
     parser.add_argument("--quick", action="store_true", help="3 poses per model instead of 10")
     args = parser.parse_args()
     import cdpm
-    from cdpm.equilibrium import equilibrium_tension
-    from cdpm.linearisation import linearise
+    from cdpm.dynamics.equilibrium import equilibrium_tension
+    from cdpm.dynamics.linearisation import linearise
     from tests.test_linearise_full import (
         equilibrium_poses,
         fd_input_matrix,

@@ -94,7 +94,7 @@ class _Counter:
 @contextlib.contextmanager
 def counting():
     """Count RHS evaluations (``_Dynamics.acceleration``) and the simulations
-    steer runs (``cdpm.steering.simulate``) while the block runs. Yields
+    steer runs (``cdpm.steering.steer.simulate``) while the block runs. Yields
     (rhs, simulations) counters; rhs is None when cdpm's private dynamics
     class is not there to wrap."""
     from cdpm import simulation, steering

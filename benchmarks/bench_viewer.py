@@ -189,7 +189,7 @@ def main(argv: list[str] | None = None) -> int:
     steps = 40 if args.quick else 300
 
     import cdpm
-    from cdpm.picture import render_pose
+    from cdpm.plotting.picture import render_pose
     from cdpm.viewer import PoseInspector, Viewer, pose_state
 
     robot = cdpm.load_robot(args.spec)

@@ -21,19 +21,19 @@ _EXPORTS: dict[str, str] = {
     "UnsupportedError": "cdpm.errors",
     "MissingExtraError": "cdpm.errors",
     # spec and robot
-    "CableSpec": "cdpm.spec",
-    "load_spec": "cdpm.spec",
+    "CableSpec": "cdpm.model.spec",
+    "load_spec": "cdpm.model.spec",
     "parse_number": "cdpm.expressions",
-    "CableRobot": "cdpm.robot",
-    "load_robot": "cdpm.robot",
+    "CableRobot": "cdpm.model.robot",
+    "load_robot": "cdpm.model.robot",
     # equilibrium and linearisation
-    "EquilibriumResult": "cdpm.equilibrium",
-    "equilibrium_tension": "cdpm.equilibrium",
-    "check_equilibrium": "cdpm.equilibrium",
-    "InfeasibleEquilibriumError": "cdpm.equilibrium",
-    "EquilibriumWarning": "cdpm.equilibrium",
-    "Linearisation": "cdpm.linearisation",
-    "linearise": "cdpm.linearisation",
+    "EquilibriumResult": "cdpm.dynamics.equilibrium",
+    "equilibrium_tension": "cdpm.dynamics.equilibrium",
+    "check_equilibrium": "cdpm.dynamics.equilibrium",
+    "InfeasibleEquilibriumError": "cdpm.dynamics.equilibrium",
+    "EquilibriumWarning": "cdpm.dynamics.equilibrium",
+    "Linearisation": "cdpm.dynamics.linearisation",
+    "linearise": "cdpm.dynamics.linearisation",
     # analysis (pure LTI, no Pinocchio)
     "Verdict": "cdpm.analysis",
     "positive_output_controllability": "cdpm.analysis",
@@ -50,16 +50,16 @@ _EXPORTS: dict[str, str] = {
     "SpanResult": "cdpm.analysis",
     "SpanCertificate": "cdpm.analysis",
     # the nonlinear robot: simulation, steering, verification
-    "simulate": "cdpm.simulation",
-    "Trajectory": "cdpm.simulation",
-    "TensionProfile": "cdpm.simulation",
-    "steer": "cdpm.steering",
-    "SteerResult": "cdpm.steering",
-    "verify_pose": "cdpm.verification",
-    "VerifyReport": "cdpm.verification",
+    "simulate": "cdpm.dynamics.simulation",
+    "Trajectory": "cdpm.dynamics.simulation",
+    "TensionProfile": "cdpm.dynamics.simulation",
+    "steer": "cdpm.steering.steer",
+    "SteerResult": "cdpm.steering.steer",
+    "verify_pose": "cdpm.steering.verify",
+    "VerifyReport": "cdpm.steering.verify",
     # pose report
-    "PoseReport": "cdpm.report",
-    "analyze_pose": "cdpm.report",
+    "PoseReport": "cdpm.text.report",
+    "analyze_pose": "cdpm.text.report",
     # workspace maps (xarray + zarr; Dask optional)
     "workspace_map": "cdpm.maps",
     "sample_axes": "cdpm.maps",
@@ -71,20 +71,20 @@ _EXPORTS: dict[str, str] = {
     "STATUS_CODES": "cdpm.maps",
     "label_regions": "cdpm.maps.regions",
     "region_of": "cdpm.maps.regions",
-    "poc_path": "cdpm.paths",
-    "POCPath": "cdpm.paths",
-    "NotConnectedError": "cdpm.paths",
+    "poc_path": "cdpm.regions.paths",
+    "POCPath": "cdpm.regions.paths",
+    "NotConnectedError": "cdpm.regions.paths",
     # margins with units and POC neighbourhoods
-    "ReachSettings": "cdpm.reach",
-    "reach_settings": "cdpm.reach",
-    "poc_neighbourhood": "cdpm.neighbourhood",
-    "Neighbourhood": "cdpm.neighbourhood",
+    "ReachSettings": "cdpm.dynamics.reach",
+    "reach_settings": "cdpm.dynamics.reach",
+    "poc_neighbourhood": "cdpm.regions.neighbourhood",
+    "Neighbourhood": "cdpm.regions.neighbourhood",
     # choosing the equilibrium tension
-    "tension_range": "cdpm.tension_choice",
-    "TensionRange": "cdpm.tension_choice",
-    "best_tension": "cdpm.tension_choice",
-    "BestTension": "cdpm.tension_choice",
-    "best_tension_batch": "cdpm.tension_choice",
+    "tension_range": "cdpm.dynamics.tension_choice",
+    "TensionRange": "cdpm.dynamics.tension_choice",
+    "best_tension": "cdpm.dynamics.tension_choice",
+    "BestTension": "cdpm.dynamics.tension_choice",
+    "best_tension_batch": "cdpm.dynamics.tension_choice",
     "plot_map": "cdpm.plotting",
     "save_map_plot": "cdpm.plotting",
     # viewer and pictures (extra: cdpm[viz])
@@ -93,7 +93,7 @@ _EXPORTS: dict[str, str] = {
     "PoseState": "cdpm.viewer",
     "CableState": "cdpm.viewer",
     "pose_state": "cdpm.viewer",
-    "render_pose": "cdpm.picture",
+    "render_pose": "cdpm.plotting.picture",
     # CASPR import (extra: cdpm[caspr])
     "import_caspr": "cdpm.caspr",
     "CasprImport": "cdpm.caspr",
@@ -141,12 +141,22 @@ if TYPE_CHECKING:  # pragma: no cover - for static type checkers only
         wrench_closure,
     )
     from cdpm.caspr import CasprImport, CasprWarning, cable_sets, import_caspr  # noqa: F401
-    from cdpm.equilibrium import (  # noqa: F401
+    from cdpm.dynamics.equilibrium import (  # noqa: F401
         EquilibriumResult,
         EquilibriumWarning,
         InfeasibleEquilibriumError,
         check_equilibrium,
         equilibrium_tension,
+    )
+    from cdpm.dynamics.linearisation import Linearisation, linearise  # noqa: F401
+    from cdpm.dynamics.reach import ReachSettings, reach_settings  # noqa: F401
+    from cdpm.dynamics.simulation import TensionProfile, Trajectory, simulate  # noqa: F401
+    from cdpm.dynamics.tension_choice import (  # noqa: F401
+        BestTension,
+        TensionRange,
+        best_tension,
+        best_tension_batch,
+        tension_range,
     )
     from cdpm.errors import (  # noqa: F401
         CdpmError,
@@ -157,7 +167,6 @@ if TYPE_CHECKING:  # pragma: no cover - for static type checkers only
         UnsupportedError,
     )
     from cdpm.expressions import parse_number  # noqa: F401
-    from cdpm.linearisation import Linearisation, linearise  # noqa: F401
     from cdpm.maps import (  # noqa: F401
         STATUS_CODES,
         VERDICT_CODES,
@@ -169,22 +178,13 @@ if TYPE_CHECKING:  # pragma: no cover - for static type checkers only
         workspace_map,
     )
     from cdpm.maps.regions import label_regions, region_of  # noqa: F401
-    from cdpm.neighbourhood import Neighbourhood, poc_neighbourhood  # noqa: F401
-    from cdpm.paths import NotConnectedError, POCPath, poc_path  # noqa: F401
-    from cdpm.picture import render_pose  # noqa: F401
+    from cdpm.model.robot import CableRobot, load_robot  # noqa: F401
+    from cdpm.model.spec import CableSpec, load_spec  # noqa: F401
     from cdpm.plotting import plot_map, save_map_plot  # noqa: F401
-    from cdpm.reach import ReachSettings, reach_settings  # noqa: F401
-    from cdpm.report import PoseReport, analyze_pose  # noqa: F401
-    from cdpm.robot import CableRobot, load_robot  # noqa: F401
-    from cdpm.simulation import TensionProfile, Trajectory, simulate  # noqa: F401
-    from cdpm.spec import CableSpec, load_spec  # noqa: F401
-    from cdpm.steering import SteerResult, steer  # noqa: F401
-    from cdpm.tension_choice import (  # noqa: F401
-        BestTension,
-        TensionRange,
-        best_tension,
-        best_tension_batch,
-        tension_range,
-    )
-    from cdpm.verification import VerifyReport, verify_pose  # noqa: F401
+    from cdpm.plotting.picture import render_pose  # noqa: F401
+    from cdpm.regions.neighbourhood import Neighbourhood, poc_neighbourhood  # noqa: F401
+    from cdpm.regions.paths import NotConnectedError, POCPath, poc_path  # noqa: F401
+    from cdpm.steering.steer import SteerResult, steer  # noqa: F401
+    from cdpm.steering.verify import VerifyReport, verify_pose  # noqa: F401
+    from cdpm.text.report import PoseReport, analyze_pose  # noqa: F401
     from cdpm.viewer import CableState, PoseInspector, PoseState, Viewer, pose_state  # noqa: F401

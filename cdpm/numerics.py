@@ -348,7 +348,7 @@ RECHECK_EIG_RTOL = 1e-7
 RECHECK_MODAL_RANK_RTOL = 1e-8
 
 # --------------------------------------------------------------------------
-# choosing the tension (cdpm.tension_choice)
+# choosing the tension (cdpm.dynamics.tension_choice)
 
 #: primal and dual feasibility tolerance of the tension LPs (HiGHS) [N]
 TENSION_LP_TOL = 1e-9

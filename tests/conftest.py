@@ -48,7 +48,7 @@ def caspr_models(environ: Mapping[str, str] | None = None) -> tuple[Path, str | 
 def compiled_kernels():
     """Compile (or load from the disk cache) the maps' kernels once, before
     any test starts worker processes that would each compile them."""
-    from cdpm.compiled import load_kernels
+    from cdpm.pipeline.compiled import load_kernels
 
     load_kernels()
 

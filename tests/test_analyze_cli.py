@@ -263,7 +263,7 @@ def test_python_messages_keep_naming_arguments(vertical):
 
 
 def test_cli_equilibrium_respells_warnings_for_every_command(vertical, capsys):
-    from cdpm.commands._tension import cli_equilibrium
+    from cdpm.cli._tension import cli_equilibrium
 
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # nothing may escape as a Python warning
@@ -291,7 +291,7 @@ def test_json_output_is_strict_json_at_an_infeasible_pose(capsys):
 def test_submodules_are_attributes_after_a_plain_import():
     import cdpm
 
-    assert callable(cdpm.maps.open_map) and callable(cdpm.reach.reach_settings)
+    assert callable(cdpm.maps.open_map) and callable(cdpm.dynamics.reach.reach_settings)
 
 
 def test_analyze_without_the_reach_margin(capsys):

@@ -1,14 +1,21 @@
 """Architecture rules of the cdpm package, checked on its source.
 
-- No import cycles between cdpm modules. The graph is read from the source
+- The import contracts of pyproject.toml hold (``lint-imports``): layers
+  point down from the command line to the shared vocabulary, the analysis
+  imports neither Pinocchio nor another cdpm package, no package imports
+  another's private module, no cycles among the modules or packages of a
+  package. Imports under ``if TYPE_CHECKING:`` count.
+- At most MAX_TOP_LEVEL_MODULES modules at the top of ``cdpm/``.
+- No import cycles between cdpm modules, a package's ``__init__`` and its
+  own modules included (the contracts check siblings only). The graph is read from the source
   with ``ast``: every ``import`` / ``from ... import`` of a cdpm module, at
   module level and inside functions, relative imports resolved; a package's
   ``__init__`` is a module of its own (``cdpm.maps`` is
   ``cdpm/maps/__init__.py``), so a submodule importing its own package
   closes a cycle when the package's ``__init__`` imports that submodule.
-  Imports under ``if TYPE_CHECKING:`` never run and are left out, and so is
-  ``importlib.import_module`` (cdpm/__init__.py's lazy name table).
-- No module longer than MAX_LINES lines.
+  Imports under ``if TYPE_CHECKING:`` are edges too (a type checker
+  follows them); ``importlib.import_module`` (cdpm/__init__.py's lazy name
+  table) is not.
 - Importing cdpm, cdpm.maps or a map worker's modules imports no SciPy,
   zarr, xarray or Pinocchio: a worker of a map without load needs none of
   them, and each costs it start-up time inside the map's run.
@@ -17,6 +24,8 @@
 from __future__ import annotations
 
 import ast
+import subprocess
+import sys
 import textwrap
 from collections import deque
 from pathlib import Path
@@ -26,8 +35,9 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGE = ROOT / "cdpm"
 
-#: longest module [lines]
-MAX_LINES = 700
+#: most modules at the top level of cdpm/ (the shared vocabulary and the
+#: package's entry points; everything else lives in a package)
+MAX_TOP_LEVEL_MODULES = 10
 
 #: heavy libraries that importing the modules below must not import
 HEAVY = ("scipy", "zarr", "xarray", "pinocchio")
@@ -36,7 +46,7 @@ HEAVY = ("scipy", "zarr", "xarray", "pinocchio")
 @pytest.mark.parametrize("module", ["cdpm", "cdpm.maps", "cdpm.maps._runner"])
 def test_light_modules_import_no_heavy_library(module):
     """check_tol once moved beside the analysis and pulled SciPy into every
-    map worker (126 -> 454 ms to import cdpm.maps._evaluate), which cut the
+    map worker (126 -> 454 ms to import cdpm.pipeline.evaluate), which cut the
     paper map's two-process speed-up from about 1.8x to 1.6-1.7x."""
     import subprocess
     import sys
@@ -62,28 +72,14 @@ def module_files(package_dir: Path) -> dict[str, Path]:
     return files
 
 
-def _is_type_checking(test: ast.expr) -> bool:
-    """True for ``TYPE_CHECKING`` and ``typing.TYPE_CHECKING``."""
-    if isinstance(test, ast.Name):
-        return test.id == "TYPE_CHECKING"
-    return isinstance(test, ast.Attribute) and test.attr == "TYPE_CHECKING"
-
-
 class _ImportCollector(ast.NodeVisitor):
     """(line, absolute module name, imported names) of every import
-    statement that runs, wherever it stands (module level, functions,
-    classes, try blocks), except under ``if TYPE_CHECKING:``."""
+    statement, wherever it stands (module level, functions, classes, try
+    blocks, ``if TYPE_CHECKING:``)."""
 
     def __init__(self, package: str) -> None:
         self.package = package  # the package relative imports start from
         self.found: list[tuple[int, str, list[str]]] = []
-
-    def visit_If(self, node: ast.If) -> None:
-        if _is_type_checking(node.test):
-            for child in node.orelse:
-                self.visit(child)
-        else:
-            self.generic_visit(node)
 
     def visit_Import(self, node: ast.Import) -> None:
         for alias in node.names:
@@ -216,17 +212,6 @@ def describe_cycle(cycle: list[str], package_dir: Path) -> str:
     return " -> ".join(steps)
 
 
-def oversized_modules(package_dir: Path, max_lines: int) -> list[tuple[str, int]]:
-    """(file relative to the package's parent, lines) of every .py file
-    under ``package_dir`` with more than ``max_lines`` lines."""
-    found = []
-    for path in sorted(package_dir.rglob("*.py")):
-        n = len(path.read_text(encoding="utf-8").splitlines())
-        if n > max_lines:
-            found.append((path.relative_to(package_dir.parent).as_posix(), n))
-    return found
-
-
 # --------------------------------------------------------------------------
 # the rules, on cdpm
 
@@ -242,14 +227,70 @@ def test_cdpm_has_no_import_cycles():
         pytest.fail(f"{len(cycles)} import cycle(s) in cdpm:\n{listed}", pytrace=False)
 
 
-def test_cdpm_modules_are_at_most_max_lines_long():
-    oversized = oversized_modules(PACKAGE, MAX_LINES)
-    if oversized:
-        listed = "\n".join(f"  {path}: {n} lines" for path, n in oversized)
-        pytest.fail(
-            f"{len(oversized)} module(s) longer than {MAX_LINES} lines (split them):\n{listed}",
-            pytrace=False,
+def _lint_imports(cwd: Path, *args: str) -> subprocess.CompletedProcess:
+    """Run import-linter's ``lint-imports`` in ``cwd``."""
+    script = Path(sys.executable).with_name("lint-imports")
+    command = [str(script)] if script.exists() else ["lint-imports"]
+    return subprocess.run(
+        [*command, "--no-cache", *args], cwd=cwd, capture_output=True, text=True, check=False
+    )
+
+
+def test_import_contracts_hold():
+    """pyproject.toml's import-linter contracts, every one kept."""
+    out = _lint_imports(ROOT)
+    assert out.returncode == 0, out.stdout + out.stderr
+    assert "Contracts: 4 kept, 0 broken." in out.stdout, out.stdout
+
+
+def test_top_level_of_cdpm_has_few_modules():
+    modules = sorted(p.name for p in PACKAGE.glob("*.py"))
+    assert len(modules) <= MAX_TOP_LEVEL_MODULES, modules
+    # the shared vocabulary is there, the packages are packages
+    assert {"errors.py", "numerics.py", "verdicts.py", "printing.py"} <= set(modules)
+    for package in ("model", "dynamics", "analysis", "pipeline", "maps", "regions", "cli"):
+        assert (PACKAGE / package / "__init__.py").is_file(), package
+
+
+def test_contracts_catch_an_upward_import_and_a_private_import(tmp_path):
+    """The contract types used on cdpm, on a package with known breaches:
+    a low layer importing a high one, and a private module imported from
+    another package."""
+    _write_package(
+        tmp_path,
+        {
+            "pkg/__init__.py": "",
+            "pkg/high/__init__.py": "from pkg.low import f\n",
+            "pkg/low/__init__.py": "def f():\n    from pkg.high import g\n",
+            "pkg/other/__init__.py": "from pkg.low._inner import h\n",
+            "pkg/low/_inner.py": "h = 1\n",
+        },
+    )
+    (tmp_path / ".importlinter").write_text(
+        textwrap.dedent(
+            """
+            [importlinter]
+            root_package = pkg
+
+            [importlinter:contract:layers]
+            name = layers
+            type = layers
+            containers = pkg
+            layers =
+                high
+                other
+                low
+
+            [importlinter:contract:private]
+            name = private
+            type = private_modules
+            """
         )
+    )
+    out = _lint_imports(tmp_path, "--config", ".importlinter")
+    assert out.returncode == 1, out.stdout + out.stderr
+    assert "pkg.low -> pkg.high" in out.stdout
+    assert "pkg.other -> pkg.low._inner" in out.stdout
 
 
 # --------------------------------------------------------------------------
@@ -338,11 +379,11 @@ def test_import_graph_reads_every_kind_of_import(sample_package):
         "pkg.sub._x",
         "pkg.sub._y",
     }
-    # the name table and TYPE_CHECKING imports are not edges; the else branch is
-    assert graph["pkg"] == {"pkg.x": 4, "pkg.errors": 15}
+    # the name table is not an edge; TYPE_CHECKING imports and their else branch are
+    assert graph["pkg"] == {"pkg.x": 4, "pkg.c": 13, "pkg.errors": 15}
     assert graph["pkg.x"] == {"pkg": 2}  # __version__: the package's __init__
     assert graph["pkg.b"] == {"pkg.a": 2}  # relative, inside a function
-    assert graph["pkg.c"] == {"pkg.sub._y": 5}  # a submodule, not pkg.sub
+    assert graph["pkg.c"] == {"pkg": 4, "pkg.sub._y": 5}  # a submodule, not pkg.sub
     assert graph["pkg.sub"] == {"pkg.sub._x": 1}
     assert graph["pkg.sub._x"] == {"pkg.errors": 1, "pkg.sub": 4}
 
@@ -350,11 +391,12 @@ def test_import_graph_reads_every_kind_of_import(sample_package):
 def test_import_cycles_are_found_and_named(sample_package):
     cycles = import_cycles(sample_package)
     assert cycles == [
+        ["pkg", "pkg.c", "pkg"],  # through a TYPE_CHECKING import
         ["pkg", "pkg.x", "pkg"],
         ["pkg.a", "pkg.b", "pkg.a"],
         ["pkg.sub", "pkg.sub._x", "pkg.sub"],
     ]
-    assert describe_cycle(cycles[2], sample_package) == (
+    assert describe_cycle(cycles[3], sample_package) == (
         "pkg/sub/__init__.py:1 imports pkg.sub._x -> pkg/sub/_x.py:4 imports pkg.sub"
     )
 
@@ -371,29 +413,17 @@ def test_a_package_without_cycles_passes(tmp_path):
     assert import_cycles(package) == []
 
 
-def test_oversized_modules_are_named(tmp_path):
-    package = _write_package(
-        tmp_path,
-        {
-            "pkg/__init__.py": "",
-            "pkg/short.py": "x = 1\n" * MAX_LINES,
-            "pkg/deep/long.py": "x = 1\n" * (MAX_LINES + 1),
-        },
-    )
-    assert oversized_modules(package, MAX_LINES) == [("pkg/deep/long.py", MAX_LINES + 1)]
-
-
 def test_every_compiled_kernel_is_cached_and_releases_the_gil():
-    """Every numba kernel is declared through cdpm._kernel.kernel: cached
+    """Every numba kernel is declared through cdpm.jit.kernel: cached
     on disk, and releasing the GIL while it runs."""
     import importlib
 
     from numba.core.registry import CPUDispatcher
 
-    from cdpm.compiled import KERNEL_MODULES
+    from cdpm.pipeline.compiled import KERNEL_MODULES
 
     kernels = {}
-    for name in (*KERNEL_MODULES, "cdpm._dense_kernels"):
+    for name in (*KERNEL_MODULES, "cdpm.jit.dense"):
         module = importlib.import_module(name)
         for attr, value in vars(module).items():
             if isinstance(value, CPUDispatcher) and value.__module__ == name:

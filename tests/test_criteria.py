@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import cdpm
-from cdpm.maps.criteria import CRITERIA, Criterion, PoseBatch, register, verdict_criteria
+from cdpm.pipeline.criteria import CRITERIA, Criterion, PoseBatch, register, verdict_criteria
 from tests.conftest import MODELS
 
 VERTICAL = MODELS / "two_link_vertical" / "two_link_vertical.yaml"
@@ -69,7 +69,7 @@ def test_report_shows_every_criterion_as_a_map_would(paper_robot):
     assert set(report.criteria) == set(CRITERIA)
     assert report.criteria["poc"] == cdpm.VERDICT_CODES[report.poc.verdict.value]
     assert report.criteria["n_taut"] == 0
-    from cdpm.reach import reach_margins_at
+    from cdpm.dynamics.reach import reach_margins_at
 
     r = reach_margins_at(paper_robot, report.linearisation)  # the per-pose linearisation
     assert report.criteria["reach_margin"] == pytest.approx(r.value[0], rel=1e-12)
@@ -163,7 +163,7 @@ def test_register_refuses_what_maps_cannot_store():
 
 
 def test_a_worker_without_a_criterion_says_how_to_register_it(paper_robot):
-    from cdpm.maps._evaluate import MapJob
+    from cdpm.pipeline.evaluate import MapJob
 
     job = MapJob("min_norm", True, 1e-9, (*CRITERIA, "defined_in_main_only"))
     with pytest.raises(cdpm.InputError, match=r"'defined_in_main_only' are not registered"):

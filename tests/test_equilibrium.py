@@ -11,7 +11,7 @@ import pinocchio as pin
 import pytest
 
 import cdpm
-from cdpm.equilibrium import (
+from cdpm.dynamics.equilibrium import (
     EquilibriumResult,
     InfeasibleEquilibriumError,
     check_equilibrium,
@@ -249,14 +249,14 @@ def test_infeasible_error_names_python_arguments_and_plain_reasons(vertical):
 
 
 def test_solver_failures_in_words():
-    from cdpm.equilibrium.qp import _solver_failure
+    from cdpm.dynamics.equilibrium.qp import _solver_failure
 
     assert "reached its iteration limit (DAQP exit flag -4)" in _solver_failure(-4)
     assert "cycled" in _solver_failure(-2) and "failed (DAQP exit flag -9)" in _solver_failure(-9)
 
 
 def test_zero_pretension_warns_that_it_is_min_norm(vertical):
-    from cdpm.equilibrium import EquilibriumWarning
+    from cdpm.dynamics.equilibrium import EquilibriumWarning
 
     with pytest.warns(EquilibriumWarning, match=r"pretension of 0 N is the 'min_norm' method"):
         pre = equilibrium_tension(vertical, "horizontal", method="pretension", pretension=0)

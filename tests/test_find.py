@@ -12,7 +12,7 @@ import pytest
 
 import cdpm
 from cdpm.cli import main
-from cdpm.commands.find import coordinate_ranges
+from cdpm.cli.find import coordinate_ranges
 from tests.conftest import MODELS, caspr_models
 
 VERTICAL = MODELS / "two_link_vertical" / "two_link_vertical.yaml"

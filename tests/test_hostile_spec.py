@@ -13,7 +13,7 @@ import pytest
 import cdpm
 from cdpm.errors import MAX_LISTED_PROBLEMS, MAX_PROBLEM_CHARS, SpecError
 from cdpm.expressions import MAX_EXPRESSION_CHARS, parse_number
-from cdpm.yaml_loading import MAX_YAML_DEPTH
+from cdpm.model.yaml_loading import MAX_YAML_DEPTH
 
 MODEL = Path(__file__).parent.parent / "models" / "two_link_planar"
 
@@ -167,7 +167,7 @@ def test_numbers_that_overflow_to_infinity_are_refused(tmp_path):
         cdpm.load_robot(_spec(tmp_path, bounded))
     unbounded = bounded.replace("1.0e+400", ".inf")
     assert cdpm.load_robot(_spec(tmp_path, unbounded)).tension_max[0] == np.inf
-    from cdpm.yaml_loading import load_yaml
+    from cdpm.model.yaml_loading import load_yaml
 
     # infinity as meant, under an explicit tag too
     assert load_yaml("a: !!float inf\nb: !!float -Infinity\n") == ({"a": np.inf, "b": -np.inf}, [])
@@ -211,7 +211,7 @@ def test_libyaml_and_pyyaml_read_specs_alike():
     which shows the offending line."""
     import yaml
 
-    from cdpm.yaml_loading import _load_yaml, load_yaml
+    from cdpm.model.yaml_loading import _load_yaml, load_yaml
 
     texts = [p.read_text() for p in sorted(MODEL.parent.glob("*/*.yaml"))]
     texts.append(_base() + "gravity: [0, 0, -9.81]\n")

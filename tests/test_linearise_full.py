@@ -9,7 +9,7 @@ import pinocchio as pin
 import pytest
 
 import cdpm
-from cdpm.equilibrium import equilibrium_tension
+from cdpm.dynamics.equilibrium import equilibrium_tension
 from tests.conftest import MODELS
 
 linearise = cdpm.linearise

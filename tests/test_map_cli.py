@@ -44,8 +44,8 @@ def _same_variables(a, b, names=("poc", "static_feasible", "status", "tension_mi
 
 
 def test_map_pretension_reaches_every_chunk_and_is_stored(tmp_path, capsys):
-    from cdpm.maps._evaluate import evaluate_batch
-    from cdpm.maps.criteria import CRITERIA
+    from cdpm.pipeline.criteria import CRITERIA
+    from cdpm.pipeline.evaluate import evaluate_batch
 
     store = tmp_path / "pre.zarr"
     where = ["--out", str(store), "--workers", "2", "--chunk-size", "8", "--quiet"]
@@ -431,7 +431,7 @@ def test_an_interrupted_map_logs_where_it_stopped(tty, monkeypatch):
 
 
 def test_view_notes_a_map_made_with_other_equilibrium_settings(tmp_path):
-    from cdpm.commands.view import map_settings_note
+    from cdpm.cli.view import map_settings_note
 
     vertical = cdpm.load_robot(MODELS / "two_link_vertical" / "two_link_vertical.yaml")
     axes = {"q1": [0.2, 0.5], "q2": [1.0]}

@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 
 import cdpm
+from cdpm.dynamics.reach import reach_margins_at
 from cdpm.errors import InputError
 from cdpm.maps import (
     STATUS_CODES,
@@ -27,7 +28,6 @@ from cdpm.maps import (
     sample_axes,
     workspace_map,
 )
-from cdpm.reach import reach_margins_at
 from tests.conftest import MODELS, PAPER_SPEC
 
 CODE = {"yes": 1, "no": 0, "marginal": 2}
@@ -125,7 +125,7 @@ def _reference_kinematics(robot, q):
     computeJointJacobians / getFrameJacobian (independent of the batch)."""
     import pinocchio as pin
 
-    from cdpm.spec import OUTPUT_COMPONENTS, WORLD_FRAME_NAMES
+    from cdpm.model.spec import OUTPUT_COMPONENTS, WORLD_FRAME_NAMES
 
     model = robot.model
     data = model.createData()
@@ -165,7 +165,7 @@ def _reference_kinematics(robot, q):
 def test_batch_kinematics_equal_pinocchio_per_pose(model, mixed_robot, paper_robot):
     """kinematics_batch (one crba per pose plus array arithmetic) against
     Pinocchio's frame Jacobians and the single-pose robot methods."""
-    from cdpm.maps._batch import configurations
+    from cdpm.model.poses import configurations
 
     if model == "paper":
         robot = paper_robot
@@ -388,7 +388,7 @@ VERTICAL_SPEC = MODELS / "two_link_vertical" / "two_link_vertical.yaml"
 def test_gravity_map_equals_public_per_pose(tension):
     """The batched general path (equilibria, linearisations, output rank)
     against cdpm.linearise and the public analysers, pose by pose."""
-    from cdpm.equilibrium import InfeasibleEquilibriumError, equilibrium_tension
+    from cdpm.dynamics.equilibrium import InfeasibleEquilibriumError, equilibrium_tension
 
     robot = cdpm.load_robot(VERTICAL_SPEC)
     natural = np.random.default_rng(2).uniform(-np.pi, np.pi, (24, 2))
@@ -450,9 +450,9 @@ def test_map_without_margin_has_the_same_verdicts(tmp_path):
 def test_batched_equilibria_equal_the_solver():
     """min_norm_tensions: solved poses are the QP's optimum, 'infeasible'
     ones have no equilibrium (Farkas), on models with 2 to 8 cables."""
-    from cdpm.equilibrium import equilibrium_tension
-    from cdpm.equilibrium.newton import min_norm_tensions
-    from cdpm.maps._batch import configurations
+    from cdpm.dynamics.equilibrium import equilibrium_tension
+    from cdpm.dynamics.equilibrium.newton import min_norm_tensions
+    from cdpm.model.poses import configurations
 
     decided = 0
     for name, spread in (("two_link_vertical", 3.0), ("spatial_8cable", 0.3)):
@@ -640,7 +640,7 @@ def test_a_map_to_a_store_silences_only_zarrs_warnings(paper_robot, tmp_path, mo
     consolidated metadata are silenced; a warning from anywhere else (here
     the evaluation) still reaches the caller, and the warning filters are
     as they were."""
-    from cdpm.maps._evaluate import MapJob
+    from cdpm.pipeline.evaluate import MapJob
 
     evaluate = MapJob.evaluate
 
@@ -793,7 +793,7 @@ def test_every_array_document_is_the_one_zarr_creates(tmp_path):
     tension search: every kind of variable)."""
     import zarr
 
-    from cdpm.maps.criteria import CRITERIA
+    from cdpm.pipeline.criteria import CRITERIA
 
     # the arm's three outputs: y and output_frame_position are one kind with
     # other dimension names
@@ -1153,7 +1153,7 @@ def test_robot_source_rebuilds_from_shipped_bytes(paper_robot, tmp_path):
 def test_poses_evaluated_in_blocks_equal_one_batch(spec, monkeypatch):
     """evaluate_poses takes many poses in blocks (EVALUATE_BLOCK): the
     results are those of one batch, bit for bit, whatever the block."""
-    import cdpm.maps._evaluate as evaluate
+    import cdpm.pipeline.evaluate as evaluate
 
     robot = cdpm.load_robot(spec)
     natural = np.random.default_rng(4).uniform(-3.1, 3.1, (23, robot.nv))

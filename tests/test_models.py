@@ -13,8 +13,8 @@ import yaml
 
 import cdpm
 from cdpm.cli import main
-from cdpm.equilibrium import equilibrium_tension
-from cdpm.robot import spec_in_folder
+from cdpm.dynamics.equilibrium import equilibrium_tension
+from cdpm.model.robot import spec_in_folder
 from tests.conftest import MODELS, execute_notebook
 
 linearise = cdpm.linearise
@@ -138,7 +138,7 @@ poses: {up: [0, 0]}
         "urdf: package://example-robot-data/robots/double_pendulum_description/urdf/"
         "double_pendulum.urdf\n" + body
     )
-    if cdpm.spec.package_share_directory("example-robot-data") is not None:
+    if cdpm.model.spec.package_share_directory("example-robot-data") is not None:
         assert cdpm.load_robot(spec).nv == 2
     spec.write_text("urdf: {package: no-such-robot-data, path: robots/x.urdf}\n" + body)
     with pytest.raises(cdpm.SpecError, match="package 'no-such-robot-data' is not installed"):

@@ -1,4 +1,4 @@
-"""The POC neighbourhood of a pose (cdpm/neighbourhood.py): the radii on a
+"""The POC neighbourhood of a pose (cdpm/regions/neighbourhood.py): the radii on a
 local refined map, checked against the per-pose analysis."""
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ import pytest
 
 import cdpm
 from cdpm.errors import InputError
-from cdpm.neighbourhood import Neighbourhood, poc_neighbourhood
+from cdpm.regions.neighbourhood import Neighbourhood, poc_neighbourhood
 from cdpm.verdicts import NO, NOT_ANALYSED, STATUS_CODES, YES
 from tests.conftest import MODELS
 

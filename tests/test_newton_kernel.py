@@ -1,5 +1,5 @@
-"""The batched least-norm tension solver (cdpm.equilibrium.newton, compiled
-kernel in cdpm.equilibrium._newton_kernel): known answers, the exact QP on
+"""The batched least-norm tension solver (cdpm.dynamics.equilibrium.newton, compiled
+kernel in cdpm.dynamics.equilibrium._newton_kernel): known answers, the exact QP on
 random problems, and a pose's result independent of its batch."""
 
 from __future__ import annotations
@@ -7,8 +7,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from cdpm.equilibrium.newton import min_norm_tensions
-from cdpm.equilibrium.qp import min_norm_in_bounds
+from cdpm.dynamics.equilibrium.newton import min_norm_tensions
+from cdpm.dynamics.equilibrium.qp import min_norm_in_bounds
 
 
 def test_one_joint_two_cables_known_answers():

@@ -14,9 +14,9 @@ import pinocchio as pin
 import pytest
 
 import cdpm
-from cdpm.equilibrium import equilibrium_tension
-from cdpm.linearisation import output_jacobian_rounded
-from cdpm.reach import output_scales, reach_scale, reach_settings, reach_unit, robot_size
+from cdpm.dynamics.equilibrium import equilibrium_tension
+from cdpm.dynamics.linearisation import output_jacobian_rounded
+from cdpm.dynamics.reach import reach_scale, reach_settings, reach_unit
 from cdpm.verdicts import VERDICT_CODES
 from tests.conftest import MODELS
 
@@ -318,7 +318,7 @@ def test_a_multi_dof_joint_output_is_refused(tmp_path):
 def test_round_off_floor_is_per_output_row(arm_rotations, tmp_path):
     """Each row is judged against its own scale: |weight| times the
     robot's size for metre terms, times 1 for radian terms."""
-    size = robot_size(arm_rotations)
+    size = arm_rotations.size
     assert abs(size - 1.0) > 0.2  # metres and radians give different floors
     robot = cdpm.load_robot(
         with_outputs(
@@ -331,8 +331,8 @@ def test_round_off_floor_is_per_output_row(arm_rotations, tmp_path):
             "      - {weight: -2, joint: elbow}\n",
         )
     )
-    np.testing.assert_allclose(output_scales(robot), [size, 1.0, 0.5 * size + 2.0], rtol=1e-15)
-    entry = 1e-12 * np.array([0.9, 0.9, 0.9])[:, None] * output_scales(robot)[:, None]
+    np.testing.assert_allclose(robot.output_scales, [size, 1.0, 0.5 * size + 2.0], rtol=1e-15)
+    entry = 1e-12 * np.array([0.9, 0.9, 0.9])[:, None] * robot.output_scales[:, None]
     jac = np.repeat(entry, robot.nv, axis=1)
     assert not np.any(output_jacobian_rounded(robot, jac))  # all below their floors
     # between the metre row's floor (1e-12 x 0.72 m) and the rotation row's
@@ -351,7 +351,7 @@ def test_reach_margin_units_and_scale(pose_robot, arm_rotations):
     settings = reach_settings(arm_rotations)
     metres = reach_scale(cdpm.load_robot(ARM), settings)
     assert reach_scale(arm_rotations, settings) == pytest.approx(
-        metres / robot_size(arm_rotations), rel=1e-15
+        metres / arm_rotations.size, rel=1e-15
     )
     # the position-only spec keeps the metre scale exactly
     spatial = cdpm.load_robot(MODELS / "spatial_8cable")
@@ -466,7 +466,7 @@ def test_output_frame_position_is_the_first_output_drawn_at_a_frame(tmp_path):
         )
     )
     assert robot.output_points[0] == -1 and robot.output_points[1] >= 0
-    from cdpm.maps.criteria import CRITERIA
+    from cdpm.pipeline.criteria import CRITERIA
 
     attrs = CRITERIA["output_frame_position"].attrs(robot)
     assert attrs["frame"] == "hand" and attrs["output"] == "hand_rz"

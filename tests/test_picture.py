@@ -30,7 +30,7 @@ def _count_near(pixels, rgb, tol=10):
 
 
 def test_paper_figure(paper_robot, tmp_path):
-    from cdpm.picture import render_pose
+    from cdpm.plotting.picture import render_pose
 
     path = tmp_path / "nominal.png"
     fig = render_pose(paper_robot, "nominal", path)
@@ -49,7 +49,7 @@ def test_paper_figure(paper_robot, tmp_path):
 
 
 def test_projection_planes(paper_robot):
-    from cdpm.picture import render_pose
+    from cdpm.plotting.picture import render_pose
 
     fig = render_pose(paper_robot, [math.pi / 2, 0.0], plane="xz", title="side")
     ax = fig.axes[0]
@@ -62,7 +62,7 @@ def test_projection_planes(paper_robot):
 
 
 def test_bad_plane_and_suffix(paper_robot, tmp_path):
-    from cdpm.picture import render_pose
+    from cdpm.plotting.picture import render_pose
 
     with pytest.raises(InputError, match="plane='top'"):
         render_pose(paper_robot, "nominal", plane="top")
@@ -94,7 +94,7 @@ def test_missing_matplotlib_gives_install_hint():
         import sys
         sys.modules["matplotlib"] = None  # as if not installed
         import cdpm
-        from cdpm.picture import render_pose
+        from cdpm.plotting.picture import render_pose
         try:
             render_pose(cdpm.load_robot({str(PAPER_SPEC)!r}))
         except cdpm.MissingExtraError as exc:
@@ -139,7 +139,7 @@ def _inside(box, outer, slack=0.5):
 @pytest.mark.parametrize("spec, pose", [(SPATIAL_SPEC, "centre"), (MULTILINK_SPEC, "hanging")])
 def test_long_titles_fit_the_figure(spec, pose, tmp_path):
     import cdpm
-    from cdpm.picture import render_pose
+    from cdpm.plotting.picture import render_pose
 
     fig = render_pose(cdpm.load_robot(spec), pose, tmp_path / "pose.png")
     title, *_ = _extents(fig)
@@ -153,7 +153,7 @@ def test_long_titles_fit_the_figure(spec, pose, tmp_path):
 
 
 def test_a_long_custom_title_is_wrapped_to_fit(paper_robot):
-    from cdpm.picture import render_pose
+    from cdpm.plotting.picture import render_pose
 
     words = "a caption far too long for one line of the default figure width " * 3
     fig = render_pose(paper_robot, "nominal", title=words.strip())
@@ -168,7 +168,7 @@ def test_a_long_custom_title_is_wrapped_to_fit(paper_robot):
 )
 def test_cable_labels_neither_collide_nor_leave_the_axes(spec, pose, plane, tmp_path):
     import cdpm
-    from cdpm.picture import render_pose
+    from cdpm.plotting.picture import render_pose
 
     robot = cdpm.load_robot(spec)
     fig = render_pose(robot, pose, tmp_path / "pose.png", plane=plane)
@@ -216,7 +216,7 @@ def _link_segments(ax):
 
 
 def test_output_marker_sits_on_the_output_point(pendulum, tmp_path):
-    from cdpm.picture import render_pose
+    from cdpm.plotting.picture import render_pose
 
     # the outputs are y and z of a point 0.2 m along link2, not link2's origin
     fig = render_pose(pendulum, "leaning", tmp_path / "leaning.png", plane="yz")
@@ -232,7 +232,7 @@ def test_output_marker_sits_on_the_output_point(pendulum, tmp_path):
 def test_last_link_is_drawn_to_its_points(pendulum):
     import pinocchio as pin
 
-    from cdpm.picture import render_pose
+    from cdpm.plotting.picture import render_pose
 
     # link2 has no child joint: it used to be missing from the picture
     q = pendulum.as_q("leaning")
@@ -287,7 +287,7 @@ def test_heavier_cables_are_drawn_over_lighter_ones_and_every_marker_is_explaine
     the 61 N c4), and the legend names the joints, anchors, attachments
     and centres of mass."""
     import cdpm
-    from cdpm.picture import render_pose
+    from cdpm.plotting.picture import render_pose
     from cdpm.viewer.state import CableState, pose_state
 
     robot = cdpm.load_robot(SPATIAL_SPEC)
@@ -306,7 +306,7 @@ def test_heavier_cables_are_drawn_over_lighter_ones_and_every_marker_is_explaine
 
 
 def test_orientation_outputs_draw_their_frame_axes(tmp_path):
-    from cdpm.picture import render_pose
+    from cdpm.plotting.picture import render_pose
     from cdpm.viewer.state import AXIS_RGB
 
     robot = _spec_with_outputs(
@@ -347,7 +347,7 @@ def test_orientation_outputs_draw_their_frame_axes(tmp_path):
 
 
 def test_joint_and_cable_outputs_get_no_marker(tmp_path):
-    from cdpm.picture import render_pose
+    from cdpm.plotting.picture import render_pose
 
     vertical = ROOT / "models" / "two_link_vertical" / "two_link_vertical.yaml"
     robot = _spec_with_outputs(

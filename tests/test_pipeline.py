@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 import cdpm
-from cdpm.equilibrium import equilibrium_tensions
-from cdpm.linearisation import linearise_batch, mass_inverse
-from cdpm.maps._batch import configurations
+from cdpm.dynamics.equilibrium import equilibrium_tensions
+from cdpm.dynamics.linearisation import linearise_batch, mass_inverse
+from cdpm.model.poses import configurations
 from tests.conftest import MODELS
 
 SPECS = {

@@ -128,8 +128,8 @@ def test_a_sampled_map_of_three_axes_is_drawn_in_slabs_of_its_third():
     slabs of equal width (about MIN_SLAB_SAMPLES samples each at least), a
     panel each, the path solid in the slab it lies in; a fourth coordinate
     is projected, which the figure title says."""
-    from cdpm._plot_slabs import MIN_SLAB_SAMPLES
     from cdpm.plotting import plot_map
+    from cdpm.plotting._slabs import MIN_SLAB_SAMPLES
     from tests.conftest import MODELS
 
     spec = MODELS / "multilink_arm" / "multilink_arm.yaml"
@@ -435,8 +435,8 @@ def test_plot_command_checks_the_image_name_before_any_work(small_store, tmp_pat
 
 @pytest.mark.parametrize("dpi", ["0", "-3", "nan", "ten", "1e6", "100000"])
 def test_plot_and_picture_reject_a_dpi_that_is_not_positive_or_huge(dpi, tmp_path, capsys):
-    from cdpm.picture import render_pose
     from cdpm.plotting import save_map_plot
+    from cdpm.plotting.picture import render_pose
 
     for command in (["plot", str(tmp_path / "m.zarr")], ["picture", str(PAPER_SPEC)]):
         with pytest.raises(SystemExit) as info:
@@ -516,8 +516,8 @@ def test_one_axis_margin_line_splits_poses_without_a_margin(tmp_path):
     an equilibrium as grey spans, each in the legend."""
     from matplotlib.colors import to_rgb
 
-    from cdpm._plot_common import STATUS_COLORS, ZERO_MARGIN_COLOR
     from cdpm.plotting import plot_map, save_map_plot
+    from cdpm.plotting._common import STATUS_COLORS, ZERO_MARGIN_COLOR
     from tests.conftest import MODELS
 
     spec = MODELS / "two_link_vertical" / "two_link_vertical.yaml"
@@ -629,8 +629,8 @@ def _assert_legends_outside(fig) -> None:
 def test_map_panels_read_at_a_glance(which, paper_map, vertical_map, tmp_path):
     from matplotlib.colors import LogNorm, to_rgb
 
-    from cdpm._plot_common import STATUS_COLORS, ZERO_MARGIN_COLOR
     from cdpm.plotting import plot_map, save_map_plot
+    from cdpm.plotting._common import STATUS_COLORS, ZERO_MARGIN_COLOR
 
     ds = paper_map if which == "paper" else vertical_map
     path = {"q1": np.linspace(-2.5, 1.0, 25), "q2": np.linspace(0.5, 2.4, 25)}
@@ -806,8 +806,8 @@ def test_plot_path_errors_name_the_fix(paper_map):
 def test_slices_of_a_three_axis_map_carry_regions_and_the_path(paper_map):
     import xarray as xr
 
-    from cdpm._plot_overlays import AWAY_ALPHA
     from cdpm.plotting import plot_map
+    from cdpm.plotting._overlays import AWAY_ALPHA
 
     ds = paper_map.drop_vars("poc_region")
     stacked = xr.concat([ds, ds, ds], dim=xr.DataArray([0.0, 1.0, 2.0], dims="z", name="z"))
@@ -902,7 +902,7 @@ def test_slice_values_that_are_round_off_of_zero_read_zero():
     said "q3 = 4.44e-16 rad"."""
     import xarray as xr
 
-    from cdpm._plot_common import coordinate_value
+    from cdpm.plotting._common import coordinate_value
 
     values = np.linspace(-np.pi, 5 * np.pi / 6, 12)
     assert 0 < abs(values[6]) < 1e-15
@@ -916,7 +916,7 @@ def test_a_wide_area_outside_the_regions_is_outlined_all_round():
     """Where a wide area of poses outside every region narrows to one cell,
     its outline went on (it broke off cell by cell); a line one cell thin
     on its own and a piece of at most SMALL_HOLE_POSES poses are not outlined."""
-    from cdpm._plot_overlays import _not_outlined
+    from cdpm.plotting._overlays import _not_outlined
 
     ids = np.ones((12, 12), dtype=int)
     ids[1:4, 1:4] = 0  # a 3 x 3 area ...
@@ -933,7 +933,7 @@ def test_suspect_steps_are_marked_where_the_path_is_drawn_solid():
     among them is not marked there (it showed on every slice)."""
     from matplotlib.figure import Figure
 
-    from cdpm._plot_overlays import draw_path
+    from cdpm.plotting._overlays import draw_path
 
     ax = Figure().add_subplot()
     draw_path(
@@ -1012,7 +1012,7 @@ def test_path_across_the_seam_of_a_full_turn_goes_the_short_way(paper_map):
 
 
 def test_margin_range_clips_a_few_stragglers_at_either_end_by_one_rule():
-    from cdpm._plot_margin import STRAGGLER_DECADES, STRAGGLER_FRACTION, margin_range
+    from cdpm.plotting._margin import STRAGGLER_DECADES, STRAGGLER_FRACTION, margin_range
 
     assert (STRAGGLER_FRACTION, STRAGGLER_DECADES) == (0.01, 1.0)
     rng = np.random.default_rng(7)
@@ -1099,8 +1099,8 @@ def _thin_and_wide_no(n=181):
 def test_thin_no_lines_read_as_red_lines_not_as_outlined_dots(tmp_path):
     from matplotlib.colors import to_rgb
 
-    from cdpm._plot_overlays import SMALL_HOLE_POSES, _outline_segments
     from cdpm.plotting import VERDICT_COLORS, plot_map, save_map_plot
+    from cdpm.plotting._overlays import SMALL_HOLE_POSES, _outline_segments
 
     ds = _thin_and_wide_no()
     poc, ids = ds["poc"].values, ds["poc_region"].values
@@ -1169,8 +1169,8 @@ def test_every_piece_of_a_region_on_a_panel_is_numbered(vertical_map):
     largest one was numbered, and the others read as unnamed regions)."""
     from scipy import ndimage
 
-    from cdpm._plot_overlays import MIN_NUMBERED_FRACTION
     from cdpm.plotting import plot_map
+    from cdpm.plotting._overlays import MIN_NUMBERED_FRACTION
 
     ids = vertical_map.poc_region.transpose("q1", "q2").values
     verdict = plot_map(vertical_map, margin=False, output_view=False).axes[0]
@@ -1188,8 +1188,8 @@ def test_a_path_legend_does_not_squeeze_a_one_axis_map():
     """Above the strip of a one-axis map, a path's legend entries (with
     its suspect steps) set the width of the strip's column, which shrank
     to a sixth; the legend now takes as many rows as it needs."""
-    from cdpm.paths import poc_path
     from cdpm.plotting import plot_map
+    from cdpm.regions.paths import poc_path
 
     ds = workspace_map(PAPER_SPEC, {"q1": (-np.pi, np.pi)}, samples=500, seed=0, workers=1)
     path = poc_path(ds, {"q1": 0.0}, {"q1": 1.5})
@@ -1209,9 +1209,9 @@ def test_a_pocpath_is_drawn_with_its_suspect_steps(paper_map):
     """plot_map takes a POCPath: its steps that may cross a thin NO set
     are drawn over in magenta on the verdict and margin panels, and the
     legend counts them, as `cdpm path` warns of them."""
-    from cdpm._plot_overlays import SUSPECT_COLOR
-    from cdpm.paths import poc_path
     from cdpm.plotting import plot_map
+    from cdpm.plotting._overlays import SUSPECT_COLOR
+    from cdpm.regions.paths import poc_path
 
     path = poc_path(paper_map, [np.pi / 6, np.pi / 3], [3.0, -2.0])
     assert path.suspect_steps  # the paper arm's thin NO lines

@@ -13,9 +13,9 @@ from scipy.spatial import ConvexHull
 import cdpm
 from cdpm.analysis.reach import reach_margin, zonotope_inradii
 from cdpm.cli import main
+from cdpm.dynamics.reach import reach_bounds, reach_margins_at, reach_settings
 from cdpm.errors import InputError
-from cdpm.maps._evaluate import evaluate_batch
-from cdpm.reach import reach_bounds, reach_margins_at, reach_settings
+from cdpm.pipeline.evaluate import evaluate_batch
 from tests.conftest import MODELS, PAPER_SPEC
 from tests.paper_model import paper_L, paper_M, paper_tip_x_gradient
 

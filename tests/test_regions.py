@@ -305,8 +305,7 @@ def test_one_axis_samples_join_consecutive_samples_only():
     assert label_regions(_with_no_at(part, [order[120]])).attrs["n_regions"] == 2
     # two samples of an angle: their shorter arc, across the seam; an arc of
     # more than half a turn joins nothing (the step would be drawn the other way)
-    from cdpm.maps._sampled import sample_edges
-    from cdpm.maps.regions import MapLayout
+    from cdpm.maps.regions import MapLayout, sample_edges
 
     def layout(*q1):
         values = (np.array(q1),)

@@ -15,8 +15,8 @@ from cdpm.analysis import Verdict
 from cdpm.analysis._span_batch import span_certificates
 from cdpm.analysis.batch import positively_spanning
 from cdpm.analysis.span import span_result
-from cdpm.equilibrium import statics
-from cdpm.maps._batch import configurations
+from cdpm.dynamics.equilibrium import statics
+from cdpm.model.poses import configurations
 from cdpm.numerics import RANK_RATIO, SPAN_TOL
 from cdpm.verdicts import NO, YES, verdict_code
 

@@ -9,7 +9,7 @@ import pytest
 
 import cdpm
 from cdpm.errors import InputError, SpecError
-from cdpm.spec import load_spec, parse_number
+from cdpm.model.spec import load_spec, parse_number
 from tests.conftest import PAPER_SPEC
 
 GOOD = """
@@ -44,7 +44,7 @@ def test_paper_spec_fields():
 def test_gravity_and_loads_beyond_physics_are_refused(write_spec):
     """Gravity of 1e308 m/s^2 made the dynamics overflow into numpy's
     LinAlgError; the spec and the overrides now name the limit."""
-    from cdpm.maps._plan import override_robot
+    from cdpm.maps.plan import override_robot
 
     with pytest.raises(SpecError, match="gravity: values must be finite, at most 1e\\+06 m/s\\^2"):
         load_spec(write_spec(GOOD.replace("gravity: [0, 0, 0]", "gravity: [1.0e+308, 0, 0]")))
@@ -203,7 +203,7 @@ def test_parse_number_is_one_function_under_its_public_names():
     import cdpm.expressions
 
     assert cdpm.parse_number is cdpm.expressions.parse_number
-    assert parse_number is cdpm.expressions.parse_number  # cdpm.spec re-exports it
+    assert parse_number is cdpm.expressions.parse_number  # cdpm.model.spec re-exports it
 
 
 def test_outputs_are_required_and_may_be_offset_points(write_spec):

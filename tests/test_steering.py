@@ -10,7 +10,8 @@ import pytest
 
 import cdpm
 from cdpm.cli import main
-from cdpm.simulation import TensionProfile
+from cdpm.dynamics.simulation import TensionProfile
+from cdpm.plotting.trajectories import plot_trajectory, plot_verify_report
 from tests.conftest import MODELS, PAPER_SPEC
 from tests.paper_model import paper_L as _paper_L
 from tests.paper_model import paper_M
@@ -257,9 +258,9 @@ def test_steering_refuses_durations_and_targets_its_plan_cannot_handle():
     # elbow_up, which :.4g named 4.159, a value then refused)
     lin = cdpm.linearise(robot, "elbow_up")
     with pytest.raises(cdpm.InputError, match=r"at most 8\.31737 s") as info:
-        cdpm.steering._checked_steer_duration(lin, 9.0)
+        cdpm.steering.steer._checked_steer_duration(lin, 9.0)
     named = float(str(info.value).split("at most ")[1].split(" s")[0])
-    assert cdpm.steering._checked_steer_duration(lin, named) == named
+    assert cdpm.steering.steer._checked_steer_duration(lin, named) == named
     assert cdpm.steer(robot, "nominal", [0.867025, 1.5], duration=3).reached
     # a target of 1e300 m overflowed into "REACHED" with miss inf
     with pytest.raises(cdpm.InputError, match=r"at most 100000 in magnitude"):
@@ -314,8 +315,8 @@ def test_motion_plots_show_each_output_in_its_unit_and_the_cables_that_pull():
     were labelled mm), directions in output names, cables at 0 N throughout
     named instead of drawn under each other, and f* dotted."""
     pytest.importorskip("matplotlib")
-    from cdpm.simulation import display_unit
-    from cdpm.verification import direction_text
+    from cdpm.plotting.trajectories import display_unit
+    from cdpm.steering.verify import direction_text
 
     assert display_unit("m") == (1e3, "mm") and display_unit("rad") == (1e3, "mrad")
     assert display_unit("m and rad, one to one") == (1e3, "mm, mrad")
@@ -330,7 +331,7 @@ def test_motion_plots_show_each_output_in_its_unit_and_the_cables_that_pull():
     assert "rad" in robot.output_units and "m" in robot.output_units
     res = cdpm.steer(robot, "centre", robot.output("centre") + [0.002, 0, 0, 0, 0, 0])
     assert res.trajectory.output_units == robot.output_units
-    fig = res.trajectory.plot(target=res.target, equilibrium=res.equilibrium_tension)
+    fig = plot_trajectory(res.trajectory, target=res.target, equilibrium=res.equilibrium_tension)
     ax_y, ax_f = fig.axes[:2]
     assert ax_y.get_ylabel() == "output change y - y(0) [mm, mrad]"
     labels = [t.get_text() for t in ax_y.get_legend().get_texts()]
@@ -381,7 +382,7 @@ def test_motion_plots_show_each_output_in_its_unit_and_the_cables_that_pull():
     assert any(len(group) > 1 for group in groups)  # c1 = c4 on the symmetric platform
     # two-cable arm: c2 never pulls at the NO pose's attempt; it is named, not drawn
     report = cdpm.verify_pose(cdpm.load_robot(TWO_CABLES), "nominal", radius=0.004)
-    fig = report.plot()
+    fig = plot_verify_report(report)
     ax_y, ax_f = fig.axes[:2]
     assert ax_y.get_title().startswith("d = +tip_x: NOT reached, miss ")
     assert ax_y.get_ylabel() == "progress along d [mm]"

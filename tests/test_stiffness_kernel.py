@@ -1,5 +1,5 @@
-"""The batched cable stiffness (cdpm.robot.CableRobot.cable_stiffness_batch,
-compiled kernel in cdpm._stiffness_kernel): the segment formula written out
+"""The batched cable stiffness (cdpm.model.robot.CableRobot.cable_stiffness_batch,
+compiled kernel in cdpm.model.stiffness_kernel): the segment formula written out
 pose by pose, and a pose's result independent of its batch and of the
 kinematics' memory layout. Its agreement with finite differences is in
 tests/test_linearise_full.py."""
@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import cdpm
-from cdpm.maps._batch import configurations
+from cdpm.model.poses import configurations
 from tests.conftest import MODELS
 
 #: models with several segments per cable (multilink_arm), a floating base
@@ -34,7 +34,7 @@ def random_batch(robot, n: int, seed: int):
 
 def written_out(robot, kin, tension, n: int) -> np.ndarray:
     """The stiffness of pose n, one segment at a time (the docstring of
-    cdpm._stiffness_kernel.stiffness_batch)."""
+    cdpm.model.stiffness_kernel.stiffness_batch)."""
     support = robot._dof_support()
     w = kin.spatial_jacobian[n, 3:]  # (3, nv)
     H = np.zeros((robot.nv, robot.nv))

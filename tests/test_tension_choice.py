@@ -39,7 +39,7 @@ import pytest
 
 import cdpm
 from cdpm.cli import main
-from cdpm.equilibrium import InfeasibleEquilibriumError
+from cdpm.dynamics.equilibrium import InfeasibleEquilibriumError
 from cdpm.errors import InputError
 from cdpm.verdicts import NO, NOT_ANALYSED, YES
 from tests.conftest import MODELS

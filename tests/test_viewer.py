@@ -305,8 +305,8 @@ def test_verdict_colours_agree_in_marker_overlay_plot_and_picture(paper_robot):
     from matplotlib.collections import QuadMesh
     from matplotlib.colors import to_rgb
 
-    from cdpm.picture import render_pose
     from cdpm.plotting import VERDICT_COLORS, plot_map
+    from cdpm.plotting.picture import render_pose
 
     ds, _ = _synthetic_map(xr)  # every verdict code occurs in it
     codes = ds["poc"].values.reshape(-1)
@@ -555,9 +555,9 @@ def test_play_ends_on_the_last_pose_with_cables_coloured_by_tension(paper_robot)
     assert np.linalg.norm(q_end - traj.q[0]) > 0.02  # the arm moved
     pin.framesForwardKinematics(model, data, q_end)
     for j in (1, 2):
-        drawn = scene[f"cdpm/robot/joint{j}"]["transform"]
+        drawn = scene[f"cdpm/model/robot/joint{j}"]["transform"]
         np.testing.assert_allclose(drawn, data.oMi[j].homogeneous, atol=1e-12)
-    moved = start["cdpm/robot/joint2"]["transform"] - data.oMi[2].homogeneous
+    moved = start["cdpm/model/robot/joint2"]["transform"] - data.oMi[2].homogeneous
     assert np.abs(moved).max() > 1e-2
     tip = data.oMf[model.getFrameId("tip")].homogeneous
     np.testing.assert_allclose(scene["cdpm/output/tip"]["transform"], tip, atol=1e-12)
@@ -592,7 +592,9 @@ def test_play_a_steering_result_ends_where_display_draws_its_last_pose(viewer, p
     state = viewer.display(result.trajectory.q[-1])
     displayed = _server_scene(viewer)
     assert state.verdict is not None
-    moving = [p for p in displayed if p.startswith(("cdpm/robot", "cdpm/cables", "cdpm/output"))]
+    moving = [
+        p for p in displayed if p.startswith(("cdpm/model/robot", "cdpm/cables", "cdpm/output"))
+    ]
     transforms = [p for p in moving if "transform" in displayed[p]]
     assert len(transforms) >= 2 + 4 + 1  # two links, four cables, the output frame
     for path in transforms:
@@ -757,7 +759,7 @@ def test_import_cdpm_loads_no_viewer_dependencies():
 
 
 def test_import_viewer_loads_no_heavy_dependencies():
-    code = "import cdpm.viewer, cdpm.picture, cdpm.plotting"
+    code = "import cdpm.viewer, cdpm.plotting.picture, cdpm.plotting"
     out = _run(code, "-X", "importtime")
     assert out.returncode == 0, out.stderr
     imported = {line.rsplit("|", 1)[-1].strip() for line in out.stderr.splitlines() if "|" in line}

@@ -131,7 +131,7 @@ def test_pose_state_takes_a_report_of_its_pose_only(paper_robot):
 
 
 def test_q_arguments_round_trip_through_the_command_line(paper_robot):
-    from cdpm.commands._pose import _configuration_from_q
+    from cdpm.cli._pose import _configuration_from_q
 
     assert q_arguments([math.pi / 6, math.pi / 3]) == "--q 0.5236 1.0472"
     assert q_arguments([-1e-9, 2.0, -0.25]) == "--q 0 2 -0.25"

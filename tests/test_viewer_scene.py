@@ -14,7 +14,7 @@ import pytest
 
 import cdpm
 from cdpm.errors import ModelError
-from cdpm.spec import package_share_directory
+from cdpm.model.spec import package_share_directory
 from cdpm.viewer import pose_state
 from cdpm.viewer.state import AXIS_RGB, PoseGeometry
 from tests.conftest import MODELS
@@ -170,7 +170,7 @@ def test_viewer_draws_link2_and_the_marker_on_the_output_point(pendulum, geometr
     )
     joint2 = _joint_world(pendulum, "leaning", 2)
     if geometry == "auto":  # example-robot-data's STL mesh of link2, moved with joint2
-        mesh = scene["cdpm/robot/visuals/link2_0"]
+        mesh = scene["cdpm/model/robot/visuals/link2_0"]
         (geo,) = mesh["object"]["geometries"]
         share = package_share_directory("example-robot-data")
         stl = share / "robots" / "double_pendulum_description" / "meshes" / "link2.stl"
@@ -178,11 +178,11 @@ def test_viewer_draws_link2_and_the_marker_on_the_output_point(pendulum, geometr
         np.testing.assert_allclose(mesh["transform"], joint2, atol=1e-12)
         return
     # generated links: a cylinder under joint2 from its origin to the output point
-    np.testing.assert_allclose(scene["cdpm/robot/joint2"]["transform"], joint2, atol=1e-12)
+    np.testing.assert_allclose(scene["cdpm/model/robot/joint2"]["transform"], joint2, atol=1e-12)
     links = [
         node["transform"]
         for path, node in scene.items()
-        if path.startswith("cdpm/robot/joint2/link") and "object" in node
+        if path.startswith("cdpm/model/robot/joint2/link") and "object" in node
     ]
     assert len(links) == 3  # to the two cable attachments and to the output point
     # meshcat's cylinder is centred with its axis along y: the centre and half-axis
@@ -231,7 +231,7 @@ def test_missing_mesh_falls_back_to_generated_links_with_one_warning(write_spec,
     (message,) = _user_warnings(caught)
     assert mesh in message and "drawing generated links" in message
     assert "\n" not in message
-    assert any(path.startswith("cdpm/robot/joint2/link") for path in scene)
+    assert any(path.startswith("cdpm/model/robot/joint2/link") for path in scene)
     with pytest.raises(ModelError, match=re.escape(mesh)):
         Viewer(robot, "p", geometry="urdf")
     _no_server_left()

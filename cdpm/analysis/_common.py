@@ -7,7 +7,6 @@ Everything here is private except :class:`Verdict`.
 from __future__ import annotations
 
 import enum
-import html
 import math
 
 import numpy as np
@@ -352,37 +351,6 @@ def fmt_array(x, digits: int = 4) -> str:
         np.asarray(x), precision=digits, suppress_small=True, max_line_width=10_000, separator=", "
     )
     return re.sub(r"-(0\.0*)(?=\s*[,\]])", r" \1", text)
-
-
-def to_plain(x):
-    """Turn numpy data (nested in dicts/lists) into JSON-serialisable data."""
-    if isinstance(x, dict):
-        return {str(k): to_plain(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [to_plain(v) for v in x]
-    if isinstance(x, np.ndarray):
-        return to_plain(x.tolist())
-    if isinstance(x, (np.bool_, bool)):
-        return bool(x)
-    if isinstance(x, (np.integer,)):
-        return int(x)
-    if isinstance(x, (np.floating, float)):
-        return float(x)
-    if isinstance(x, enum.Enum):
-        return x.value
-    if isinstance(x, complex):
-        return [x.real, x.imag]
-    return x
-
-
-def html_table(title: str, rows: list[tuple[str, str]]) -> str:
-    """Minimal HTML for ``_repr_html_``: a title and a two-column table."""
-    body = "".join(
-        f"<tr><th style='text-align:left'>{html.escape(k)}</th>"
-        f"<td style='text-align:left'><code>{html.escape(v)}</code></td></tr>"
-        for k, v in rows
-    )
-    return f"<div><b>{html.escape(title)}</b><table>{body}</table></div>"
 
 
 #: Pade [13/13] coefficients b_0..b_13 of the scaling-and-squaring method

@@ -13,12 +13,13 @@ from __future__ import annotations
 import numpy as np
 
 from cdpm.analysis import _modes
-from cdpm.analysis._common import Verdict, scaled_system, to_plain
+from cdpm.analysis._common import Verdict, scaled_system
 from cdpm.analysis._reduced import Reduced, marginal, output_rank_defect
 from cdpm.analysis._sampled import ModalScaled, Scaled, sample_search, sampled_yes, separator
 from cdpm.analysis.brammer import left_eigen_separator
 from cdpm.analysis.rank import reachable_basis
 from cdpm.numerics import INVERTIBLE_COND_MAX
+from cdpm.printing import to_plain
 
 _REASON_GENERAL_YES = "finitely many sampled output vectors positively span the output space"
 

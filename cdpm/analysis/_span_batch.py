@@ -33,8 +33,8 @@ import math
 
 import numpy as np
 
-from cdpm._dense_kernels import back_substitute, solve_in_place
-from cdpm._kernel import kernel
+from cdpm.jit import kernel
+from cdpm.jit.dense import back_substitute, solve_in_place
 
 __all__ = ["span_certificates"]
 

@@ -24,8 +24,8 @@ import math
 
 import numpy as np
 
-from cdpm._dense_kernels import det_in_place
-from cdpm._kernel import kernel
+from cdpm.jit import kernel
+from cdpm.jit.dense import det_in_place
 from cdpm.numerics import ZONOTOPE_BOUND_RTOL
 
 EPS = float(np.finfo(np.float64).eps)

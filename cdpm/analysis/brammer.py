@@ -27,10 +27,8 @@ from cdpm.analysis._common import (
     cluster,
     complement,
     fmt_array,
-    html_table,
     null_space,
     scaled_system,
-    to_plain,
 )
 from cdpm.analysis.rank import reachable_basis
 from cdpm.analysis.span import span_core
@@ -43,6 +41,7 @@ from cdpm.numerics import (
     SPAN_TOL,
     ZERO_ATOL,
 )
+from cdpm.printing import html_table, to_plain
 
 __all__ = ["PositiveControllabilityResult", "positive_controllability"]
 

@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.linalg import expm
 
-from cdpm.analysis._common import as_system, krylov_basis, scaled_system, to_plain
+from cdpm.analysis._common import as_system, krylov_basis, scaled_system
 from cdpm.analysis.span import check_positive_combination
 from cdpm.numerics import (
     INVERTIBLE_COND_MAX,
@@ -35,6 +35,7 @@ from cdpm.numerics import (
     RECHECK_TAYLOR_ATOL,
     RECHECK_VECTOR_RTOL,
 )
+from cdpm.printing import to_plain
 
 __all__ = ["POCCertificate"]
 

@@ -217,7 +217,7 @@ def _full_rank(S: np.ndarray) -> np.ndarray:
     """Rows of each (r, c) matrix of S (k, r, c) independent beyond doubt:
     columns scaled to unit length (negligible ones dropped), singular-value
     ratio above RANK_RATIO. The definition of the exits' rank test: the
-    compiled test (cdpm.analysis._rank_kernel) decides by it where
+    compiled test (cdpm.analysis.rank_kernel) decides by it where
     round-off cannot change the answer and sends the rest here."""
     norms = np.sqrt(np.einsum("krc,krc->kc", S, S))
     keep = norms > KRYLOV_COLUMN_NEGLIGIBLE * norms.max(axis=1, keepdims=True)
@@ -235,14 +235,14 @@ def free_controllable(A, B, mask):
     v^T B_free = 0, so Brammer's obstruction cannot exist.
 
     The rank test of the Krylov matrix [B_free, A B_free, ...] is compiled
-    (cdpm.analysis._rank_kernel); the few matrices it leaves undecided get
+    (cdpm.analysis.rank_kernel); the few matrices it leaves undecided get
     :func:`_full_rank`."""
     k, n, _ = A.shape
     codes = np.full(k, NOT_ANALYSED, dtype=np.int8)
     free = np.flatnonzero(np.any(~mask & np.any(B != 0, axis=1), axis=1))
     if free.size == 0:  # every input sign-constrained (or zero): no free input
         return codes
-    from cdpm.analysis._rank_kernel import krylov_matrices, krylov_rank_codes  # numba
+    from cdpm.analysis.rank_kernel import krylov_matrices, krylov_rank_codes  # numba
 
     full = krylov_rank_codes(A, B, ~mask, None, free)
     open_ = np.flatnonzero(full < 0)
@@ -258,14 +258,14 @@ def output_controllable(A, B, C):
     analyser's mixed-cone exit: those inputs alone reach every output
     direction, so POC holds.
 
-    The rank test is compiled (cdpm.analysis._rank_kernel); the few
+    The rank test is compiled (cdpm.analysis.rank_kernel); the few
     matrices it leaves undecided get :func:`_full_rank`."""
     k, p, n = C.shape
     codes = np.full(k, NOT_ANALYSED, dtype=np.int8)
     if p == 0 or k == 0:
         codes[:] = YES
         return codes
-    from cdpm.analysis._rank_kernel import krylov_matrices, krylov_rank_codes  # numba
+    from cdpm.analysis.rank_kernel import krylov_matrices, krylov_rank_codes  # numba
 
     every = np.ones((k, B.shape[2]), dtype=bool)
     full = krylov_rank_codes(A, B, every, C, np.arange(k))

@@ -7,11 +7,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from cdpm.analysis._common import Verdict, fmt_array, html_table, to_plain
+from cdpm.analysis._common import Verdict, fmt_array
 from cdpm.analysis._poc_margin import margin_bracket
 from cdpm.analysis.certificate import POCCertificate
 from cdpm.analysis.margin import margin_horizon
 from cdpm.analysis.rank import output_reachable_basis
+from cdpm.printing import html_table, to_plain
 
 __all__ = ["POCResult", "poc_margin"]
 

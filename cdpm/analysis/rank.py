@@ -13,13 +13,12 @@ import numpy as np
 
 from cdpm.analysis._common import (
     as_system,
-    html_table,
     krylov_basis,
     numerical_rank,
     scaled_system,
-    to_plain,
 )
 from cdpm.numerics import RANK_RTOL
+from cdpm.printing import html_table, to_plain
 
 __all__ = [
     "ControllabilityResult",

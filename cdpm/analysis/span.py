@@ -43,12 +43,10 @@ from cdpm.analysis._common import (
     as_matrix,
     eigh,
     fmt_array,
-    html_table,
     in_norm_range,
     numerical_rank,
     qr_pivots,
     svdvals,
-    to_plain,
 )
 from cdpm.analysis._span_hull import min_norm_separator, span_margin_bracket
 from cdpm.errors import InputError, check_tol
@@ -62,6 +60,7 @@ from cdpm.numerics import (
     SPAN_TOL,
     ZERO_RTOL,
 )
+from cdpm.printing import html_table, to_plain
 
 __all__ = ["SpanCertificate", "SpanResult", "positively_spans", "wrench_closure"]
 

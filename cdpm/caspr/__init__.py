@@ -314,7 +314,7 @@ def import_caspr(
         )
 
     write_spec()
-    from cdpm.robot import load_robot
+    from cdpm.model.robot import load_robot
 
     robot = load_robot(spec_path)
     dof_of_joint = {d.joint_name: d for d in dofs}

@@ -21,7 +21,7 @@ from cdpm.numerics import (
 )
 
 if TYPE_CHECKING:  # pragma: no cover
-    from cdpm.robot import CableRobot
+    from cdpm.model.robot import CableRobot
 
 #: CASPR's gravity vector [m/s^2] (``SystemModel.GRAVITY_CONSTANT`` along -z).
 GRAVITY = (0.0, 0.0, -9.81)

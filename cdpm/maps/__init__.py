@@ -16,15 +16,11 @@ from contextlib import nullcontext
 from typing import TYPE_CHECKING, Any
 
 from cdpm.errors import InputError, is_integer
-from cdpm.maps._evaluate import (
-    STATUS_CODES,
-    VERDICT_CODES,
-    MapJob,
-    check_tol,
-    evaluate_poses,
-    resolve_tension,
-)
-from cdpm.maps._plan import (
+from cdpm.maps._runner import MapRunInfo
+from cdpm.maps._scheduler import check_scheduler_address
+from cdpm.maps._store import RESULT_IN_MEMORY_MAX, StoreSettingsError, open_map
+from cdpm.maps._store_names import store_path_problem
+from cdpm.maps.plan import (
     DEFAULT_CHUNK_SIZE,
     IN_MEMORY_MAX,
     MAX_MAP_POSES,
@@ -32,13 +28,18 @@ from cdpm.maps._plan import (
     override_robot,
     sample_axes,
 )
-from cdpm.maps._runner import MapRunInfo
-from cdpm.maps._store import RESULT_IN_MEMORY_MAX, StoreSettingsError, open_map
-from cdpm.maps._store_names import store_path_problem
 from cdpm.numerics import SPAN_TOL
+from cdpm.pipeline.evaluate import (
+    STATUS_CODES,
+    VERDICT_CODES,
+    MapJob,
+    check_tol,
+    evaluate_poses,
+    resolve_tension,
+)
 
 if TYPE_CHECKING:  # pragma: no cover
-    from cdpm.robot import CableRobot
+    from cdpm.model.robot import CableRobot
 
 __all__ = [
     "workspace_map",
@@ -52,6 +53,8 @@ __all__ = [
     "VERDICT_CODES",
     "STATUS_CODES",
     "RESULT_IN_MEMORY_MAX",
+    "store_path_problem",
+    "check_scheduler_address",
 ]
 
 
@@ -114,7 +117,7 @@ def workspace_map(
     """Map positive output controllability and classic criteria over poses.
 
     Args:
-        robot: a :class:`~cdpm.robot.CableRobot` or the path of its cable spec.
+        robot: a :class:`~cdpm.model.robot.CableRobot` or the path of its cable spec.
         axes: coordinate name (see ``robot.coordinate_names``: joints, or
             ``<joint>.x`` ... ``<joint>.yaw`` for a free-flyer) -> values [rad or m]
             for a grid, e.g. ``{"q1": np.linspace(-3.14, 3.14, 181)}``; or
@@ -127,7 +130,7 @@ def workspace_map(
             name (``zero``, ``min_norm``, ``pretension``) or tensions [N] (m,);
             or ``"best"``: the spec's method, and beside its verdicts the
             search over the feasible equilibrium tensions at every pose
-            (:func:`cdpm.tension_choice.best_tension_batch`: variables
+            (:func:`cdpm.dynamics.tension_choice.best_tension_batch`: variables
             ``poc_some_tension``, ``reach_margin_best``, ``tension_best``,
             which other maps leave NOT_ANALYSED / NaN). Other gravity or tension bounds: map
             ``cdpm.maps.override_robot(robot, gravity=..., tension_bounds=...)``.
@@ -156,7 +159,7 @@ def workspace_map(
         tol: angle-like tolerance of the span decisions, as in
             :func:`cdpm.positive_output_controllability` (stored with the map).
         horizon: T [s] of the reach margin, one for every pose; default
-            the model's (:func:`cdpm.reach.reach_settings`; stored in the
+            the model's (:func:`cdpm.dynamics.reach.reach_settings`; stored in the
             map's ``reach_horizon`` attribute).
         tension_budget: tension increase [N] above equilibrium allowed to
             cables without an upper bound in the reach margin; default the
@@ -165,7 +168,7 @@ def workspace_map(
             method (default: the spec's ``equilibrium.pretension``); only
             with that method. Stored in the settings (a resume compares it).
         tension_objective: the search's objective with ``tension="best"``:
-            ``"poc"`` or ``"margin"`` (:func:`cdpm.tension_choice.best_tension`).
+            ``"poc"`` or ``"margin"`` (:func:`cdpm.dynamics.tension_choice.best_tension`).
         announce: called once before the chunks run with a
             :class:`MapRunInfo`: chunks already in the
             store, chunks to compute, and where they run (``.lines()`` says
@@ -194,14 +197,14 @@ def workspace_map(
             (an InputError; the message names each difference).
     """
     from cdpm._version import __version__
-    from cdpm.maps._evaluate import zero_equilibrium
+    from cdpm.dynamics.reach import reach_settings
     from cdpm.maps._lock import store_lock
-    from cdpm.maps._plan import make_plan
     from cdpm.maps._runner import ProgressPrinter, RobotSource, prestart_workers, run_chunks
     from cdpm.maps._store import MemorySink, ZarrSink
+    from cdpm.maps.plan import make_plan
     from cdpm.maps.regions import attach_new_regions
-    from cdpm.reach import reach_settings
-    from cdpm.robot import CableRobot, load_robot
+    from cdpm.model.robot import CableRobot, load_robot
+    from cdpm.pipeline.evaluate import zero_equilibrium
 
     _refuse_in_worker_bootstrap()
     _check_executor(workers, scheduler)
@@ -240,7 +243,7 @@ def workspace_map(
         )
     search = None
     if isinstance(tension, str) and tension == "best":
-        from cdpm.tension_choice.search import tension_search
+        from cdpm.dynamics.tension_choice.search import tension_search
 
         search = tension_search(tension_objective)
         tension = None
@@ -408,7 +411,7 @@ def _check_in_memory_size(robot: CableRobot, plan) -> None:
     """Refuse an in-memory map larger than IN_MEMORY_MAX before any work."""
     import numpy as np
 
-    from cdpm.maps.criteria import bytes_per_pose
+    from cdpm.pipeline.criteria import bytes_per_pose
 
     n = int(np.prod(plan.shape))
     per_pose = bytes_per_pose(robot)

@@ -1,7 +1,7 @@
 """Running map chunks: in-process, in local worker processes, or on Dask.
 
 Every executor runs the same function on the same chunks (the poses of
-chunk k come from the :class:`~cdpm.maps._plan.MapPlan`), so results do not
+chunk k come from the :class:`~cdpm.maps.plan.MapPlan`), so results do not
 depend on where a chunk ran. With ``workers=N`` locally, N - 1 worker
 processes get the plan once and then only chunk indices, and the calling
 process computes chunks too while none of theirs is ready; with a zarr
@@ -30,13 +30,13 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from cdpm.compiled import KERNEL_MODULES, load_kernels, notice_on_stderr
 from cdpm.errors import CdpmError, InputError, MissingExtraError
-from cdpm.maps._evaluate import MapJob, single_threaded_blas, zero_equilibrium
 from cdpm.numerics import PROGRESS_LOG_INTERVAL
+from cdpm.pipeline.compiled import KERNEL_MODULES, load_kernels, notice_on_stderr
+from cdpm.pipeline.evaluate import MapJob, single_threaded_blas, zero_equilibrium
 
 if TYPE_CHECKING:  # pragma: no cover
-    from cdpm.robot import CableRobot
+    from cdpm.model.robot import CableRobot
 
 __all__ = ["RobotSource", "MapRunInfo", "run_chunks", "ProgressPrinter"]
 
@@ -52,7 +52,7 @@ class RobotSource:
     """How a worker rebuilds the robot: the spec path, its hash, the bytes
     of the spec and URDF (relative paths under their common folder), and
     the robot's departures from its spec file (gravity, tension bounds,
-    pretension, external wrench: :func:`~cdpm.maps._plan.robot_overrides`)."""
+    pretension, external wrench: :func:`~cdpm.maps.plan.robot_overrides`)."""
 
     spec_path: str
     sha256: str
@@ -62,7 +62,7 @@ class RobotSource:
 
     @classmethod
     def from_robot(cls, robot) -> RobotSource:
-        from cdpm.maps._plan import robot_overrides
+        from cdpm.maps.plan import robot_overrides
 
         spec = Path(robot.spec.path).resolve()
         urdf = Path(robot.spec.urdf_path).resolve()
@@ -94,7 +94,7 @@ class RobotSource:
         temporary folder, deleted once the robot is loaded (a worker loads
         one per process; the folders were left behind in the temporary
         directory)."""
-        from cdpm.robot import load_robot
+        from cdpm.model.robot import load_robot
 
         if Path(self.spec_path).is_file():
             robot = load_robot(self.spec_path)
@@ -113,7 +113,7 @@ class RobotSource:
 
     def load(self):
         """The robot: its spec file's, with the overrides applied."""
-        from cdpm.maps._plan import override_robot
+        from cdpm.maps.plan import override_robot
 
         robot = self.load_spec_file()
         if not self.overrides:
@@ -382,7 +382,7 @@ def run_chunks(
     source: RobotSource | None = None,
 ) -> None:
     """Compute the chunks ``todo`` and write each to ``sink`` as it finishes;
-    ``job`` is the :class:`~cdpm.maps._evaluate.MapJob` every chunk runs.
+    ``job`` is the :class:`~cdpm.pipeline.evaluate.MapJob` every chunk runs.
 
     ``announce`` is called once, before the first chunk, with a
     :class:`MapRunInfo` saying what runs where (also when nothing is left
@@ -448,14 +448,14 @@ def run_chunks(
 _EVALUATION_MODULES = [
     "cdpm.analysis",
     "cdpm.analysis.batch",
-    "cdpm.equilibrium",
-    "cdpm.linearisation",
+    "cdpm.dynamics.equilibrium",
+    "cdpm.dynamics.linearisation",
 ]
 
 #: modules the fork server imports once, so that workers start warm; a name
 #: that is not importable is skipped by the fork server
 _PRELOAD = [
-    "cdpm.maps._evaluate",
+    "cdpm.pipeline.evaluate",
     "cdpm.maps._store",
     *_EVALUATION_MODULES,
     "pinocchio",
@@ -472,8 +472,8 @@ _PRELOAD_KERNELS = ["numba", *KERNEL_MODULES]
 
 #: the fork server's first and last imports: Ctrl-C is ignored between
 #: them, so that it does not interrupt the imports with a traceback
-_QUIET_START = "cdpm._fork_server_quiet"
-_QUIET_END = "cdpm._fork_server_ready"
+_QUIET_START = "cdpm.forkserver.quiet"
+_QUIET_END = "cdpm.forkserver.ready"
 
 
 def _context(kernels: bool = True):

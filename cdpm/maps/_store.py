@@ -28,7 +28,6 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from cdpm.errors import InputError
-from cdpm.maps._plan import MapPlan, coordinate_units, settings_difference
 from cdpm.maps._zarr_calls import (
     INTERRUPT_SETTLE_SECONDS,
     file_store,
@@ -36,10 +35,12 @@ from cdpm.maps._zarr_calls import (
     write_metadata,
     zarr_warnings_silenced,
 )
-from cdpm.maps.criteria import CRITERIA, CRITERION_DIMS, bytes_per_pose, extra_size
+from cdpm.maps.plan import MapPlan, settings_difference
+from cdpm.model.coordinates import coordinate_units
+from cdpm.pipeline.criteria import CRITERIA, CRITERION_DIMS, bytes_per_pose, extra_size
 
 if TYPE_CHECKING:  # pragma: no cover
-    from cdpm.robot import CableRobot
+    from cdpm.model.robot import CableRobot
 
 __all__ = [
     "ZarrSink",
@@ -64,7 +65,7 @@ RESULT_IN_MEMORY_MAX = 64 * 1024**2
 
 def variable_specs(robot: CableRobot, plan: MapPlan) -> dict[str, tuple]:
     """name -> (extra dims, dtype, fill value, attrs) of every data variable
-    (one per registered criterion, :data:`cdpm.maps.criteria.CRITERIA`)."""
+    (one per registered criterion, :data:`cdpm.pipeline.criteria.CRITERIA`)."""
     return {name: (c.dims, c.dtype, c.fill, c.attrs(robot)) for name, c in CRITERIA.items()}
 
 
@@ -531,7 +532,7 @@ class ChunkWriter:
 
     Args:
         path: the store directory.
-        plan: the map's :class:`~cdpm.maps._plan.MapPlan`.
+        plan: the map's :class:`~cdpm.maps.plan.MapPlan`.
         names: the data variables to write.
         arrays: their zarr AsyncArrays {name: array}, if open already
             (not pickled: a worker opens its own).

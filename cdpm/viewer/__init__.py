@@ -12,7 +12,7 @@ orientation output, a sleeve on a cable whose length is an output
 
 :func:`pose_state` computes what is drawn (positions, tensions, cable
 states, verdict) without meshcat, so the headless picture
-(:mod:`cdpm.picture`) and the text panel of :class:`PoseInspector` share it.
+(:mod:`cdpm.plotting.picture`) and the text panel of :class:`PoseInspector` share it.
 
 Cable states (:class:`CableState`), from the linearisation at the pose:
 

@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 if TYPE_CHECKING:  # pragma: no cover - for static type checkers only
-    from cdpm.robot import CableRobot
+    from cdpm.model.robot import CableRobot
 
 __all__ = ["CoordinateRange", "coordinate_sliders", "coordinate_ranges"]
 
@@ -48,7 +48,7 @@ def coordinate_sliders(robot: CableRobot, natural: Any = None) -> tuple[Coordina
     roll, pitch and yaw are angles. The range always contains the current value.
 
     Args:
-        robot: a :class:`~cdpm.robot.CableRobot`.
+        robot: a :class:`~cdpm.model.robot.CableRobot`.
         natural: current natural coordinates (nv,) [rad or m], a configuration
             (nq,) or a pose name; default the neutral pose.
 
@@ -101,7 +101,7 @@ def coordinate_ranges(robot: CableRobot, natural: Any = None) -> dict[str, tuple
     """Slider range of each natural coordinate (see :func:`coordinate_sliders`).
 
     Args:
-        robot: a :class:`~cdpm.robot.CableRobot`.
+        robot: a :class:`~cdpm.model.robot.CableRobot`.
         natural: current natural coordinates (nv,); default the neutral pose.
 
     Returns:

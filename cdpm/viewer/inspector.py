@@ -17,7 +17,7 @@ from cdpm.viewer.coordinates import coordinate_ranges
 from cdpm.viewer.state import PoseState, default_pose, pose_state
 
 if TYPE_CHECKING:  # pragma: no cover - for static type checkers only
-    from cdpm.robot import CableRobot
+    from cdpm.model.robot import CableRobot
     from cdpm.viewer.scene import Viewer
 
 __all__ = ["PoseInspector", "coordinate_ranges"]
@@ -30,7 +30,7 @@ class PoseInspector:
     and timed: :meth:`set_coordinate` is what a slider change calls.
 
     Args:
-        robot: a :class:`~cdpm.robot.CableRobot`.
+        robot: a :class:`~cdpm.model.robot.CableRobot`.
         q: first pose; default the spec's first pose, else neutral.
         viewer: a :class:`Viewer` to update, or None for the text panel only.
 

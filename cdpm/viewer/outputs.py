@@ -9,8 +9,8 @@ An output is drawn where it is measured:
   frame's rotation vector) as the axes of its frame (a large triad, x red,
   y green, z blue) with the verdict marker at the frame's origin;
 - a **weighted sum** at its first position or orientation term
-  (:attr:`cdpm.spec.OutputDef.marker_term`), as that term would be; the
-  panels give its formula (:meth:`cdpm.spec.OutputDef.describe`);
+  (:attr:`cdpm.model.spec.OutputDef.marker_term`), as that term would be; the
+  panels give its formula (:meth:`cdpm.model.spec.OutputDef.describe`);
 - a **cable length** output on its cable (emphasised, named in its label),
   with no point of its own;
 - a **joint** output with no marker: the panels give its value (the picture
@@ -26,8 +26,8 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:  # pragma: no cover
-    from cdpm.robot import CableRobot
-    from cdpm.spec import OutputDef
+    from cdpm.model.robot import CableRobot
+    from cdpm.model.spec import OutputDef
 
 __all__ = ["OutputPoint", "OutputDrawing", "output_drawing", "output_kind", "OUTPUT_KINDS"]
 
@@ -57,7 +57,7 @@ class OutputPoint:
         outputs: indices of the outputs drawn here, in spec order.
         label: their names, ``"tip_x, tip_z"``.
         tracked: index of the point among the robot's tracked points
-            (:attr:`cdpm.robot.CableRobot.output_points`, rows of
+            (:attr:`cdpm.model.robot.CableRobot.output_points`, rows of
             ``point_positions``).
         rotation: an orientation output is drawn here: the frame's axes
             (a triad) are drawn with the marker.
@@ -104,7 +104,7 @@ def output_drawing(robot: CableRobot) -> OutputDrawing:
     """Gather where each output of the robot is drawn.
 
     Args:
-        robot: a :class:`~cdpm.robot.CableRobot`.
+        robot: a :class:`~cdpm.model.robot.CableRobot`.
 
     Returns:
         The :class:`OutputDrawing`.

@@ -48,7 +48,7 @@ from cdpm.viewer.server import LOOPBACK, check_port
 from cdpm.viewer.state import AXIS_RGB, COLORS, default_pose
 
 if TYPE_CHECKING:  # pragma: no cover - for static type checkers only
-    from cdpm.robot import CableRobot
+    from cdpm.model.robot import CableRobot
 
 __all__ = ["InspectionPage", "PAGE_PORTS"]
 
@@ -94,7 +94,7 @@ class InspectionPage:
     call :meth:`close`.
 
     Args:
-        robot: a :class:`~cdpm.robot.CableRobot`.
+        robot: a :class:`~cdpm.model.robot.CableRobot`.
         q: first pose (name, configuration or natural coordinates); default
             the spec's first pose, else neutral.
         port: port of the page, 1-65535 (default: the first free of

@@ -37,8 +37,8 @@ from cdpm.viewer.state import (
 )
 
 if TYPE_CHECKING:  # pragma: no cover - for static type checkers only
-    from cdpm.report import PoseReport
-    from cdpm.robot import CableRobot
+    from cdpm.model.robot import CableRobot
+    from cdpm.text.report import PoseReport
     from cdpm.viewer.scene import Viewer
 
 __all__ = ["PosePanel", "VerdictRow", "pose_panel", "q_arguments", "rgb_hex"]
@@ -116,7 +116,7 @@ class PosePanel:
         reason: why it could not be analysed, else None.
         verdicts: the verdict table, one :class:`VerdictRow` per property.
         reach: the reach margin, ``{"value", "error"}`` in ``{"unit"}`` (the
-            outputs' unit, :func:`cdpm.reach.reach_unit`), ``{"horizon"}``
+            outputs' unit, :func:`cdpm.dynamics.reach.reach_unit`), ``{"horizon"}``
             [s], ``"budget"`` (text), or None when unavailable.
         notes: singular poses and other remarks, one sentence each.
         cable_rgb: colour (r, g, b in 0..1) each cable is drawn in.
@@ -248,7 +248,7 @@ def pose_panel(robot: CableRobot, q: Any, *, viewer: Viewer | None = None) -> Po
     draws that report (:meth:`cdpm.viewer.Viewer.display`).
 
     Args:
-        robot: a :class:`~cdpm.robot.CableRobot`.
+        robot: a :class:`~cdpm.model.robot.CableRobot`.
         q: a pose name, a configuration vector (nq,) or natural coordinates (nv,).
         viewer: a :class:`cdpm.viewer.Viewer` of the robot to move, or None.
 
@@ -259,7 +259,7 @@ def pose_panel(robot: CableRobot, q: Any, *, viewer: Viewer | None = None) -> Po
     Raises:
         InputError: q is not a pose of the robot.
     """
-    from cdpm.report import analyze_pose
+    from cdpm.text.report import analyze_pose
 
     q = robot.as_q(q)  # a bad q is the caller's error, not the pose's
     t0 = time.perf_counter()
@@ -349,7 +349,7 @@ def _unavailable_rows(
     linearisation are unavailable; wrench closure needs only the cable
     Jacobian, static feasibility comes from the failed equilibrium."""
     from cdpm import analysis
-    from cdpm.equilibrium import InfeasibleEquilibriumError
+    from cdpm.dynamics.equilibrium import InfeasibleEquilibriumError
 
     rows = [
         VerdictRow(key, LABELS[key], "unavailable", _NEEDS_LINEARISATION)

@@ -86,7 +86,7 @@ def _positive(value: Any, name: str, hint: str, allow_zero: bool = False) -> flo
 def _as_trajectory(trajectory: Any, robot):
     """The :class:`cdpm.Trajectory` of a trajectory or a steering result,
     checked against the robot."""
-    from cdpm.simulation import Trajectory
+    from cdpm.dynamics.simulation import Trajectory
 
     traj = getattr(trajectory, "trajectory", trajectory)
     if not isinstance(traj, Trajectory):
@@ -138,7 +138,7 @@ class Viewer:
     (workspace map); see :mod:`cdpm.viewer.output_marks`.
 
     Args:
-        robot: a :class:`~cdpm.robot.CableRobot`.
+        robot: a :class:`~cdpm.model.robot.CableRobot`.
         q: first pose (name, configuration or natural coordinates); default
             the spec's first pose, else neutral.
         port: web port of the started server, 1-65535 (default: first free
@@ -309,7 +309,7 @@ class Viewer:
                 color = [*COLORS["link"], 1.0] if plain else None
                 with warnings.catch_warnings(record=True) as caught:
                     warnings.simplefilter("always")
-                    viz.loadViewerModel(rootNodeName="cdpm/robot", visual_color=color)
+                    viz.loadViewerModel(rootNodeName="cdpm/model/robot", visual_color=color)
                 if not caught:
                     self._pin_viz = viz
                     return "urdf"
@@ -320,7 +320,7 @@ class Viewer:
                         f"some URDF visual geometry could not be shown: {problem}{more}; "
                         "use geometry='generated'"
                     )
-                self._send("cdpm/robot", "delete")
+                self._send("cdpm/model/robot", "delete")
                 warnings.warn(
                     f"URDF visual geometry not shown: {problem}{more}; drawing generated links",
                     stacklevel=3,
@@ -333,15 +333,15 @@ class Viewer:
         g, s = self._g, self._size
         link = g.MeshPhongMaterial(color=_rgb_int(COLORS["link"]))
         for k, (j, a, b) in enumerate(link_segments(self.robot)):
-            path = f"cdpm/robot/joint{j}/link{k}"
+            path = f"cdpm/model/robot/joint{j}/link{k}"
             self._send(path, "set_object", g.Cylinder(1.0, 0.012 * s), link)
             self._send(path, "set_transform", _segment_transform(a, b))
         joint = g.MeshPhongMaterial(color=_rgb_int(COLORS["joint"]))
         for j in range(1, self.robot.model.njoints):
-            self._send(f"cdpm/robot/joint{j}/axis", "set_object", g.Sphere(0.02 * s), joint)
+            self._send(f"cdpm/model/robot/joint{j}/axis", "set_object", g.Sphere(0.02 * s), joint)
         com = g.MeshPhongMaterial(color=_rgb_int(COLORS["com"]))
         for j, c in centres_of_mass(self.robot.model):
-            path = f"cdpm/robot/joint{j}/com"
+            path = f"cdpm/model/robot/joint{j}/com"
             self._send(path, "set_object", g.Sphere(0.016 * s), com)
             self._send(path, "set_transform", _translation(c))
         return "generated"
@@ -490,7 +490,7 @@ class Viewer:
         else:
             placements = geo.joint_placements()
             for j in range(1, self.robot.model.njoints):
-                self._send(f"cdpm/robot/joint{j}", "set_transform", placements[j])
+                self._send(f"cdpm/model/robot/joint{j}", "set_transform", placements[j])
         points = geo.points()
         for k, joint in enumerate(geo.point_joint):
             if joint != 0:

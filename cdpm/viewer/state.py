@@ -2,7 +2,7 @@
 
 :func:`pose_state` computes the positions, tensions, cable states and POC
 verdict at a pose as a :class:`PoseState`; the 3-D view
-(:class:`cdpm.viewer.Viewer`), the headless picture (:mod:`cdpm.picture`)
+(:class:`cdpm.viewer.Viewer`), the headless picture (:mod:`cdpm.plotting.picture`)
 and the text panel of :class:`cdpm.viewer.PoseInspector` all draw it.
 :class:`PoseGeometry` gives the world positions they draw;
 :func:`link_segments` the generated links (from each joint to its child
@@ -25,13 +25,13 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from cdpm.dynamics.linearisation import linearise
 from cdpm.errors import CdpmError, InputError
-from cdpm.linearisation import linearise
 from cdpm.verdicts import VERDICT_CODES, VERDICT_RGB, verdict_code
 from cdpm.viewer.outputs import OutputDrawing, output_drawing
 
 if TYPE_CHECKING:  # pragma: no cover
-    from cdpm.robot import CableRobot
+    from cdpm.model.robot import CableRobot
 
 __all__ = [
     "CableState",
@@ -97,7 +97,7 @@ class PoseState:
         tension: equilibrium tensions f* [N], shape (m,), or None when unavailable.
         output_names: names of the p outputs.
         output: outputs y, shape (p,), each in its unit (``output_units``):
-            the robot's own (:meth:`~cdpm.robot.CableRobot.output`).
+            the robot's own (:meth:`~cdpm.model.robot.CableRobot.output`).
         output_units: unit of each output (``"m"``, ``"rad"``, or the spec's).
         output_kinds: kind of each output: ``position``, ``rotation``,
             ``joint``, ``cable`` or ``sum``
@@ -113,7 +113,8 @@ class PoseState:
             (an output's ``point`` in its frame, not the frame's origin),
             shape (n_output_points, 3).
         verdict: POC verdict (:class:`cdpm.analysis.Verdict`) or None when unavailable.
-        margin: reach margin r_T in :attr:`margin_unit` (:mod:`cdpm.reach`; positive when POC
+        margin: reach margin r_T in :attr:`margin_unit`
+            (:mod:`cdpm.dynamics.reach`; positive when POC
             within the model's horizon) or None.
         reason: why tensions or the verdict are unavailable, else None.
     """
@@ -140,8 +141,8 @@ class PoseState:
     def margin_unit(self) -> str:
         """The unit of the reach margin: the outputs' common unit (``"m"``,
         ``"rad"``), else e.g. ``"m and rad, one to one"``
-        (:func:`cdpm.reach.reach_unit`)."""
-        from cdpm.reach import reach_unit
+        (:func:`cdpm.dynamics.reach.reach_unit`)."""
+        from cdpm.dynamics.reach import reach_unit
 
         return reach_unit(self.output_units)
 
@@ -262,15 +263,15 @@ class PoseGeometry:
     Route points are read from the spec (frame + point in frame), so this
     never fails, not even at poses where a cable has zero length. The output
     points and outputs are the robot's own
-    (:meth:`~cdpm.robot.CableRobot.kinematics_batch`, the points
-    :attr:`~cdpm.robot.CableRobot.output_points` names); an output point is
+    (:meth:`~cdpm.model.robot.CableRobot.kinematics_batch`, the points
+    :attr:`~cdpm.model.robot.CableRobot.output_points` names); an output point is
     where outputs are drawn (:mod:`cdpm.viewer.outputs`): a position
     output's point, an orientation output's frame origin, a sum's first
     position or orientation term; joint and cable outputs have none. Call
     :meth:`update` with a configuration, then read the positions.
 
     Args:
-        robot: a :class:`~cdpm.robot.CableRobot`.
+        robot: a :class:`~cdpm.model.robot.CableRobot`.
 
     Attributes:
         model: the robot's Pinocchio model; ``data`` its data at the last update.
@@ -291,7 +292,7 @@ class PoseGeometry:
             output is drawn there (with its frame's axes).
         output_frame_ids: frame id of each output point's frame (-1: the world).
         output: outputs y at the last update, shape (p,), each in its unit
-            (:attr:`~cdpm.robot.CableRobot.output_units`).
+            (:attr:`~cdpm.model.robot.CableRobot.output_units`).
     """
 
     def __init__(self, robot: CableRobot) -> None:
@@ -328,7 +329,7 @@ class PoseGeometry:
         )
 
     def _frame_id(self, name: str) -> int:
-        from cdpm.spec import WORLD_FRAME_NAMES
+        from cdpm.model.spec import WORLD_FRAME_NAMES
 
         return -1 if name in WORLD_FRAME_NAMES else int(self.model.getFrameId(name))
 
@@ -409,7 +410,7 @@ def _carried_points(robot: CableRobot) -> list[tuple[int, np.ndarray]]:
     """(joint, point in the joint's frame [m]) of every cable route point
     and point of a position or orientation output term, in spec order (joint
     0: fixed to the world)."""
-    from cdpm.spec import WORLD_FRAME_NAMES
+    from cdpm.model.spec import WORLD_FRAME_NAMES
 
     model = robot.model
     named = [(p.frame, p.point_in_frame) for c in robot.spec.cables for p in c.route]
@@ -440,7 +441,7 @@ def link_segments(robot: CableRobot) -> list[tuple[int, np.ndarray, np.ndarray]]
     picture both draw these.
 
     Args:
-        robot: a :class:`~cdpm.robot.CableRobot`.
+        robot: a :class:`~cdpm.model.robot.CableRobot`.
 
     Returns:
         ``(joint index, start (3,), end (3,))`` per segment; start and end
@@ -479,7 +480,7 @@ def mesh_package_dirs(urdf_path: str | Path) -> list[Path]:
     A mesh ``package://NAME/REL`` is found at ``DIR/NAME/REL`` for one of
     these folders: the URDF's own folder, and for each package the URDF
     names, the folder holding that package (its installed share directory,
-    :func:`cdpm.spec.package_share_directory`, e.g. example-robot-data's
+    :func:`cdpm.model.spec.package_share_directory`, e.g. example-robot-data's
     ``cmeel.prefix/share``, or $ROS_PACKAGE_PATH / $AMENT_PREFIX_PATH; or an
     enclosing folder of the URDF named after the package).
 
@@ -489,7 +490,7 @@ def mesh_package_dirs(urdf_path: str | Path) -> list[Path]:
     Returns:
         The folders, each once, the URDF's own first.
     """
-    from cdpm.spec import package_share_directory
+    from cdpm.model.spec import package_share_directory
 
     urdf = Path(urdf_path).resolve()
     dirs = [urdf.parent]
@@ -506,7 +507,7 @@ def _analyse(robot: CableRobot, q: np.ndarray):
     """Equilibrium tension, cable states and POC verdict at q.
 
     :func:`cdpm.linearise` finds the equilibrium tension (the
-    spec's method via :func:`cdpm.equilibrium.equilibrium_tension`, zero
+    spec's method via :func:`cdpm.dynamics.equilibrium.equilibrium_tension`, zero
     tension where that module is absent) and the input cone.
 
     Returns:
@@ -530,7 +531,7 @@ def _analyse(robot: CableRobot, q: np.ndarray):
     except CdpmError as exc:
         return lin.tension, slack, None, None, str(exc)
     from cdpm.analysis import Verdict
-    from cdpm.reach import reach_margins_at
+    from cdpm.dynamics.reach import reach_margins_at
 
     margin = reach_margins_at(robot, lin, None, [poc.verdict is Verdict.NO]).value[0]
     return lin.tension, slack, poc.verdict, float(margin), None
@@ -554,7 +555,7 @@ def pose_state(
     """What the viewer shows at q: positions, tensions, cable states, verdict.
 
     Args:
-        robot: a :class:`~cdpm.robot.CableRobot`.
+        robot: a :class:`~cdpm.model.robot.CableRobot`.
         q: a pose name, a configuration vector (nq,) or natural coordinates (nv,).
         geometry: reuse a :class:`PoseGeometry` (the viewer keeps one); built if None.
         report: the :class:`cdpm.PoseReport` of :func:`cdpm.analyze_pose` at
@@ -657,7 +658,7 @@ def tension_colors(
 
     The scale of :func:`cable_colors`: a cable at its lower bound (zero
     tension by default; the bound test of
-    :func:`cdpm.equilibrium.statics.classify`) is slack pink, any other
+    :func:`cdpm.dynamics.equilibrium.statics.classify`) is slack pink, any other
     shades from light blue to navy as its tension goes from 0 to ``scale``.
     :meth:`cdpm.viewer.Viewer.play` colours a trajectory's cables with it.
 
@@ -667,7 +668,7 @@ def tension_colors(
         scale: tension [N] drawn in the darkest taut colour.
         levels: shades from light blue to navy.
     """
-    from cdpm.equilibrium.statics import classify
+    from cdpm.dynamics.equilibrium.statics import classify
 
     f = np.asarray(tension, dtype=float)
     at_lower, _, _ = classify(f, np.asarray(tension_min), np.asarray(tension_max))

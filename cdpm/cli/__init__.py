@@ -1,0 +1,174 @@
+"""Command line: ``cdpm <command> ...``.
+
+The CLI is thin: each command lives in its own module under
+:mod:`cdpm.cli` with ``NAME``, ``HELP``, ``add_arguments(parser)`` and
+``run(args) -> int``, and calls library functions. Heavy imports happen
+inside ``run`` so ``cdpm --help`` is instant.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+from cdpm import __version__
+from cdpm.errors import CdpmError
+
+__all__ = ["main", "build_parser"]
+
+#: command modules, in the order ``cdpm --help`` lists them
+COMMAND_MODULES = (
+    "cdpm.cli.analyze",
+    "cdpm.cli.verify",
+    "cdpm.cli.steer",
+    "cdpm.cli.view",
+    "cdpm.cli.picture",
+    "cdpm.cli.map",
+    "cdpm.cli.plot",
+    "cdpm.cli.path",
+    "cdpm.cli.find",
+    "cdpm.cli.import_caspr",
+)
+
+_EPILOG = """\
+examples:
+  cdpm analyze models/two_link_planar/two_link_planar.yaml --pose nominal
+  cdpm analyze models/two_link_planar/two_link_planar.yaml --q pi/6 pi/3 --json
+"""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser with every command."""
+    parser = argparse.ArgumentParser(
+        prog="cdpm",
+        description=(
+            "Positive output controllability of cable-driven parallel manipulators: "
+            "load a URDF + cable spec, linearise at a pose, decide whether pulling "
+            "cables can drive the output anywhere near it."
+        ),
+        epilog=_EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument("--version", action="version", version=f"cdpm {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name in COMMAND_MODULES:
+        module = importlib.import_module(name)
+        cmd = sub.add_parser(
+            module.NAME,
+            help=module.HELP,
+            description=module.DESCRIPTION,
+            epilog=getattr(module, "EPILOG", None),
+            formatter_class=argparse.RawDescriptionHelpFormatter,
+        )
+        module.add_arguments(cmd)
+        cmd.set_defaults(_run=module.run)
+    return parser
+
+
+def _protect_negative_numbers(argv: list[str]) -> list[str]:
+    """Let values such as ``-pi/6`` follow an option without being taken for
+    an option themselves (argparse only recognises plain negative numbers)."""
+    from cdpm.model.spec import parse_number
+
+    out = []
+    for token in argv:
+        if token.startswith("-") and not token.startswith("--") and len(token) > 1:
+            try:
+                parse_number(token)
+            except ValueError:
+                pass
+            else:
+                token = " " + token
+        out.append(token)
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the CLI; returns the process exit code (0 ok, 1 error, 2 usage; some
+    commands add their own, listed in their --help: 3 analyze found no
+    equilibrium, 3 path found no connection)."""
+    parser = build_parser()
+    argv = sys.argv[1:] if argv is None else list(argv)
+    args = parser.parse_args(_protect_negative_numbers(argv))
+    if not getattr(args, "_run", None):
+        parser.print_help()
+        return 2
+    previous = _terminate_as_interrupt()
+    try:
+        return int(args._run(args) or 0)
+    except CdpmError as exc:
+        print(f"cdpm {args.command}: error: {exc}", file=sys.stderr)
+        return 1
+    except BrokenPipeError:
+        # output piped into e.g. `head`, which closed early: not an error
+        import os
+
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
+    except OSError as exc:
+        # a file or folder the system refused (unwritable, missing parent,
+        # name too long...): one line naming it, never a traceback
+        import errno
+        import os
+
+        name = exc.filename if exc.filename is not None else ""
+        what = f" {name!r}" if name else ""
+        out = getattr(args, "out", None)
+        if out and name and os.sep not in str(name) and str(name) != str(out):
+            # a store's file named by its key (c.0.0)
+            what += f" (writing {out})"
+        if exc.errno in (errno.ENOSPC, errno.EDQUOT):
+            if not name and out:  # the error names no file: the command's outputs
+                plot = getattr(args, "plot", None)
+                what = f" {str(out)!r}" + (f" or {str(plot)!r}" if plot else "")
+            problem = f"cannot write{what}"
+            fix = "free some space, or write elsewhere"
+        else:
+            problem = f"cannot use{what}"
+            fix = "choose a path you can write to (its folder must exist)"
+        print(
+            f"cdpm {args.command}: error: {problem}: {exc.strerror or exc}; {fix}",
+            file=sys.stderr,
+        )
+        return 1
+    except MemoryError:
+        print(
+            f"cdpm {args.command}: error: not enough memory for this request; ask for "
+            "fewer poses, a smaller picture or smaller chunks",
+            file=sys.stderr,
+        )
+        return 1
+    except KeyboardInterrupt:
+        print(f"cdpm {args.command}: interrupted", file=sys.stderr)
+        return 130
+    finally:
+        _restore_terminate(previous)
+
+
+def _terminate_as_interrupt():
+    """Handle SIGTERM like Ctrl-C (KeyboardInterrupt), so a terminated
+    command cleans up (stops its workers, keeps finished map chunks) as an
+    interrupted one does; returns the previous handler (None when signals
+    cannot be set here, e.g. outside the main thread)."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        return None
+
+    def interrupt(signum, frame):
+        raise KeyboardInterrupt
+
+    return signal.signal(signal.SIGTERM, interrupt)
+
+
+def _restore_terminate(previous) -> None:
+    import signal
+
+    if previous is not None:
+        signal.signal(signal.SIGTERM, previous)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

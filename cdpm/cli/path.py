@@ -1,0 +1,392 @@
+"""``cdpm path``: a path of POC poses between two poses of a map."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from typing import TYPE_CHECKING, Any
+
+from cdpm.cli._play import add_play_arguments, check_play_arguments
+from cdpm.cli.plot import argument_type
+from cdpm.cli.verify import _image
+from cdpm.printing import json_text
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cdpm.model.robot import CableRobot
+
+NAME = "path"
+HELP = "a path of POC poses between two poses of a map (inside one POC region)"
+DESCRIPTION = """\
+Read a map written by `cdpm map ... --out STORE`, move the start and the goal
+to their nearest map poses and find a path of positive output controllable
+(POC) map poses joining them inside one POC region (seed paper Lemma 1 /
+Remark 10: along it pull-only cables can drive the output from pose to pose).
+Grid maps step between face-adjacent poses (wrapping around angles that span a
+full turn), sampled maps between samples within the neighbourhood radius (over
+one axis, between consecutive samples).
+Prints the region, the number of waypoints, the length, the smallest margin
+and the waypoints, and warns of steps that may cross a NO set thinner than
+the map's resolution (where the reach margin r_T at both ends is within one
+step's change of 0); --maximin maximises the smallest margin along the path
+(of the waypoints between the two ends, whose margins are given) instead of
+taking the shortest, avoiding such steps where it can. --plot
+draws the map with the path (blue; the warned steps magenta; with --steer the
+title says which legs missed), --view plays the path in the 3-D viewer,
+--steer steers the simulated nonlinear robot from waypoint to waypoint and
+prints the miss at each."""
+EPILOG = """\
+examples:
+  cdpm path map.zarr --from nominal --to 2.5 -1.5
+  cdpm path map.zarr --from pi/6 pi/3 --to 3 -2 --maximin --plot path.png
+  cdpm path vertical.zarr --from 0.2 0.8 --to 0.2 1.25 --steer --legs 2
+
+V values are the map's axis values in the order of its axes (printed with
+every path), arithmetic such as pi/6 accepted; or the robot's natural
+coordinates (one per coordinate; those off the map's axes must be at the
+map's base pose); or one pose name of the map's spec.
+
+exit codes: 0 a path was found (and, with --steer, every leg reached its
+waypoint's output); 3 the start and goal are not joined by POC poses
+(different regions, or one of them in none; the message names both); 4 with
+--steer, a leg missed its waypoint's output (the table says which); 1 other
+errors (unknown store, a pose off the map or of the wrong length); 2 usage
+errors (unknown or missing options)."""
+
+#: exit code when no path of POC poses joins start and goal
+NOT_CONNECTED_EXIT = 3
+#: exit code when --steer steered a leg that missed its waypoint's output
+LEG_MISSED_EXIT = 4
+#: --steer without --legs: one leg per this many steps (short legs are
+#: steered well from a linear plan) ...
+STEPS_PER_LEG = 5
+#: ... and at most this many legs (a leg takes about a second)
+MAX_DEFAULT_LEGS = 20
+#: --steer: durations tried per leg, in units of steering's default duration
+LEG_DURATION_FACTORS = (1.0, 4.0, 16.0)
+#: playback time per path step with --view [s]
+VIEW_STEP_SECONDS = 0.15
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("map", metavar="MAP", help="zarr store written by cdpm map")
+    parser.add_argument(
+        "--from",
+        dest="start",
+        nargs="+",
+        required=True,
+        metavar="V",
+        help="the start: axis values in the map's order, or a pose name of the map's spec",
+    )
+    parser.add_argument(
+        "--to",
+        dest="goal",
+        nargs="+",
+        required=True,
+        metavar="V",
+        help="the goal: axis values in the map's order, or a pose name of the map's spec",
+    )
+    parser.add_argument(
+        "--maximin",
+        action="store_true",
+        help="maximise the smallest margin along the path, the ends' given (then the "
+        "shortest such path)",
+    )
+    parser.add_argument(
+        "--plot",
+        type=argument_type(_image),
+        metavar="IMAGE",
+        help="draw the map with the path into IMAGE",
+    )
+    add_play_arguments(parser, "the path")
+    parser.add_argument(
+        "--steer",
+        action="store_true",
+        help="steer the simulated nonlinear robot from waypoint to waypoint (cdpm.steer), "
+        f"print the miss at each and how many legs reached; exit code {LEG_MISSED_EXIT} when "
+        "a leg missed",
+    )
+    parser.add_argument(
+        "--legs",
+        type=int,
+        default=None,
+        metavar="N",
+        help="with --steer: N legs between N + 1 waypoints spread evenly along the path, "
+        f"start and goal included (default: one per {STEPS_PER_LEG} steps, at most "
+        f"{MAX_DEFAULT_LEGS}; a leg takes about a second, up to tens of seconds when it "
+        "cannot reach)",
+    )
+    parser.add_argument("--json", action="store_true", help="print the result as JSON")
+
+
+def run(args: argparse.Namespace) -> int:
+    from cdpm.errors import InputError
+    from cdpm.maps import open_map
+    from cdpm.maps.regions import REGION_VARIABLE, attach_regions
+    from cdpm.regions.paths import NotConnectedError, poc_path
+
+    check_play_arguments(args, "the path")
+    if args.legs is not None and not args.steer:
+        raise InputError("--legs goes with --steer (how many legs to steer)")
+    if args.legs is not None and args.legs < 1:
+        raise InputError(f"--legs must be a positive number of legs, got {args.legs}")
+    ds = open_map(args.map)
+    if REGION_VARIABLE not in ds.data_vars:
+        ds = attach_regions(ds)  # a map made before regions were stored
+    robot = _RobotOfMap(ds)
+    start = _pose_argument(ds, robot, args.start, "--from")
+    goal = _pose_argument(ds, robot, args.goal, "--to")
+    try:
+        path = poc_path(ds, start, goal, maximise_margin=args.maximin)
+    except NotConnectedError as exc:
+        if args.json:
+            print(json_text(_not_connected_dict(exc)))
+        print(f"cdpm path: not connected: {exc}", file=sys.stderr)
+        return NOT_CONNECTED_EXIT
+    out = sys.stderr if args.json else sys.stdout  # keep --json output parseable
+    if not args.json:
+        print(f"map {args.map}: axes {', '.join(path.axes)}")
+        print(path)
+    else:
+        for line in path.warnings():
+            print(f"cdpm path: {line}", file=sys.stderr)
+    legs = None
+    if args.steer:
+        legs = _steer_legs(robot.get("--steer"), ds, path, args.legs or _default_legs(path), out)
+    if args.plot:
+        from cdpm.plotting import save_map_plot
+
+        subtitle = None if legs is None else _legs_caption(legs, _miss_unit(robot.get("--steer")))
+        written = save_map_plot(ds, args.plot, path=path, subtitle=subtitle)
+        print(f"plot written to {written}", file=out)
+    if args.json:
+        result = {"connected": True, **path.as_dict()}
+        if legs is not None:
+            result["steering"] = legs
+            result["legs_reached"] = sum(leg["reached"] for leg in legs)
+        print(json_text(result))
+    if args.view:
+        _view(robot.get("--view"), ds, path, args, out)
+    return LEG_MISSED_EXIT if legs and not all(leg["reached"] for leg in legs) else 0
+
+
+class _RobotOfMap:
+    """The map's robot, loaded from its spec on first use and checked
+    against the map's spec hash."""
+
+    def __init__(self, ds):
+        self.ds, self.robot = ds, None
+
+    def get(self, why: str) -> CableRobot:
+        from cdpm.maps.regions import map_robot
+
+        if self.robot is None:
+            self.robot = map_robot(self.ds, why)
+        return self.robot
+
+
+def _pose_argument(ds, robot: _RobotOfMap, tokens: list[str], option: str) -> Any:
+    """A pose from --from/--to: numbers (map axis order, or natural
+    coordinates), or one pose name of the map's spec; checked against the
+    map (a pose off the map or of the wrong length is an InputError naming
+    the option)."""
+    from cdpm.errors import InputError
+    from cdpm.expressions import parse_number
+    from cdpm.maps.regions import map_layout, named_pose, nearest_index, region_labels
+
+    tokens = [t.strip() for t in tokens]
+    numbers = []
+    for token in tokens:
+        try:
+            numbers.append(parse_number(token))
+        except (TypeError, ValueError):
+            numbers = None
+            break
+    if numbers is None and len(tokens) == 1:
+        r = robot.get(f"{option} {tokens[0]} (a pose name)")
+        try:
+            pose: Any = named_pose(ds, tokens[0], r)
+        except InputError as exc:
+            raise InputError(f"{option} {tokens[0]}: {exc}") from exc
+    elif numbers is None:
+        raise InputError(
+            f"{option} {' '.join(tokens)}: give numbers (the map's axis values, e.g. pi/6) or "
+            "one pose name of the map's spec"
+        )
+    else:
+        pose = numbers
+    layout = map_layout(ds)
+    try:
+        radius = region_labels(ds).attrs.get("radius") if layout.mode == "sample" else None
+        nearest_index(ds, layout, pose, radius)
+    except InputError as exc:
+        raise InputError(f"{option} {' '.join(tokens)}: {exc}") from exc
+    return pose
+
+
+def _not_connected_dict(exc) -> dict:
+    return {
+        "connected": False,
+        "message": str(exc),
+        "start_region": exc.start_region,
+        "goal_region": exc.goal_region,
+        "start_pose": exc.start_pose,
+        "goal_pose": exc.goal_pose,
+        "start_size": exc.start_size,
+        "goal_size": exc.goal_size,
+    }
+
+
+def _map_tension(ds):
+    """The map's equilibrium tension setting (a method name or tensions [N])."""
+    text = ds.attrs.get("tension")
+    return None if text is None else json.loads(text)
+
+
+def _default_legs(path) -> int:
+    """One leg per STEPS_PER_LEG steps, at most MAX_DEFAULT_LEGS."""
+    steps = max(path.n_waypoints - 1, 1)
+    return min(-(-steps // STEPS_PER_LEG), MAX_DEFAULT_LEGS)
+
+
+def _steer_legs(robot: CableRobot, ds, path, legs: int, out) -> list[dict]:
+    """Steer the nonlinear robot along ``legs`` legs of the path: from rest
+    at the equilibrium of one chosen waypoint to the output of the next.
+
+    A leg that misses with steering's default duration (made for small
+    moves) is steered again with LEG_DURATION_FACTORS times it, longer
+    durations first reaching far targets; at most the longest duration
+    steering accepts at the waypoint (:func:`cdpm.steering.steer.longest_duration`).
+
+    Returns:
+        One dict per leg: from, to (waypoint numbers), distance |y_to - y_from|
+        [m], miss |y(T) - y_to| [m], reached, duration [s] of the last try.
+    """
+    import numpy as np
+
+    from cdpm.dynamics.linearisation import linearise
+    from cdpm.steering.steer import longest_duration, steer
+
+    k = path.n_waypoints
+    if k == 1:
+        print("steering: start and goal are the same map pose; nothing to steer", file=out)
+        return []
+    n = min(int(legs), k - 1)
+    stops = np.unique(np.round(np.linspace(0, k - 1, n + 1)).astype(int))
+    tension = _map_tension(ds)
+    print(
+        f"steering the nonlinear robot along {stops.size - 1} leg(s), each from rest at the "
+        "equilibrium of a waypoint to the output of the next one listed:",
+        file=out,
+    )
+    unit = _miss_unit(robot)
+    print(
+        f"  {'leg':>4} {'from':>5} {'to':>5} {f'distance [{unit}]':>13} {f'miss [{unit}]':>10} "
+        f"{'T [s]':>7}  reached",
+        file=out,
+    )
+    rows = []
+    for number, (i, j) in enumerate(zip(stops[:-1], stops[1:], strict=True), start=1):
+        q_from = robot.from_natural(path.natural[i])
+        y_to = robot.output(robot.from_natural(path.natural[j]))
+        result = steer(robot, q_from, y_to, tension=tension)
+        first = result.duration
+        longest = None  # what the plan resolves at this waypoint (steer refuses more)
+        for factor in LEG_DURATION_FACTORS[1:]:
+            if result.reached:
+                break
+            if longest is None:
+                longest = longest_duration(linearise(robot, q_from, tension=tension))
+            T = min(factor * first, longest)
+            if T <= result.duration:
+                break
+            result = steer(robot, q_from, y_to, tension=tension, duration=T)
+        distance = float(np.linalg.norm(y_to - result.y0))
+        rows.append(
+            {
+                "from": int(i),
+                "to": int(j),
+                "distance": distance,
+                "miss": float(result.miss),
+                "reached": bool(result.reached),
+                "duration": result.duration,
+                "status": result.status,
+            }
+        )
+        word = "yes" if result.reached else "no"
+        print(
+            f"  {number:>4} {int(i):>5} {int(j):>5} {distance:>13.4g} {result.miss:>10.3g} "
+            f"{result.duration:>7.3g}  {word}",
+            file=out,
+        )
+        out.flush()
+    reached = sum(row["reached"] for row in rows)
+    legs_text = f"{len(rows)} legs reached their" if len(rows) != 1 else "1 leg reached its"
+    print(f"{reached} of {legs_text} waypoint's output", file=out)
+    return rows
+
+
+def _miss_unit(robot: CableRobot) -> str:
+    """The unit of the legs' distances and misses: the outputs' (``m``,
+    ``rad``, or ``m, rad``)."""
+    from cdpm.dynamics.reach import reach_unit
+
+    return reach_unit(robot.output_units).replace(" and ", ", ").replace(", one to one", "")
+
+
+def _legs_caption(legs: list[dict], unit: str) -> str:
+    """How steering along the path went, for the picture's title: ``"steered
+    along 18 leg(s): 17 reached their waypoint's output; missed: leg 16
+    (waypoints 72 to 76) by 0.378 m"``."""
+    reached = sum(leg["reached"] for leg in legs)
+    text = f"steered along {len(legs)} leg(s): {reached} reached their waypoint's output"
+    missed = [
+        f"leg {k} (waypoints {leg['from']} to {leg['to']}) by {leg['miss']:.3g} {unit}"
+        for k, leg in enumerate(legs, start=1)
+        if not leg["reached"]
+    ]
+    return text + ("; missed: " + ", ".join(missed) if missed else "")
+
+
+def _path_trajectory(robot: CableRobot, ds, path):
+    """The path as a :class:`cdpm.Trajectory` for the viewer: the waypoints'
+    configurations at rest with their equilibrium tensions,
+    VIEW_STEP_SECONDS per step."""
+    import numpy as np
+
+    from cdpm.dynamics.equilibrium import equilibrium_tension
+    from cdpm.dynamics.simulation import Trajectory, trajectory_labels
+
+    tension = _map_tension(ds)
+    qs = np.array([robot.from_natural(x) for x in path.natural])
+    if tension is None or isinstance(tension, str):
+        fs = np.array([equilibrium_tension(robot, q, tension).tension for q in qs])
+    else:
+        fs = np.tile(np.asarray(tension, dtype=float), (qs.shape[0], 1))
+    fs = np.where(np.isfinite(fs), fs, robot.tension_min)
+    return Trajectory(
+        t=np.arange(qs.shape[0]) * VIEW_STEP_SECONDS,
+        q=qs,
+        v=np.zeros((qs.shape[0], robot.nv)),
+        f=fs,
+        y=np.array([robot.output(q) for q in qs]),
+        lengths=np.array([robot.cable_lengths(q) for q in qs]),
+        **trajectory_labels(robot),
+    )
+
+
+def _view(robot: CableRobot, ds, path, args, out) -> None:
+    import signal
+
+    from cdpm.cli.view import _exit_on_sigterm
+    from cdpm.viewer import Viewer
+
+    traj = _path_trajectory(robot, ds, path)
+    # a plain `kill` also closes the viewer (and stops its server process)
+    signal.signal(signal.SIGTERM, _exit_on_sigterm)
+    with Viewer(robot, traj.q[0], port=args.port) as viewer:
+        until = "Ctrl-C to stop" if args.seconds is None else f"for {args.seconds:g} s"
+        print(f"viewer: {viewer.url()}  (playing the path in a loop, {until})", file=out)
+        out.flush()
+        frames = viewer.play(traj, loop=True, seconds=args.seconds)  # Ctrl-C ends it
+    print(f"viewer stopped after {frames} frames", file=sys.stderr)

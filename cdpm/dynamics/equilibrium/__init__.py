@@ -1,0 +1,300 @@
+"""Equilibrium cable tensions: which tensions hold the robot still at a pose.
+
+At rest (q' = q'' = 0) the dynamics (seed paper eq 11) reduce to statics::
+
+    L(q)^T f = -G(q) - w_ext,      f_min <= f <= f_max
+
+with L the cable Jacobian (m, nv), G the generalised gravity and w_ext the
+spec's constant generalised external force. With more cables than degrees
+of freedom many tensions may hold the pose; :func:`equilibrium_tension`
+picks one by a named method:
+
+``zero``
+    f = 0, feasible only when zero tension holds the pose (no gravity or
+    external load there) and every cable allows zero tension (f_min = 0).
+    The seed paper's case.
+``min_norm``
+    The tension of least 2-norm within the bounds: the cables work as
+    little as possible, so cables not needed are slack at f_min. Gives
+    exactly f = f_min when that holds the pose; in particular f = 0 for the
+    paper's model (no gravity, f_min = 0). This is the default.
+``pretension``
+    The tension of least 2-norm with every cable at least
+    ``max(f_min, pretension)``: a pretensioned robot, every cable taut.
+
+:func:`solve_equilibria` solves many poses at once (the box's least-norm
+corner, then a batched semismooth Newton method on the dual, then the exact
+QP solver DAQP for the few poses Newton leaves undecided); the per-pose
+:func:`equilibrium_tension` is that function on a batch of one, plus the
+words that explain its result. Results meet the bounds exactly and the
+statics to round-off. A pose no tension in bounds can hold is a result
+with ``feasible = False`` and the smallest statics residual reachable
+within the bounds, never an exception.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import warnings
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from cdpm.dynamics.equilibrium.methods import (
+    DEFAULT_METHOD,
+    EQUILIBRIUM_METHODS,
+    HOW,
+    EquilibriumBatch,
+    EquilibriumMethod,
+    solve_equilibria,
+)
+from cdpm.dynamics.equilibrium.qp import closest_in_bounds, min_norm_in_bounds
+from cdpm.dynamics.equilibrium.result import (
+    PYTHON_OPTIONS,
+    EquilibriumResult,
+    EquilibriumWarning,
+    InfeasibleEquilibriumError,
+    NotAnEquilibriumError,
+    ZeroPretensionWarning,
+)
+from cdpm.errors import InputError, float_array, float_scalar
+from cdpm.numerics import MAX_TENSION, STATICS_RTOL
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cdpm.model.kinematics import BatchKinematics
+    from cdpm.model.robot import CableRobot
+
+__all__ = [
+    "EQUILIBRIUM_METHODS",
+    "DEFAULT_METHOD",
+    "STATICS_RTOL",
+    "EquilibriumMethod",
+    "EquilibriumBatch",
+    "EquilibriumResult",
+    "EquilibriumWarning",
+    "InfeasibleEquilibriumError",
+    "NotAnEquilibriumError",
+    "ZeroPretensionWarning",
+    "PYTHON_OPTIONS",
+    "equilibrium_tension",
+    "equilibrium_tensions",
+    "check_equilibrium",
+    "solve_equilibria",
+    "resolve_method",
+    "statics",
+]
+
+
+def resolve_method(robot: CableRobot, method: str | None, pretension: float | None):
+    """(method name, pretension [N]) of a request, validated: None takes the
+    spec's method and pretension.
+
+    Raises:
+        InputError: unknown method, or a negative or non-finite pretension.
+    """
+    spec = robot.spec
+    if method is None:
+        method = getattr(spec, "equilibrium_method", None) or DEFAULT_METHOD
+    if method not in EQUILIBRIUM_METHODS:
+        raise InputError(
+            f"unknown equilibrium method {method!r}; use one of {', '.join(EQUILIBRIUM_METHODS)}"
+        )
+    if pretension is None:
+        pretension = float(getattr(spec, "pretension", 0.0) or 0.0)
+    return method, checked_pretension(pretension)
+
+
+def checked_pretension(pretension: Any) -> float:
+    """A pretension [N] as a float in [0, MAX_TENSION].
+
+    Raises:
+        InputError: not a number, negative, too large or not finite.
+    """
+    try:
+        value = float_scalar(pretension)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"pretension must be a number of newtons, got {pretension!r}") from exc
+    if not (math.isfinite(value) and 0 <= value <= MAX_TENSION):
+        raise InputError(
+            f"pretension must be finite, >= 0 and <= {MAX_TENSION:g} N, got {pretension}"
+        )
+    return value
+
+
+def statics(robot: CableRobot, kin: BatchKinematics) -> tuple[np.ndarray, np.ndarray]:
+    """(L^T (N, nv, m), load = -G - w_ext (N, nv)) of batch kinematics with
+    dynamics: what every equilibrium of cdpm balances, in one layout."""
+    return np.swapaxes(kin.jacobian, 1, 2), -kin.gravity - robot.external_wrench
+
+
+def _statics(robot: CableRobot, q: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(q, L^T (1, nv, m), load (1, nv)) at q, as :func:`statics` on a batch of one."""
+    q = robot.kinematics(q).q  # validates q; raises on a zero-length segment
+    LT, load = statics(robot, robot.kinematics_batch(q[None], dynamics=True))
+    return q, LT, load
+
+
+def equilibrium_tensions(
+    robot: CableRobot, LT: np.ndarray, load: np.ndarray, method: Any = None, pretension=None
+) -> EquilibriumBatch:
+    """Equilibrium tensions of many poses: :func:`solve_equilibria` with the
+    robot's bounds and the method (or given tensions) resolved as in
+    :func:`equilibrium_tension`.
+
+    Args:
+        robot: the robot (bounds, spec defaults).
+        LT: L^T at each pose, shape (N, nv, m).
+        load: -G - w_ext at each pose, shape (N, nv) [N or N m].
+        method: None (the spec's), a method name, or tensions [N] (m,).
+        pretension: [N]; None takes the spec's.
+    """
+    if method is not None and not isinstance(method, str):
+        return solve_equilibria(LT, load, robot.tension_min, robot.tension_max, method)
+    method, pretension = resolve_method(robot, method, pretension)
+    return solve_equilibria(LT, load, robot.tension_min, robot.tension_max, method, pretension)
+
+
+def _result(robot: CableRobot, q, load, batch: EquilibriumBatch, message: str) -> EquilibriumResult:
+    return EquilibriumResult(
+        q=q.copy(),
+        tension=batch.tension[0],
+        feasible=bool(batch.feasible[0]),
+        residual=float(batch.residual[0]),
+        method=batch.method,
+        pretension=batch.pretension,
+        at_lower_bound=batch.at_lower_bound[0],
+        at_upper_bound=batch.at_upper_bound[0],
+        taut=batch.taut[0],
+        load=load,
+        message=message,
+        cable_names=tuple(robot.cable_names),
+        tension_min=robot.tension_min.copy(),
+        tension_max=robot.tension_max.copy(),
+    )
+
+
+def check_equilibrium(robot: CableRobot, q: Any, tension: Any) -> EquilibriumResult:
+    """Whether given tensions hold the robot at q (method ``given``).
+
+    Args:
+        robot: a :class:`~cdpm.model.robot.CableRobot`.
+        q: configuration (nq,), natural coordinates (nv,) or pose name.
+        tension: cable tensions [N], shape (m,).
+
+    Raises:
+        InputError: the tension has the wrong length, or entries that are
+            not finite or larger than MAX_TENSION in magnitude.
+    """
+    try:
+        f = float_array(tension, copy=True).reshape(-1)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"tension must be a vector of {robot.n_cables} numbers: {exc}") from exc
+    if f.shape[0] != robot.n_cables:
+        raise InputError(
+            f"tension has {f.shape[0]} entries, expected one per cable "
+            f"({robot.n_cables}: {', '.join(robot.cable_names)})"
+        )
+    if not np.all(np.abs(f) <= MAX_TENSION):
+        raise InputError(
+            f"tension entries must be finite tensions of at most {MAX_TENSION:g} N, got {f}"
+        )
+    q, LT, load = _statics(robot, q)
+    batch = solve_equilibria(LT, load, robot.tension_min, robot.tension_max, f)
+    if batch.feasible[0]:
+        message = "the given tensions hold the pose"
+    elif not np.all((f >= robot.tension_min) & (f <= robot.tension_max)):
+        message = "the given tensions leave the cable bounds"
+    else:
+        message = f"the given tensions do not hold the pose (residual {batch.residual[0]:.3g})"
+    return _result(robot, q, load[0], batch, message)
+
+
+def equilibrium_tension(
+    robot: CableRobot,
+    q: Any,
+    method: str | None = None,
+    pretension: float | None = None,
+) -> EquilibriumResult:
+    """Cable tensions that hold the robot at rest at q.
+
+    Solves ``L(q)^T f = -G(q) - w_ext`` with ``f_min <= f <= f_max`` (module
+    docstring: methods ``zero``, ``min_norm``, ``pretension``): the batched
+    :func:`solve_equilibria` on one pose.
+
+    Args:
+        robot: a :class:`~cdpm.model.robot.CableRobot`.
+        q: configuration (nq,), natural coordinates (nv,) or pose name.
+        method: how to choose among the equilibria; None uses the spec's
+            ``equilibrium.method`` (``min_norm`` when the spec names none).
+        pretension: least tension [N] of every cable for the ``pretension``
+            method; None uses the spec's ``equilibrium.pretension``. The
+            other methods do not use it. With 0 N the ``pretension`` method
+            is ``min_norm``, which a :class:`ZeroPretensionWarning` (an
+            :class:`EquilibriumWarning`) points out.
+
+    Returns:
+        The :class:`EquilibriumResult`; ``feasible`` is False (with the
+        smallest residual reachable within the bounds) when no tension in
+        bounds holds the pose.
+
+    Raises:
+        InputError: unknown method, or a negative or non-finite pretension.
+        ModelError: a cable has zero length at q.
+    """
+    method, pretension = resolve_method(robot, method, pretension)
+    if method == "pretension" and pretension == 0:
+        warnings.warn(ZeroPretensionWarning(), stacklevel=2)
+    q, LT, load = _statics(robot, q)
+    fmin, fmax = robot.tension_min, robot.tension_max
+    batch = solve_equilibria(LT, load, fmin, fmax, method, pretension)
+    how = int(batch.how[0])
+    if batch.feasible[0]:
+        if how == HOW["zero"]:
+            message = "zero tension holds the pose (no load to balance)"
+        elif how == HOW["box_corner"]:
+            lower = batch.tension[0]
+            what = "zero tension" if not np.any(lower) else "every cable at its lower bound"
+            message = f"{what} holds the pose"
+        else:
+            n_free = int(np.count_nonzero(~batch.sign_constrained[0]))
+            m = robot.n_cables
+            message = f"least-norm tension in bounds; {n_free} of {m} cables inside their bounds"
+        return _result(robot, q, load[0], batch, message)
+    return _infeasible(robot, q, LT[0], load[0], batch, method, pretension)
+
+
+def _infeasible(robot: CableRobot, q, lt, load, batch, method, pretension) -> EquilibriumResult:
+    """The infeasible result: why, and the closest tensions in bounds."""
+    fmin, fmax = robot.tension_min, robot.tension_max
+    how = int(batch.how[0])
+    names = robot.cable_names
+    if how == HOW["zero"]:
+        if np.any(fmin > 0):
+            low = [names[i] for i in np.flatnonzero(fmin > 0)]
+            return _result(
+                robot,
+                q,
+                load,
+                batch,
+                f"zero tension is below the minimum tension of {', '.join(low)}",
+            )
+        message = f"zero tension leaves the load |G + w_ext| = {batch.residual[0]:.6g} unbalanced"
+        return _result(robot, q, load, batch, message)
+    lower, upper = EQUILIBRIUM_METHODS[method].box(fmin, fmax, pretension)
+    if how == HOW["bound_conflict"]:
+        over = [names[i] for i in np.flatnonzero(lower > upper)]
+        message = f"pretension {pretension:g} N exceeds the maximum tension of {', '.join(over)}"
+        return _result(robot, q, load, batch, message)
+    # the exact QP says why (its exit flag), then the closest tensions in bounds
+    x, why = min_norm_in_bounds(lt, load, lower, upper)
+    if x is not None:
+        residual = float(np.linalg.norm(lt @ x - load))
+        why = f"the QP solution misses the statics by {residual:.3g}"
+    f = closest_in_bounds(lt, load, lower, upper)
+    closest = solve_equilibria(lt[None], load[None], fmin, fmax, f)
+    closest = dataclasses.replace(
+        closest, feasible=np.zeros(1, bool), method=method, pretension=batch.pretension
+    )
+    message = f"{why}; closest tension in bounds leaves residual {closest.residual[0]:.6g}"
+    return _result(robot, q, load, closest, message)

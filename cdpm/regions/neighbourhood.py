@@ -1,0 +1,697 @@
+"""The POC neighbourhood of a pose: how far around it every pose is POC.
+
+The seed paper (Section IV-C, Lemma 1, Remark 10) places its nominal pose
+in a POC region because a ball of POC equilibria surrounds it.
+:func:`poc_neighbourhood` measures that ball: it decides POC (Theorem 1) and
+the reach margin r_T on a grid around q with the map pipeline
+(:func:`cdpm.pipeline.evaluate.evaluate_batch`) and reports the largest radius
+within which every sampled pose is YES and r_T stays clear of 0 between
+neighbouring samples (:func:`cdpm.regions.paths.suspect_edges`). Distances are in
+scaled natural coordinates ``s = dq / scale`` (rad for angles, m for
+lengths at scale 1); the box is ``|s|_inf <= R``. docs/analysis.md, "The
+POC neighbourhood", gives the sampling rules, the defaults and examples.
+"""
+
+from __future__ import annotations
+
+import html
+import itertools
+import math
+import os
+import time
+import warnings
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from cdpm.errors import InputError, is_integer
+from cdpm.numerics import SPAN_TOL, SUSPECT_LIPSCHITZ_SAFETY
+from cdpm.verdicts import NOT_ANALYSED, STATUS_CODES, STATUS_LABELS, VERDICT_CODES, YES, verdict_key
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cdpm.dynamics.reach import ReachSettings
+    from cdpm.model.robot import CableRobot
+
+__all__ = ["Neighbourhood", "SampledPose", "NonYesPose", "poc_neighbourhood"]
+
+#: default grid budget on the closed-form (zero-load, nv <= 2) path [poses]
+DEFAULT_MAX_POSES = 20000
+#: default grid budget when poses go through the analyser [poses]
+DEFAULT_MAX_POSES_LOADED = 4000
+#: most points per axis of a default grid
+MAX_DEFAULT_POINTS = 101
+#: most poses of a grid with ``points`` given
+MAX_POSES = 1_000_000
+#: grids with fewer points per axis get rays of this many points through q
+RAY_POINTS = 21
+#: corner rays (2^k of them) only up to this many varied coordinates
+MAX_CORNER_RAY_COORDINATES = 10
+#: poses per call of the pipeline
+_CHUNK = 4096
+
+
+@dataclass(frozen=True)
+class SampledPose:
+    """A sampled pose that is not YES, or an end of a suspect edge.
+
+    Attributes:
+        natural: its natural coordinates, shape (nv,) [rad or m].
+        offset: ``dq`` over the varied coordinates, shape (k,) [rad or m].
+        distance_box, distance_ball: ``|dq / scale|`` in the inf- and 2-norm.
+        verdict, status: its POC verdict and status codes (cdpm.verdicts).
+        outside_limits: it lies outside the URDF joint limits.
+        margin: its reach margin r_T [output units] (NaN when not analysed).
+    """
+
+    natural: np.ndarray
+    offset: np.ndarray
+    distance_box: float
+    distance_ball: float
+    verdict: int
+    status: int
+    outside_limits: bool
+    margin: float = math.nan
+
+    def describe(self) -> str:
+        """The verdict in words: ``NO``, ``MARGINAL`` or ``not analysed (no equilibrium)``."""
+        return _describe(self.verdict, self.status)
+
+    def where(self, names: Sequence[str], varied: Sequence[str]) -> str:
+        """The pose as ``"q1 = 1.4636, q2 = 1.6072"`` (the varied coordinates)."""
+        return ", ".join(f"{c} = {self.natural[list(names).index(c)]:.5g}" for c in varied)
+
+    def as_dict(self, coordinate_names: Sequence[str]) -> dict:
+        """Plain JSON data (coordinates by name)."""
+        return {
+            "coordinates": dict(zip(coordinate_names, map(float, self.natural), strict=True)),
+            "distance_box": self.distance_box,
+            "distance_ball": self.distance_ball,
+            "verdict": verdict_key(self.verdict),
+            "status": STATUS_LABELS.get(self.status, str(self.status)),
+            "description": self.describe(),
+            "outside_limits": self.outside_limits,
+            "reach_margin": self.margin if math.isfinite(self.margin) else None,
+        }
+
+
+NonYesPose = SampledPose  # the nearest non-YES poses are SampledPose too
+
+
+@dataclass(frozen=True)
+class Neighbourhood:
+    """The POC neighbourhood of a pose, measured on a local refined map;
+    distances in scaled natural coordinates ``s = dq / scale``, in :attr:`unit`.
+
+    Attributes:
+        model_name: name of the spec file.
+        pose_name: name of the pose, or None for an explicit q.
+        natural: natural coordinates of the pose, shape (nv,).
+        coordinate_names: names of all nv natural coordinates.
+        coordinates: the k varied coordinates (the box's axes), in robot order.
+        units, scale: ``"rad"`` or ``"m"``, and the scale [unit per unit of
+            R], per varied coordinate (k,).
+        radius: R, the box's half-width [scaled units].
+        points: grid points per axis n (odd; 1: q alone, rays only).
+        step: grid step per varied coordinate [its unit], (k,): ``2 R
+            scale / (n - 1)`` (NaN for n = 1).
+        axis_rays, corner_rays, ray_points: rays sampled besides the grid
+            and points per ray (beyond q).
+        n_poses: poses evaluated (q included; 1 when q is not YES).
+        verdict, status: POC verdict and status codes at q.
+        box_radius: the largest sampled radius r <= R within which every
+            sampled pose is YES and no suspect edge starts (``|s|_inf``).
+        box_bracket: (box_radius, where the region may end: the nearest
+            non-YES pose or far end of a suspect edge; None: nothing does).
+        ball_radius, ball_bracket: the same in the 2-norm ``|s|_2 <= R``.
+        whole_box_yes: every sampled pose is YES and no edge is suspect
+            (the radii are then R: at least R, as far as the samples show).
+        nearest: the non-YES pose nearest in the inf-norm (ties: 2-norm), or
+            None; nearest_ball: the nearest in the 2-norm inside the ball.
+        suspect_edges: number of suspect edges sampled; nearest_suspect:
+            the ends (nearer first) of the one whose nearer end is nearest.
+        reach: the reach margin's horizon and tension budget.
+        counts, status_counts: verdict and status name -> sampled poses.
+        outside_limits: sampled poses outside the URDF joint limits.
+        tension, pretension: the equilibrium tension setting (method name
+            or tensions [N]) and the pretension [N] passed (None: the spec's).
+        tol: the span tolerance [rad]; seconds: wall time [s]; reason: what
+            limits the radius, in words.
+    """
+
+    model_name: str
+    pose_name: str | None
+    natural: np.ndarray
+    coordinate_names: tuple[str, ...]
+    coordinates: tuple[str, ...]
+    units: tuple[str, ...]
+    scale: np.ndarray
+    radius: float
+    points: int
+    step: np.ndarray
+    axis_rays: int
+    corner_rays: int
+    ray_points: int
+    n_poses: int
+    verdict: int
+    status: int
+    box_radius: float
+    box_bracket: tuple[float, float | None]
+    ball_radius: float
+    ball_bracket: tuple[float, float | None]
+    whole_box_yes: bool
+    nearest: SampledPose | None
+    nearest_ball: SampledPose | None
+    suspect_edges: int
+    nearest_suspect: tuple[SampledPose, SampledPose] | None
+    reach: ReachSettings
+    counts: dict[str, int]
+    status_counts: dict[str, int]
+    outside_limits: int
+    tension: str | list[float]
+    pretension: float | None
+    tol: float
+    seconds: float
+    reason: str
+    margin_unit: str = "m"
+
+    @property
+    def unit(self) -> str:
+        """Unit of the radii: ``"rad"`` or ``"m"``; ``"m or rad"`` for mixed
+        units at scale 1 (1 m counts as 1 rad); else ``"scaled units"``."""
+        if not np.all(self.scale == 1.0):
+            return "scaled units"
+        return self.units[0] if len(set(self.units)) == 1 else "m or rad"
+
+    @property
+    def grid_shape(self) -> str:
+        """``"41-point"`` (k = 1), ``"41x41"``, ``"3^6"`` (k > 3) or ``"1-point"``."""
+        k = len(self.coordinates)
+        if self.points == 1 or k == 1:
+            return f"{self.points}-point"
+        return "x".join([str(self.points)] * k) if k <= 3 else f"{self.points}^{k}"
+
+    def lines(self) -> list[str]:
+        """The neighbourhood in words, for the pose report (first line: the
+        summary)."""
+        u, R, (lo, hi) = self.unit, self.radius, self.box_bracket
+        if self.verdict != YES:
+            return [f"POC neighbourhood: radius 0: {self.reason} (no neighbourhood evaluated)"]
+        grid = f"{self.grid_shape} grid{' plus rays' if self.axis_rays else ''} of half-width"
+        grid = f"on a {grid} {R:.4g} {u}"
+        clear = "is YES and r_T stays clear of 0 between neighbouring samples"
+        if self.whole_box_yes:
+            head = f"every sampled pose within {R:.4g} {u} (box, inf-norm) of the pose {clear}, "
+            out = [f"{head}{grid}: the whole box, so the radius is at least {R:.4g} {u}"]
+        elif lo > 0:
+            head = f"radius {lo:.4g} {u} (box, inf-norm) {grid}: every sampled pose within it "
+            out = [f"{head}{clear}"]
+        else:
+            out = [f"radius 0 {grid}: the pose is YES, but {self.reason}"]
+        out[0] = "POC neighbourhood: " + out[0]
+        if not self.whole_box_yes:
+            out.append(
+                f"  box radius in [{lo:.4g}, {hi:.4g}] {u}: it stops at the nearest non-YES pose "
+                "or where r_T comes within one step's change of 0, where a NO set thinner than "
+                "the grid may pass (the region may end between the two)"
+            )
+        names, varied, near = self.coordinate_names, self.coordinates, self.nearest
+        if near is not None:
+            where = f"{near.describe()} at ({near.where(names, varied)})"
+            out.append(f"  nearest non-YES pose: {where}, {near.distance_box:.4g} {u} away")
+        if self.nearest_suspect is not None:
+            a, b = self.nearest_suspect
+            out.append(
+                f"  nearest suspect edge: r_T = {a.margin:.3g} and {b.margin:.3g} "
+                f"{self.margin_unit} at ({a.where(names, varied)}) and ({b.where(names, varied)}), "
+                f"{a.distance_box:.4g} and {b.distance_box:.4g} {u} away "
+                f"({self.suspect_edges} suspect edges in all)"
+            )
+        ball, end = self.ball_bracket
+        out.append(
+            f"  ball (2-norm): every sampled pose within {R:.4g} {u} {clear}"
+            if end is None
+            else f"  ball (2-norm): radius {ball:.4g} {u}, the region may end at {end:.4g}"
+        )
+        out.append("  " + self._sampled_text())
+        out.append(
+            f"  r_T: T {self.reach.horizon:.3g} s, budget {self.reach.tension_budget:.3g} N; "
+            f"suspect: r(a) + r(b) <= {SUSPECT_LIPSCHITZ_SAFETY:g} L h, L the largest slope of "
+            "r_T sampled at a or b (a heuristic)"
+        )
+        if u == "m or rad":
+            out.append("  mixed units: 1 m of translation counts as 1 rad (set scale= to change)")
+        elif u == "scaled units":
+            parts = zip(self.coordinates, self.scale, self.units, strict=True)
+            scales = ", ".join(f"{c} {x:g} {unit}" for c, x, unit in parts)
+            out.append(f"  distances in dq / scale; scale: {scales}")
+        counts = ", ".join(f"{v} {k.replace('_', ' ')}" for k, v in self.counts.items() if v)
+        out.append(f"  verdicts: {counts}")
+        if self.outside_limits:
+            also = self.nearest is not None and self.nearest.outside_limits
+            out.append(
+                f"  {self.outside_limits} sampled poses lie outside the URDF joint limits "
+                "(evaluated anyway)" + ("; the nearest non-YES pose is one of them" if also else "")
+            )
+        return out
+
+    def _sampled_text(self) -> str:
+        names = ", ".join(self.coordinates)
+        if self.points > 1:
+            steps = {f"{s:.3g} {unit}" for s, unit in zip(self.step, self.units, strict=True)}
+            text = f"sampled: {self.grid_shape} grid over {names}, step {' / '.join(sorted(steps))}"
+        else:
+            text = f"sampled: over {names}, no grid beyond q"
+        if self.axis_rays + self.corner_rays:
+            text += (
+                f", plus {self.axis_rays} axis and {self.corner_rays} corner rays of "
+                f"{self.ray_points} points (step {self.radius / self.ray_points:.3g} {self.unit})"
+            )
+        return text + f"; {self.n_poses} poses in {self.seconds:.2g} s"
+
+    def __str__(self) -> str:
+        return "\n".join(self.lines())
+
+    def _repr_html_(self) -> str:
+        return f"<pre>{html.escape(str(self))}</pre>"
+
+    def to_plain(self) -> dict:
+        """JSON-serialisable content (None for an unbounded bracket)."""
+        from cdpm.printing import to_plain
+
+        names, varied, suspect = self.coordinate_names, self.coordinates, self.nearest_suspect
+
+        def plain(pose):
+            return None if pose is None else pose.as_dict(names)
+
+        same = (
+            "radius points ray_points n_poses box_radius box_bracket ball_radius ball_bracket "
+            "whole_box_yes suspect_edges counts status_counts outside_limits tension pretension "
+            "tol seconds reason"
+        )
+        return to_plain(
+            {
+                "model": self.model_name,
+                "pose": self.pose_name,
+                "coordinates": dict(zip(names, self.natural.tolist(), strict=True)),
+                "varied": list(varied),
+                "units": list(self.units),
+                "unit": self.unit,
+                "scale": dict(zip(varied, self.scale.tolist(), strict=True)),
+                "grid": self.grid_shape,
+                "step": dict(zip(varied, self.step.tolist(), strict=True)),
+                "rays": {"axis": self.axis_rays, "corner": self.corner_rays},
+                "verdict": verdict_key(self.verdict),
+                "status": STATUS_LABELS.get(self.status, str(self.status)),
+                "nearest": plain(self.nearest),
+                "nearest_ball": plain(self.nearest_ball),
+                "nearest_suspect": None if suspect is None else [plain(p) for p in suspect],
+                "suspect_lipschitz_safety": SUSPECT_LIPSCHITZ_SAFETY,
+                "reach": self.reach.as_dict(),
+                **{key: getattr(self, key) for key in same.split()},
+            }
+        )
+
+    as_dict = to_plain
+
+
+def _describe(verdict: int, status: int) -> str:
+    if verdict == NOT_ANALYSED:
+        return f"not analysed ({STATUS_LABELS.get(int(status), str(status))})"
+    return verdict_key(verdict).upper()
+
+
+def _check_radius(radius: Any) -> float:
+    from cdpm.expressions import parse_number
+
+    try:
+        value = parse_number(radius)
+    except ValueError as exc:
+        raise InputError(
+            f"radius must be a number [rad or m], e.g. 0.1 or 'pi/20', got {radius!r}"
+        ) from exc
+    if not (math.isfinite(value) and value > 0):
+        raise InputError(f"radius must be a positive finite number [rad or m], got {radius!r}")
+    return value
+
+
+def _check_points(points: Any, k: int) -> int:
+    if not is_integer(points):
+        raise InputError(f"points must be an odd integer >= 1 (points per axis), got {points!r}")
+    n = int(points)
+    if n < 1 or n % 2 == 0:
+        raise InputError(f"points must be odd and >= 1 so that q is a grid point, got {points!r}")
+    if n > 1 and n**k > MAX_POSES:
+        raise InputError(
+            f"points={n} over {k} coordinates is a grid of {n**k:,} poses; at most "
+            f"{MAX_POSES:,}: give fewer points or fewer coordinates"
+        )
+    return n
+
+
+def _check_coordinates(robot: CableRobot, coordinates: Any) -> list[int]:
+    names = list(robot.coordinate_names)
+    if coordinates is None:
+        return list(range(robot.nv))
+    try:
+        chosen = [coordinates] if isinstance(coordinates, str) else list(coordinates)
+    except TypeError as exc:
+        raise InputError(f"coordinates must be coordinate names ({', '.join(names)})") from exc
+    unknown = [c for c in chosen if c not in names]
+    if unknown:
+        raise InputError(
+            f"unknown coordinates {', '.join(map(repr, unknown))}; coordinates: {', '.join(names)}"
+        )
+    if not chosen or len(set(chosen)) != len(chosen):
+        raise InputError(f"coordinates must name distinct coordinates, got {coordinates!r}")
+    return sorted(names.index(c) for c in chosen)
+
+
+def _check_scale(robot: CableRobot, scale: Any, columns: list[int]) -> np.ndarray:
+    out = np.ones(len(columns))
+    if scale is not None and not isinstance(scale, Mapping):
+        raise InputError(f"scale must be a mapping coordinate -> positive number, got {scale!r}")
+    varied = [robot.coordinate_names[i] for i in columns]
+    for name, value in (scale or {}).items():
+        if name not in varied:
+            raise InputError(
+                f"scale given for {name!r}, which is not a varied coordinate ({', '.join(varied)})"
+            )
+        try:
+            x = math.nan if isinstance(value, bool) else float(value)
+        except (TypeError, ValueError):
+            x = math.nan
+        if not (math.isfinite(x) and x > 0):
+            raise InputError(f"scale of {name!r} must be a positive number, got {value!r}")
+        out[varied.index(name)] = x
+    return out
+
+
+def _resolve_setting(robot: CableRobot, tension: Any, pretension: Any):
+    """(tension setting, pretension) validated as the map code does."""
+    from cdpm.dynamics.equilibrium import EQUILIBRIUM_METHODS, EquilibriumWarning, resolve_method
+    from cdpm.pipeline.evaluate import resolve_tension
+
+    with warnings.catch_warnings():
+        if isinstance(pretension, (int, float)) and pretension > 0:
+            # the warning is about the spec's pretension of 0 N, not used here
+            warnings.simplefilter("ignore", EquilibriumWarning)
+        setting = resolve_tension(robot, tension)
+    if isinstance(setting, str):
+        _, value = resolve_method(robot, setting, pretension)
+        pretension = None if pretension is None else value
+        return setting, pretension, EQUILIBRIUM_METHODS[setting].uses_pretension
+    return setting, pretension, False
+
+
+def _default_points(k: int, budget: int) -> int:
+    odd = [n for n in range(3, MAX_DEFAULT_POINTS + 1, 2) if n**k <= budget]
+    return odd[-1] if odd else 1
+
+
+def _limits(robot: CableRobot) -> tuple[np.ndarray, np.ndarray]:
+    """URDF position limits in natural coordinates, (nv,) each; +-inf
+    where a coordinate has none (rotations of multi-DOF joints)."""
+    from cdpm.model.coordinates import _kind
+
+    model = robot.model
+    limits_q = np.array([model.lowerPositionLimit, model.upperPositionLimit], dtype=float)
+    limits = np.array([np.full(robot.nv, -np.inf), np.full(robot.nv, np.inf)])
+    for joint in list(model.joints)[1:]:
+        count = {"euclidean": joint.nv, "freeflyer": 3, "planar": 2}.get(_kind(joint), 0)
+        iq, iv = joint.idx_q, joint.idx_v
+        limits[:, iv : iv + count] = limits_q[:, iq : iq + count]
+    return limits[0], limits[1]
+
+
+def _lattice(k: int, n: int, rays: bool) -> tuple[np.ndarray, int, int, int, np.ndarray]:
+    """Sampled offsets as integers ``U`` (N, k), ``s = U R / L``: (U without
+    the zero row, L, axis rays, corner rays, the steps (V, k) between
+    neighbouring samples: the grid step along each axis and a ray step
+    along each ray, one sign each)."""
+    half = (n - 1) // 2
+    m = (RAY_POINTS - 1) // 2 if rays else 1
+    L = math.lcm(max(half, 1), m)
+    parts, steps = [], []
+    if half:
+        axis = np.arange(-half, half + 1) * (L // half)
+        parts.append(np.stack(np.meshgrid(*[axis] * k, indexing="ij"), -1).reshape(-1, k))
+        steps.append(np.eye(k, dtype=np.int64) * (L // half))
+    n_axis = n_corner = 0
+    if rays:
+        eye = np.eye(k, dtype=np.int64)
+        directions = [eye, -eye]
+        n_axis = 2 * k
+        if k <= MAX_CORNER_RAY_COORDINATES and k > 1:
+            directions.append(np.array(list(itertools.product((-1, 1), repeat=k))))
+            n_corner = 2**k
+        d = np.vstack(directions)
+        t = np.arange(1, m + 1) * (L // m)
+        parts.append((d[:, None, :] * t[None, :, None]).reshape(-1, k))
+        first = d[np.arange(d.shape[0]), np.argmax(d != 0, axis=1)]
+        steps.append(d[first > 0] * (L // m))
+    U = np.unique(np.vstack(parts).astype(np.int64), axis=0)
+    return U[np.any(U != 0, axis=1)], L, n_axis, n_corner, np.unique(np.vstack(steps), axis=0)
+
+
+def _edges(U: np.ndarray, steps: np.ndarray, refined: int) -> np.ndarray:
+    """Pairs (2, E) of rows i, j of ``U`` (N, k) with ``U[j] = U[i] + v``
+    for a step v of ``steps``: the neighbouring samples; grid steps of
+    length ``refined`` along an axis through q, where the finer axis rays
+    sample, are left out."""
+    U = np.ascontiguousarray(U, dtype=np.int64)
+    row = {u.tobytes(): i for i, u in enumerate(U)}
+    out = [np.zeros((2, 0), dtype=np.intp)]
+    for v in steps.astype(np.int64):
+        j = np.fromiter((row.get(u.tobytes(), -1) for u in U + v), dtype=np.intp, count=len(U))
+        i = np.flatnonzero(j >= 0)
+        if np.count_nonzero(v) == 1 and np.abs(v).max() == refined:
+            i = i[np.any((U[i] != 0) & (v == 0), axis=1)]  # off the axis through q
+        out.append(np.stack([i, j[i]]))
+    return np.concatenate(out, axis=1)
+
+
+def _evaluate(robot, natural, setting, pretension, tol, reach):
+    """POC verdict and status codes (N,) and reach margins r_T (N,) [m] of
+    the poses ``natural`` (N, nv), by the map pipeline in chunks."""
+    from cdpm.pipeline.criteria import CRITERIA
+    from cdpm.pipeline.evaluate import evaluate_batch
+
+    n = natural.shape[0]
+    poc = np.full(n, NOT_ANALYSED, dtype=np.int8)
+    status = np.full(n, STATUS_CODES["pending"], dtype=np.int8)
+    margin = np.full(n, np.nan)
+    for start in range(0, n, _CHUNK):
+        stop = min(n, start + _CHUNK)
+        batch = evaluate_batch(
+            robot, natural[start:stop], setting, tol=tol, pretension=pretension, reach=reach
+        )
+        poc[start:stop] = CRITERIA["poc"].compute(batch)
+        status[start:stop] = CRITERIA["status"].compute(batch)
+        margin[start:stop] = CRITERIA["reach_margin"].compute(batch)
+    return poc, status, margin
+
+
+def _radius(distance, within, bad, ends, unit: float, root: bool):
+    """(radius, where the region may end) from integer distances (squared
+    when ``root``) times ``unit``: the largest sampled distance ``within``
+    below every ``bad`` pose and not beyond the nearer end of a suspect
+    edge (``ends`` (2, E); one on a shell counts like a bad pose there)."""
+    near, far = ends.min(axis=0), ends.max(axis=0)
+    strict = np.concatenate([distance[bad & within], near[near == far]])
+    upper = np.concatenate([distance[bad & within], far])
+    if upper.size == 0:
+        return None, None
+    top = np.iinfo(np.int64).max
+    ok = within & (distance < strict.min(initial=top))
+    ok &= distance <= near[near < far].min(initial=top)
+    pair = np.array([distance[ok].max(), upper.min()], dtype=float)
+    lo, hi = (np.sqrt(pair) if root else pair) * unit
+    return float(lo), float(hi)
+
+
+def poc_neighbourhood(
+    robot: CableRobot | str | os.PathLike,
+    q: Any,
+    radius: Any,
+    *,
+    points: int | None = None,
+    coordinates: Sequence[str] | None = None,
+    tension: Any = None,
+    pretension: float | None = None,
+    scale: Mapping[str, float] | None = None,
+    rays: bool | None = None,
+    tol: float = SPAN_TOL,
+    horizon: Any = None,
+    tension_budget: Any = None,
+    pose_name: str | None = None,
+) -> Neighbourhood:
+    """How far around the pose q every sampled pose is positive output
+    controllable, with r_T clear of 0 between neighbouring samples.
+
+    Args:
+        robot: a :class:`~cdpm.model.robot.CableRobot` or the path of its cable spec.
+        q: a pose name from the spec, a configuration vector (nq,) or
+            natural coordinates (nv,) (as :func:`cdpm.analyze_pose`).
+        radius: R > 0, the half-width of the box ``|dq_i / scale_i| <= R``
+            [rad or m]; a number or an expression such as ``"pi/20"``.
+        points: grid points per axis n, odd (q is the centre; 1: q and the
+            rays only); default from the pose budget. More points refine it.
+        coordinates: names of the coordinates to vary (default all nv).
+        tension: equilibrium tension: None (the spec's method), a method
+            name (``zero``, ``min_norm``, ``pretension``) or tensions [N] (m,).
+        pretension: least tension [N] for ``pretension`` (None: the spec's).
+        scale: coordinate name -> positive scale (default 1): that
+            coordinate spans ``+-R scale`` and its distances are divided by
+            it (``{"platform_joint.x": 0.5}``: 0.5 m counts as 1 unit of R).
+        rays: sample the axis and corner rays; default when n < RAY_POINTS.
+        tol: angle-like tolerance of the span decisions [rad] (as for maps).
+        horizon, tension_budget: T [s] and tension budget [N] of r_T
+            (:func:`cdpm.dynamics.reach.reach_settings`; default: the model's).
+        pose_name: the pose's name in the result when q is given as numbers
+            (default: q when q is a name, else None).
+
+    Returns:
+        :class:`Neighbourhood`: radii, brackets, what limits them, counts.
+
+    Raises:
+        InputError: a radius not positive and finite, points not an odd
+            integer (or beyond MAX_POSES poses), unknown or repeated
+            coordinates, a bad scale, tension, pretension, tol, horizon,
+            tension budget or q.
+    """
+    from cdpm.dynamics.equilibrium import EquilibriumWarning
+    from cdpm.dynamics.reach import reach_settings, reach_unit
+    from cdpm.model.coordinates import coordinate_units
+    from cdpm.model.robot import CableRobot, load_robot
+    from cdpm.pipeline.evaluate import check_tol, single_threaded_blas, zero_equilibrium
+    from cdpm.regions.paths import suspect_edges
+
+    started = time.perf_counter()
+    robot = robot if isinstance(robot, CableRobot) else load_robot(robot)
+    R = _check_radius(radius)
+    columns = _check_coordinates(robot, coordinates)
+    k = len(columns)
+    scale_k = _check_scale(robot, scale, columns)
+    tol = check_tol(tol)
+    setting, pretension, uses_pretension = _resolve_setting(robot, tension, pretension)
+    reach = reach_settings(robot, horizon, tension_budget)
+    if points is None:  # the map's zero-load path decides in closed form (cheap)?
+        closed = robot.nv <= 2 and zero_equilibrium(robot, setting)
+        closed = closed and not (uses_pretension and pretension)
+        n = _default_points(k, DEFAULT_MAX_POSES if closed else DEFAULT_MAX_POSES_LOADED)
+    else:
+        n = _check_points(points, k)
+    with_rays = n < RAY_POINTS if rays is None else bool(rays)
+    if n == 1 and not with_rays:
+        raise InputError("points=1 samples q alone: leave rays on (rays=None or True)")
+    pose_name = q if pose_name is None and isinstance(q, str) else pose_name
+    natural = robot.to_natural(robot.as_q(q))
+    U, L, n_axis, n_corner, steps = _lattice(k, n, with_rays)
+    U = np.vstack([np.zeros((1, k), dtype=np.int64), U])  # q first
+    offsets = np.zeros((U.shape[0], robot.nv))
+    offsets[:, columns] = U * (R / L) * scale_k
+    poses = natural + offsets
+    with single_threaded_blas(), warnings.catch_warnings():
+        # the pipeline repeats, per chunk, the tension warning given above
+        warnings.simplefilter("ignore", EquilibriumWarning)
+        args = (setting, pretension, tol, reach)
+        poc, status_all, margin = _evaluate(robot, poses[:1], *args)
+        verdict, status = int(poc[0]), int(status_all[0])
+        if verdict == YES:
+            rest = _evaluate(robot, poses[1:], *args)
+            poc, status_all, margin = (
+                np.concatenate(p) for p in zip(*[(poc, status_all, margin), rest], strict=True)
+            )
+        U, offsets, poses = U[: poc.size], offsets[: poc.size], poses[: poc.size]
+    inf_int, sq_int = np.abs(U).max(axis=1), (U**2).sum(axis=1)
+    lower, upper = _limits(robot)
+    outside = np.any((poses < lower - 1e-12) | (poses > upper + 1e-12), axis=1)
+    good, in_ball = poc == YES, sq_int <= L * L
+
+    def pose_at(i: int) -> SampledPose:
+        d = float(inf_int[i] * R / L), float(math.sqrt(sq_int[i]) * R / L)
+        codes = int(poc[i]), int(status_all[i]), bool(outside[i]), float(margin[i])
+        return SampledPose(poses[i].copy(), offsets[i, columns].copy(), *d, *codes)
+
+    nearest = nearest_ball = nearest_suspect = None
+    edges = np.zeros((2, 0), dtype=np.intp)
+    if verdict != YES:
+        box = ball = (0.0, 0.0)
+        nearest = nearest_ball = pose_at(0)
+        reason = f"the pose itself is {_describe(verdict, status)}"
+    else:
+        edges = _edges(U, steps, L // ((n - 1) // 2) if n_axis and 1 < n < RAY_POINTS else 0)
+        lengths = np.linalg.norm(U[edges[1]] - U[edges[0]], axis=1) * (R / L)
+        edges = edges[:, suspect_edges(edges, lengths, margin, good[edges].all(axis=0))]
+        ends = [sq_int[edges].min(0), inf_int[edges].max(0), inf_int[edges].min(0)]
+        edges = edges[:, np.lexsort(ends)]  # nearest first; on a shell before across one
+        if edges.size:
+            pair = sorted(edges[:, 0], key=lambda i: (inf_int[i], sq_int[i]))
+            nearest_suspect = (pose_at(pair[0]), pose_at(pair[1]))
+        box, ball = (
+            _radius(d, w, ~good, d[edges][:, w[edges].all(axis=0)], R / L, root)
+            for d, w, root in ((inf_int, np.ones_like(good), False), (sq_int, in_ball, True))
+        )
+        box, ball = ((R, None) if lo is None else (lo, hi) for lo, hi in (box, ball))
+        bad = np.flatnonzero(~good)
+        if bad.size:
+            nearest = pose_at(int(bad[np.lexsort((sq_int[bad], inf_int[bad]))[0]]))
+        if np.any(in_ball[bad]):
+            inside = bad[in_ball[bad]]
+            nearest_ball = pose_at(int(inside[np.lexsort((inf_int[inside], sq_int[inside]))[0]]))
+        by_poses = _radius(inf_int, good | ~good, ~good, np.zeros((2, 0), np.int64), R / L, False)
+        if box[1] is None:
+            reason = "every sampled pose in the box is YES and no edge is suspect"
+        elif nearest is not None and by_poses[0] == box[0]:  # the poses alone stop it there
+            reason = (
+                f"the nearest non-YES sampled pose is {nearest.describe()} at "
+                f"{nearest.distance_box:.3g} (inf-norm)"
+            )
+        else:
+            reason = (
+                "r_T comes within one step's change of 0 between sampled poses at "
+                + " and ".join(f"{p.distance_box:.3g}" for p in nearest_suspect)
+                + " (inf-norm), where a NO set thinner than the grid may pass"
+            )
+    codes = status_all.tolist()
+    return Neighbourhood(
+        model_name=robot.spec.path.name,
+        pose_name=pose_name,
+        natural=natural,
+        coordinate_names=tuple(robot.coordinate_names),
+        coordinates=tuple(robot.coordinate_names[i] for i in columns),
+        units=tuple(coordinate_units(robot.model)[i] for i in columns),
+        scale=scale_k,
+        radius=R,
+        points=n,
+        step=2 * R * scale_k / (n - 1) if n > 1 else np.full(k, np.nan),
+        axis_rays=n_axis,
+        corner_rays=n_corner,
+        ray_points=(RAY_POINTS - 1) // 2 if with_rays else 0,
+        n_poses=int(poc.size),
+        verdict=verdict,
+        status=status,
+        box_radius=box[0],
+        box_bracket=box,
+        ball_radius=ball[0],
+        ball_bracket=ball,
+        whole_box_yes=bool(verdict == YES and good.all() and not edges.size),
+        nearest=nearest,
+        nearest_ball=nearest_ball,
+        suspect_edges=int(edges.shape[1]),
+        nearest_suspect=nearest_suspect,
+        reach=reach,
+        counts={name: int(np.count_nonzero(poc == c)) for name, c in VERDICT_CODES.items()},
+        status_counts={
+            STATUS_LABELS[c]: codes.count(c) for c in STATUS_CODES.values() if c in codes
+        },
+        outside_limits=int(np.count_nonzero(outside)),
+        tension=setting,
+        pretension=pretension,
+        tol=tol,
+        seconds=time.perf_counter() - started,
+        reason=reason,
+        margin_unit=reach_unit(robot.output_units),
+    )

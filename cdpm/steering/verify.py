@@ -1,0 +1,319 @@
+"""What a verdict means on the nonlinear robot: steer to targets around a pose.
+
+:func:`verify_pose` decides POC at a pose and then shows it on the full
+dynamics. At a YES pose it steers the output to the 2p targets
+``y0 +- R e_i`` (and, on request, to random directions at distance R) with
+pull-only tensions inside the bounds (:func:`cdpm.steer`). At a NO pose it
+steers toward the blocked direction (the certificate's separating vector v)
+and reports the best attempt: ``v.(y - y0)`` stays at most of second order
+in R.
+"""
+
+from __future__ import annotations
+
+import html
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from cdpm.errors import InputError, checked_seed, is_integer, positive_number
+from cdpm.steering.steer import SteerResult, steer
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cdpm.model.robot import CableRobot
+
+__all__ = ["VerifyReport", "verify_pose", "default_radius"]
+
+#: default radius of the targets, as a fraction of the robot's size (the
+#: largest distance between two cable anchor points at the pose)
+RADIUS_FRACTION = 2e-3
+#: least radius of the targets, as a fraction of the robot's size (y0 + R
+#: must differ from y0 by more than its round-off)
+RADIUS_MIN_FRACTION = 1e-9
+#: most random target directions of one verification (each is a steering)
+MAX_RANDOM_DIRECTIONS = 1000
+
+
+@dataclass(frozen=True)
+class VerifyReport:
+    """Steering runs around one pose.
+
+    Attributes:
+        model_name, pose_name: what was verified (pose_name None for a q).
+        verdict: the POC verdict at the pose (``"yes"``, ``"no"``, ``"marginal"``).
+        radius: R, the distance of the targets [output units].
+        y0: the output at the pose (p,).
+        directions: unit target directions, shape (n, p).
+        runs: one :class:`~cdpm.steering.steer.SteerResult` per direction.
+        blocked_direction: at a NO pose, the separating vector v (p,).
+        robot_size: the length R is a fraction of [m].
+    """
+
+    model_name: str
+    pose_name: str | None
+    verdict: str
+    radius: float
+    y0: np.ndarray
+    directions: np.ndarray
+    runs: list[SteerResult] = field(default_factory=list)
+    blocked_direction: np.ndarray | None = None
+    robot_size: float = float("nan")
+    radius_given: bool = False
+
+    @property
+    def demonstrated(self) -> bool:
+        """The verdict shows on the robot: at a YES pose every target is
+        reached; at a NO pose the blocked direction is not, and no pull
+        moved the output along it by more than 1 % of R."""
+        if self.verdict == "yes":
+            return self.all_reached
+        if self.verdict == "no":
+            progress = self.blocked_progress()
+            return not self.all_reached and progress is not None and progress <= 0.01
+        return False
+
+    @property
+    def all_reached(self) -> bool:
+        """Every target reached."""
+        return all(r.reached for r in self.runs)
+
+    @property
+    def worst_relative_miss(self) -> float:
+        """max miss / R over the runs."""
+        return max((r.miss / self.radius for r in self.runs), default=0.0)
+
+    def blocked_progress(self) -> float | None:
+        """At a NO pose: the largest v.(y(t) - y0) over every attempt toward
+        v (single-cable pulls, :attr:`SteerResult.blocked_progress`),
+        relative to R (second-order small), else None."""
+        if self.blocked_direction is None or not self.runs:
+            return None
+        progress = self.runs[0].blocked_progress
+        return None if progress is None else progress / self.radius
+
+    def rows(self) -> list[dict]:
+        """One dict per run: direction, reached, miss, miss/R, peak tension,
+        duration, simulations."""
+        return [
+            {
+                "direction": d.tolist(),
+                "reached": bool(r.reached),
+                "miss": float(r.miss),
+                "relative_miss": float(r.miss / self.radius),
+                "peak_tension": r.peak_tension,
+                "within_bounds": bool(r.within_bounds),
+                "duration": r.duration,
+                "simulations": int(r.iterations),
+                "status": r.status,
+            }
+            for d, r in zip(self.directions, self.runs, strict=True)
+        ]
+
+    def as_dict(self) -> dict:
+        """JSON-serialisable content."""
+        return {
+            "model": self.model_name,
+            "pose": self.pose_name,
+            "verdict": self.verdict,
+            "radius": self.radius,
+            "robot_size": self.robot_size,
+            "y0": self.y0.tolist(),
+            "all_reached": self.all_reached,
+            "worst_relative_miss": self.worst_relative_miss,
+            "blocked_direction": None
+            if self.blocked_direction is None
+            else self.blocked_direction.tolist(),
+            "blocked_progress_relative": self.blocked_progress(),
+            "demonstrated": self.demonstrated,
+            "runs": self.rows(),
+        }
+
+    @property
+    def unit(self) -> str:
+        """The unit of R and the misses: the outputs' (``m``, ``rad`` or
+        ``m and rad, one to one``, :func:`cdpm.dynamics.reach.reach_unit`)."""
+        from cdpm.dynamics.reach import reach_unit
+
+        return reach_unit(self.runs[0].trajectory.units) if self.runs else "m"
+
+    def __str__(self) -> str:
+        where = f"pose {self.pose_name!r}" if self.pose_name else "the given q"
+        names = self.runs[0].trajectory.output_names if self.runs else ()
+        how = (
+            "given"
+            if self.radius_given
+            else f"{RADIUS_FRACTION:g} x the robot's size {self.robot_size:.4g} m"
+        )
+        lines = [
+            f"cdpm verify: {self.model_name}, {where}: POC {self.verdict.upper()}",
+            f"  targets at R = {self.radius:.4g} {self.unit} ({how}) from y0 = "
+            + (
+                ", ".join(f"{n} {v:.6g}" for n, v in zip(names, self.y0, strict=True))
+                if len(names) == len(self.y0)
+                else np.array2string(self.y0, precision=6)
+            ),
+        ]
+        if self.blocked_direction is not None:
+            lines.append(
+                f"  blocked direction v = {direction_text(self.blocked_direction, names)}"
+                f"; pulling each cable in turn, v.(y - y0) reached at most "
+                f"{self.blocked_progress():.3g} R"
+            )
+        lines.append(
+            f"  {'direction':<28} {'reached':>7} {'miss/R':>10} {'peak [N]':>10} "
+            f"{'T [s]':>7} {'sims':>5}"
+        )
+        for row in self.rows():
+            d = direction_text(np.array(row["direction"]), names)
+            lines.append(
+                f"  {d:<28} {'yes' if row['reached'] else 'NO':>7} {row['relative_miss']:>10.2e} "
+                f"{row['peak_tension']:>10.4g} {row['duration']:>7.3g} {row['simulations']:>5}"
+            )
+        if self.runs:
+            ok = "all tensions inside the cable bounds at every instant"
+            if not all(r.within_bounds for r in self.runs):
+                ok = "SOME TENSIONS OUTSIDE THE CABLE BOUNDS"
+            n = sum(r.reached for r in self.runs)
+            lines.append(f"  {n} of {len(self.runs)} targets reached; {ok}")
+            if self.verdict == "yes":
+                outcome = "every target reached" if self.demonstrated else "SOME TARGETS MISSED"
+            elif self.verdict == "no":
+                outcome = (
+                    "the blocked direction stays out of reach"
+                    if self.demonstrated
+                    else "NOT SHOWN (a pull moved the output along v; try a smaller --radius)"
+                )
+            else:
+                outcome = "a MARGINAL verdict shows nothing definite"
+            lines.append(f"  on the robot: {outcome}")
+        return "\n".join(lines)
+
+    def __repr__(self) -> str:
+        # a few numbers: each run holds a whole simulation (print shows the table)
+        reached = sum(r.reached for r in self.runs)
+        return (
+            f"VerifyReport(model_name={self.model_name!r}, pose_name={self.pose_name!r}, "
+            f"verdict={self.verdict!r}, radius={self.radius:.4g}, runs={len(self.runs)}, "
+            f"reached={reached}, demonstrated={self.demonstrated})"
+        )
+
+    def _repr_html_(self) -> str:
+        return f"<pre>{html.escape(str(self))}</pre>"
+
+
+def direction_text(d: np.ndarray, names: tuple[str, ...]) -> str:
+    """An output-space direction in words: ``"+tip_x"``, ``"-tip_z"`` or
+    ``"0.71 tip_x - 0.71 tip_z"`` (components below 1e-9 left out)."""
+    terms = [(float(c), n) for c, n in zip(d, names, strict=False) if abs(c) > 1e-9]
+    if not names or len(names) != len(d):
+        return np.array2string(np.asarray(d) + 0.0, precision=2)
+    if not terms:
+        return "0"
+    if len(terms) == 1 and abs(abs(terms[0][0]) - 1.0) < 1e-9:
+        return ("+" if terms[0][0] > 0 else "-") + terms[0][1]
+    text = " ".join(f"{'-' if c < 0 else '+'} {abs(c):.2g} {n}" for c, n in terms)
+    return text[2:] if text.startswith("+ ") else "-" + text[2:]
+
+
+def default_radius(robot: CableRobot, q: Any) -> tuple[float, float]:
+    """(R, size): R = RADIUS_FRACTION times the robot's size, the largest
+    distance between two cable attachment points at q [m]."""
+    points = np.vstack(robot.attachment_points(q))
+    diff = points[:, None, :] - points[None, :, :]
+    size = float(np.sqrt((diff**2).sum(axis=2)).max(initial=0.0)) or 1.0
+    return RADIUS_FRACTION * size, size
+
+
+def verify_pose(
+    robot: CableRobot,
+    pose: Any,
+    radius: float | None = None,
+    *,
+    random_directions: int = 0,
+    seed: int | None = 0,
+    tension: Any = None,
+    pretension: float | None = None,
+    duration: float | None = None,
+) -> VerifyReport:
+    """Show the POC verdict at a pose on the nonlinear robot.
+
+    Args:
+        robot: the robot.
+        pose: a pose name, configuration (nq,) or natural coordinates (nv,).
+        radius: R, the distance of the targets [output units], from
+            RADIUS_MIN_FRACTION = 1e-9 times the robot's size to its size;
+            default :func:`default_radius`.
+        random_directions: extra targets in random unit directions (YES),
+            at most MAX_RANDOM_DIRECTIONS = 1000.
+        seed: their random seed (an integer from 0 to 2**63 - 1, or None
+            for fresh entropy).
+        tension, pretension: the equilibrium tension (as for
+            :func:`cdpm.linearise`).
+        duration: the steering time T [s] (default per pose).
+
+    Returns:
+        :class:`VerifyReport`.
+    """
+    from cdpm.analysis import positive_output_controllability
+    from cdpm.dynamics.linearisation import linearise
+
+    lin = linearise(robot, pose, tension=tension, pretension=pretension)
+    poc = positive_output_controllability(
+        lin.A, lin.B_cone, lin.C, sign_constrained=lin.sign_constrained
+    )
+    q = lin.q
+    size = default_radius(robot, q)[1]
+    R = RADIUS_FRACTION * size
+    if radius is not None:
+        message = (
+            f"radius must be a distance from {RADIUS_MIN_FRACTION:g} times the robot's size "
+            f"to its size, {size:.3g} (targets near the pose: the check is local; closer ones "
+            f"are the outputs' round-off), got {radius!r}"
+        )
+        R = positive_number(radius, message, largest=size, smallest=RADIUS_MIN_FRACTION * size)
+    if not (is_integer(random_directions) and 0 <= random_directions <= MAX_RANDOM_DIRECTIONS):
+        raise InputError(
+            f"random_directions must be a count from 0 to {MAX_RANDOM_DIRECTIONS} (each is a "
+            f"steering, about a second), got {random_directions!r}"
+        )
+    seed = None if seed is None else checked_seed(seed)
+    p = robot.n_outputs
+    y0 = lin.output
+    verdict = poc.verdict.value
+    blocked = None
+    if verdict == "no":
+        v = getattr(poc.certificate, "separator", None)
+        blocked = np.asarray(v, dtype=float) / np.linalg.norm(v)
+        directions = blocked[None]
+    elif p == 1:  # the two directions are all there are
+        directions = np.array([[1.0], [-1.0]])
+    else:
+        eye = np.eye(p)
+        directions = np.vstack([np.stack([e, -e]) for e in eye]) if p else np.zeros((0, 0))
+        if random_directions:
+            extra = np.random.default_rng(seed).standard_normal((random_directions, p))
+            directions = np.vstack([directions, extra / np.linalg.norm(extra, axis=1)[:, None]])
+    runs = [
+        steer(
+            robot,
+            q,
+            y0 + R * d,
+            tension=tension,
+            pretension=pretension,
+            duration=duration,
+        )
+        for d in directions
+    ]
+    return VerifyReport(
+        model_name=robot.spec.path.name,
+        pose_name=pose if isinstance(pose, str) else None,
+        verdict=verdict,
+        radius=R,
+        y0=y0.copy(),
+        directions=directions,
+        runs=runs,
+        blocked_direction=blocked,
+        robot_size=size,
+        radius_given=radius is not None,
+    )
