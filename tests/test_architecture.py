@@ -436,7 +436,7 @@ def test_every_compiled_kernel_is_cached_and_releases_the_gil():
     elsewhere = [
         str(path.relative_to(ROOT))
         for path in sorted(PACKAGE.rglob("*.py"))
-        if path.name != "_kernel.py"
+        if path.relative_to(PACKAGE).as_posix() != "jit/__init__.py"
         and any(s in path.read_text() for s in ("njit", "import numba", "from numba"))
     ]
     assert elsewhere == []
