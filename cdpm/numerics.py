@@ -31,8 +31,13 @@ STATICS_RTOL = 1e-9
 #: largest entry) fails the statics by round-off only (printed digits,
 #: float32); the refusal then says so
 ROUNDED_RESIDUAL_RTOL = 1e-5
-#: a given tension within this [N] of a bound is on it (clipped onto it)
-BOUND_TOLERANCE = 1e-9
+#: caller-given equilibrium tensions (cdpm.linearise, evaluate_poses, maps:
+#: :func:`cdpm.dynamics.equilibrium.checked_tensions`): an entry beyond its
+#: cable's bound by at most this times max(1 N, the largest |entry| of the
+#: given tensions) is round-off and put on the bound; farther is an error.
+#: The statics cannot tell such tensions apart (their tolerance is
+#: STATICS_RTOL times |L| |f|), so this is STATICS_RTOL.
+GIVEN_TENSION_BOUND_RTOL = STATICS_RTOL
 #: singular values of L^T at most this times the largest are zero (equality
 #: rows of the least-norm QP)
 STATICS_RANK_RTOL = 1e-12

@@ -42,12 +42,13 @@ from cdpm.dynamics.equilibrium import (
     InfeasibleEquilibriumError,
     NotAnEquilibriumError,
     check_equilibrium,
+    checked_tensions,
     equilibrium_tension,
 )
 from cdpm.dynamics.equilibrium.statics import input_signs
 from cdpm.errors import InputError, MissingExtraError, ModelError
 from cdpm.model.coordinates import displacement_names, velocity_names
-from cdpm.numerics import BOUND_TOLERANCE, MASS_COND_MAX, OUTPUT_JACOBIAN_ZERO_RTOL
+from cdpm.numerics import MASS_COND_MAX, OUTPUT_JACOBIAN_ZERO_RTOL
 
 if TYPE_CHECKING:  # pragma: no cover
     from cdpm.model.kinematics import BatchKinematics
@@ -462,21 +463,9 @@ def _equilibrium(robot: CableRobot, q, tension, pretension) -> EquilibriumResult
         if not eq.feasible:
             raise InfeasibleEquilibriumError(eq)
         return eq
-    eq = check_equilibrium(robot, q, tension)
-    f = eq.tension
-    low = f < robot.tension_min - BOUND_TOLERANCE
-    high = f > robot.tension_max + BOUND_TOLERANCE
-    if np.any(low | high):
-        bad = [
-            f"{robot.cable_names[i]}={f[i]:g} not in [{robot.tension_min[i]:g}, "
-            f"{robot.tension_max[i]:g}]"
-            for i in np.flatnonzero(low | high)
-        ]
-        raise InputError(f"tension outside the cable bounds: {'; '.join(bad)}")
-    clipped = np.clip(f, robot.tension_min, robot.tension_max)
-    if not np.array_equal(clipped, f):
-        # within BOUND_TOLERANCE of a bound: the cable sits on it
-        eq = check_equilibrium(robot, q, clipped)
+    # the one rule for given tensions: round-off beyond a bound is on it,
+    # farther is an InputError (as evaluate_poses and maps)
+    eq = check_equilibrium(robot, q, checked_tensions(robot, tension))
     if not eq.feasible:
         raise NotAnEquilibriumError(eq, tuple(EQUILIBRIUM_METHODS))
     return eq
@@ -494,7 +483,10 @@ def linearise(
             spec's method (``min_norm`` by default, which gives f* = 0 for
             the paper's model), a method name (``zero``, ``min_norm``,
             ``pretension``) solves with that method, an array (m,) [N] is
-            checked against the statics and the bounds and used.
+            checked against the bounds (the rule of
+            :func:`~cdpm.dynamics.equilibrium.checked_tensions`, as maps
+            check it: an entry beyond its bound by round-off is put on it)
+            and the statics, and used.
         pretension: least tension [N] for the ``pretension`` method; None
             uses the spec's ``equilibrium.pretension``.
 

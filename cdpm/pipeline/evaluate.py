@@ -123,11 +123,17 @@ def resolve_tension(robot: CableRobot, tension: Any) -> str | list[float]:
     """The equilibrium tension setting as plain data for provenance.
 
     ``None`` takes the spec's default method; a string names a method; a
-    vector gives the tensions [N] (one per cable).
+    vector gives the tensions [N] (one per cable), checked against the
+    bounds by :func:`~cdpm.dynamics.equilibrium.checked_tensions` (the rule
+    of :func:`cdpm.linearise`: an entry beyond its bound by round-off is
+    put on it, which the returned list has).
+
+    Raises:
+        InputError: an unknown method, or tensions that
+            :func:`~cdpm.dynamics.equilibrium.checked_tensions` refuses.
     """
-    from cdpm.dynamics.equilibrium import EQUILIBRIUM_METHODS
-    from cdpm.errors import InputError, float_array
-    from cdpm.numerics import MAX_TENSION
+    from cdpm.dynamics.equilibrium import EQUILIBRIUM_METHODS, checked_tensions
+    from cdpm.errors import InputError
 
     if tension is None:
         tension = str(robot.spec.equilibrium_method)
@@ -149,26 +155,9 @@ def resolve_tension(robot: CableRobot, tension: Any) -> str | list[float]:
                 stacklevel=3,
             )
         return tension
-    try:
-        f = float_array(tension).reshape(-1)
-    except (TypeError, ValueError):
-        f = None  # not numbers: the message below
-    if f is None or f.shape != (robot.n_cables,) or not np.all(np.abs(f) <= MAX_TENSION):
-        raise InputError(
-            f"tension must be a method name or {robot.n_cables} finite tensions [N] of at "
-            f"most {MAX_TENSION:g} N (cables {', '.join(robot.cable_names)}), got {tension!r}"
-        )
-    outside = (f < robot.tension_min) | (f > robot.tension_max)
-    if outside.any():
-        bad = [
-            f"{robot.cable_names[i]}={f[i]:g} not in [{robot.tension_min[i]:g}, "
-            f"{robot.tension_max[i]:g}]"
-            for i in np.flatnonzero(outside)
-        ]
-        raise InputError(
-            f"tension outside the cable bounds: {'; '.join(bad)}; give tensions within the "
-            f"spec's tension_min/tension_max or a method name ({', '.join(EQUILIBRIUM_METHODS)})"
-        )
+    # the one rule for given tensions (as cdpm.linearise): round-off beyond
+    # a bound is on it, farther is an InputError
+    f = checked_tensions(robot, tension)
     return [float(x) for x in f]
 
 

@@ -59,7 +59,7 @@ from cdpm.dynamics.equilibrium.result import (
     ZeroPretensionWarning,
 )
 from cdpm.errors import InputError, float_array, float_scalar
-from cdpm.numerics import MAX_TENSION, STATICS_RTOL
+from cdpm.numerics import GIVEN_TENSION_BOUND_RTOL, MAX_TENSION, STATICS_RTOL
 
 if TYPE_CHECKING:  # pragma: no cover
     from cdpm.model.kinematics import BatchKinematics
@@ -80,6 +80,10 @@ __all__ = [
     "equilibrium_tension",
     "equilibrium_tensions",
     "check_equilibrium",
+    "checked_tensions",
+    "given_tensions",
+    "onto_bounds",
+    "tension_bound_tolerance",
     "solve_equilibria",
     "resolve_method",
     "statics",
@@ -135,6 +139,112 @@ def _statics(robot: CableRobot, q: Any) -> tuple[np.ndarray, np.ndarray, np.ndar
     return q, LT, load
 
 
+def given_tensions(robot: CableRobot, tension: Any) -> np.ndarray:
+    """Caller-given tensions [N] as a new float array of shape (m,): one
+    finite number of at most MAX_TENSION in magnitude per cable (a scalar
+    for a robot of one cable). Bounds are not checked here
+    (:func:`checked_tensions` does).
+
+    Raises:
+        InputError: not numbers, not one per cable (a list of another
+            length, or an array of more than one axis), or entries that are
+            not finite or beyond MAX_TENSION.
+    """
+    m = robot.n_cables
+    names = ", ".join(robot.cable_names)
+    give = f"give {m} finite tensions [N] of at most {MAX_TENSION:g} N, one per cable ({names})"
+    try:
+        f = float_array(tension, copy=True)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"tension must be numbers: {exc}; {give}") from exc
+    if f.ndim > 1:
+        raise InputError(f"tension has shape {f.shape}, expected ({m},): {give}")
+    f = f.reshape(-1)
+    if f.shape[0] != m:
+        entries = "entry" if f.shape[0] == 1 else "entries"
+        raise InputError(
+            f"tension has {f.shape[0]} {entries}, expected one per cable ({m}: {names}); give "
+            f"{m} finite tensions [N] of at most {MAX_TENSION:g} N"
+        )
+    bad = np.flatnonzero(~(np.abs(f) <= MAX_TENSION))  # nan too
+    if bad.size:
+        values = ", ".join(f"{robot.cable_names[i]}={f[i]:g}" for i in bad)
+        if bad.size == 1:
+            what = f"entry {values} is not a finite tension"
+        else:
+            what = f"entries {values} are not finite tensions"
+        raise InputError(f"tension {what} of at most {MAX_TENSION:g} N; {give}")
+    return f
+
+
+def tension_bound_tolerance(f: np.ndarray) -> float:
+    """How far [N] given tensions f (m,) may pass a cable's bound and still
+    be on it: GIVEN_TENSION_BOUND_RTOL max(1 N, max |f|), the round-off of
+    tensions at their scale (:data:`cdpm.numerics.GIVEN_TENSION_BOUND_RTOL`)."""
+    largest = float(np.max(np.abs(f), initial=0.0))
+    return GIVEN_TENSION_BOUND_RTOL * max(1.0, largest)
+
+
+def onto_bounds(f: np.ndarray, fmin: np.ndarray, fmax: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The one rule for given tensions at the cable bounds: an entry beyond
+    its bound by at most :func:`tension_bound_tolerance` is on it.
+
+    Args:
+        f: finite tensions [N], shape (m,) (:func:`given_tensions`).
+        fmin, fmax: the cable bounds [N], each (m,) (fmax may be inf).
+
+    Returns:
+        (tensions, beyond): f with the entries within the tolerance of a
+        bound put on it (a new array; entries beyond it are left as
+        given), and the boolean mask (m,) of entries farther beyond.
+    """
+    tol = tension_bound_tolerance(f)
+    beyond = (f < fmin - tol) | (f > fmax + tol)
+    return np.where(beyond, f, np.clip(f, fmin, fmax)), beyond
+
+
+def _beyond_text(robot: CableRobot, f: np.ndarray, beyond: np.ndarray) -> str:
+    """``c1=-1 N is 1 N below its tension_min 0 N; ...`` for the entries
+    of ``beyond``."""
+    parts = []
+    for i in np.flatnonzero(beyond):
+        low = f[i] < robot.tension_min[i]
+        bound = robot.tension_min[i] if low else robot.tension_max[i]
+        side, name = ("below", "tension_min") if low else ("above", "tension_max")
+        parts.append(
+            f"{robot.cable_names[i]}={f[i]:.12g} N is {abs(f[i] - bound):.3g} N {side} its "
+            f"{name} {bound:.12g} N"
+        )
+    return "; ".join(parts)
+
+
+def checked_tensions(robot: CableRobot, tension: Any) -> np.ndarray:
+    """Caller-given equilibrium tensions [N], checked against the cable
+    bounds by the one rule of cdpm (:func:`cdpm.linearise`,
+    :func:`cdpm.evaluate_poses`, maps): an entry beyond its bound by at most
+    :func:`tension_bound_tolerance` (round-off) is on the bound and put
+    there; farther beyond is an error. The statics are not checked here.
+
+    Returns:
+        The tensions, a new float array (m,), within the bounds.
+
+    Raises:
+        InputError: as :func:`given_tensions`, or an entry beyond its bound
+            by more than the tolerance (the message names the cable, its
+            bound and the fix).
+    """
+    f = given_tensions(robot, tension)
+    clipped, beyond = onto_bounds(f, robot.tension_min, robot.tension_max)
+    if beyond.any():
+        raise InputError(
+            f"tension outside the cable bounds: {_beyond_text(robot, f, beyond)}; give tensions "
+            "within the spec's tension_min/tension_max (a tension within "
+            f"{GIVEN_TENSION_BOUND_RTOL:g} x max(1 N, the largest tension) of a bound counts as "
+            f"on it) or a method name ({', '.join(EQUILIBRIUM_METHODS)})"
+        )
+    return clipped
+
+
 def equilibrium_tensions(
     robot: CableRobot, LT: np.ndarray, load: np.ndarray, method: Any = None, pretension=None
 ) -> EquilibriumBatch:
@@ -150,7 +260,10 @@ def equilibrium_tensions(
         pretension: [N]; None takes the spec's.
     """
     if method is not None and not isinstance(method, str):
-        return solve_equilibria(LT, load, robot.tension_min, robot.tension_max, method)
+        # given tensions: round-off beyond a bound is on it (onto_bounds);
+        # farther beyond, the batch is infeasible
+        f, _ = onto_bounds(given_tensions(robot, method), robot.tension_min, robot.tension_max)
+        return solve_equilibria(LT, load, robot.tension_min, robot.tension_max, f)
     method, pretension = resolve_method(robot, method, pretension)
     return solve_equilibria(LT, load, robot.tension_min, robot.tension_max, method, pretension)
 
@@ -177,34 +290,31 @@ def _result(robot: CableRobot, q, load, batch: EquilibriumBatch, message: str) -
 def check_equilibrium(robot: CableRobot, q: Any, tension: Any) -> EquilibriumResult:
     """Whether given tensions hold the robot at q (method ``given``).
 
+    Tensions beyond a cable's bound by round-off (:func:`onto_bounds`, the
+    rule of :func:`checked_tensions`) are on it: the result has them there.
+
     Args:
         robot: a :class:`~cdpm.model.robot.CableRobot`.
         q: configuration (nq,), natural coordinates (nv,) or pose name.
         tension: cable tensions [N], shape (m,).
 
+    Returns:
+        The :class:`EquilibriumResult`: not feasible (its message naming
+        the cables) where a tension lies beyond its bound by more than
+        round-off, or where the tensions do not hold the pose.
+
     Raises:
         InputError: the tension has the wrong length, or entries that are
             not finite or larger than MAX_TENSION in magnitude.
     """
-    try:
-        f = float_array(tension, copy=True).reshape(-1)
-    except (TypeError, ValueError) as exc:
-        raise InputError(f"tension must be a vector of {robot.n_cables} numbers: {exc}") from exc
-    if f.shape[0] != robot.n_cables:
-        raise InputError(
-            f"tension has {f.shape[0]} entries, expected one per cable "
-            f"({robot.n_cables}: {', '.join(robot.cable_names)})"
-        )
-    if not np.all(np.abs(f) <= MAX_TENSION):
-        raise InputError(
-            f"tension entries must be finite tensions of at most {MAX_TENSION:g} N, got {f}"
-        )
+    given = given_tensions(robot, tension)
+    f, beyond = onto_bounds(given, robot.tension_min, robot.tension_max)
     q, LT, load = _statics(robot, q)
     batch = solve_equilibria(LT, load, robot.tension_min, robot.tension_max, f)
-    if batch.feasible[0]:
+    if beyond.any():
+        message = f"the given tensions leave the cable bounds: {_beyond_text(robot, f, beyond)}"
+    elif batch.feasible[0]:
         message = "the given tensions hold the pose"
-    elif not np.all((f >= robot.tension_min) & (f <= robot.tension_max)):
-        message = "the given tensions leave the cable bounds"
     else:
         message = f"the given tensions do not hold the pose (residual {batch.residual[0]:.3g})"
     return _result(robot, q, load[0], batch, message)
