@@ -244,16 +244,16 @@ def test_the_fork_server_ignores_ctrl_c_only_while_it_imports():
     Python's handler."""
     from multiprocessing import forkserver
 
-    from cdpm.maps import _runner
+    from cdpm.maps import _workers
 
-    _runner._context(kernels=True)  # sets the fork server's imports
+    _workers._context(kernels=True)  # sets the fork server's imports
     preload = forkserver._forkserver._preload_modules
-    assert preload[0] == _runner._QUIET_START and preload[-1] == _runner._QUIET_END
+    assert preload[0] == _workers._QUIET_START and preload[-1] == _workers._QUIET_END
     code = (
         "import signal, importlib\n"
-        f"importlib.import_module({_runner._QUIET_START!r})\n"
+        f"importlib.import_module({_workers._QUIET_START!r})\n"
         "print(signal.getsignal(signal.SIGINT) is signal.SIG_IGN)\n"
-        f"importlib.import_module({_runner._QUIET_END!r})\n"
+        f"importlib.import_module({_workers._QUIET_END!r})\n"
         "print(signal.getsignal(signal.SIGINT) is signal.default_int_handler)\n"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)

@@ -199,7 +199,7 @@ def test_pretension_is_read_and_checked_as_an_option(value, message, tmp_path, c
 
 
 def test_override_robot_keeps_the_robot_and_workers_rebuild_it(paper_robot, tmp_path):
-    from cdpm.maps._runner import RobotSource
+    from cdpm.maps._workers import RobotSource
 
     robot = override_robot(paper_robot, gravity=[0, -9.81, 0], tension_bounds={"c2": (2, 40)})
     assert np.array_equal(paper_robot.gravity, np.zeros(3))  # the original is unchanged
@@ -389,7 +389,7 @@ def test_workspace_map_announces_and_progress_true_prints_it(tmp_path, capsys):
 def test_progress_is_plain_lines_when_stderr_is_not_a_terminal():
     import io
 
-    from cdpm.maps._runner import ProgressPrinter
+    from cdpm.maps._progress import ProgressPrinter
 
     log = io.StringIO()  # not a terminal
     bar = ProgressPrinter(100, stream=log)
@@ -409,11 +409,11 @@ def test_an_interrupted_map_logs_where_it_stopped(tty, monkeypatch):
     PROGRESS_LOG_INTERVAL seconds before), ended by a newline."""
     import io
 
-    import cdpm.maps._runner as runner
+    from cdpm.maps import _progress, _runner
 
     log = io.StringIO()
     log.isatty = lambda: tty
-    monkeypatch.setattr(runner.sys, "stderr", log)
+    monkeypatch.setattr(_progress.sys, "stderr", log)
     real_finished = []
 
     def run_chunks(robot, plan, job, todo, sink, workers, scheduler, progress, *rest):
@@ -422,7 +422,7 @@ def test_an_interrupted_map_logs_where_it_stopped(tty, monkeypatch):
             real_finished.append(done)
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(runner, "run_chunks", run_chunks)
+    monkeypatch.setattr(_runner, "run_chunks", run_chunks)
     with pytest.raises(KeyboardInterrupt):
         cdpm.workspace_map(PAPER_SPEC, {"q1": np.linspace(0, 1, 36)}, workers=1, progress=True)
     lines = log.getvalue().replace("\r", "\n").splitlines()

@@ -1031,7 +1031,7 @@ def test_this_process_computes_while_its_worker_processes_start(paper_map, monke
     import concurrent.futures
     import threading
 
-    from cdpm.maps import _runner
+    from cdpm.maps import _workers
 
     released = threading.Event()
     order: list[str] = []
@@ -1047,9 +1047,9 @@ def test_this_process_computes_while_its_worker_processes_start(paper_map, monke
                 self.first = False
                 if not released.wait(timeout=10):
                     raise TimeoutError("the map's process waited for its workers to start")
-            if fn is _runner._worker_ready:
+            if fn is _workers._worker_ready:
                 return super().submit(fn)
-            robot = _runner._state(self.source)
+            robot = _workers._state(self.source)
             index = args[0]
             order.append("worker")
             return super().submit(
@@ -1057,7 +1057,7 @@ def test_this_process_computes_while_its_worker_processes_start(paper_map, monke
             )
 
     starters: list[threading.Thread] = []
-    start_workers = _runner._start_worker_processes
+    start_workers = _workers._start_worker_processes
 
     def recorded_start(*args):
         starters.append(start_workers(*args))
@@ -1071,8 +1071,8 @@ def test_this_process_computes_while_its_worker_processes_start(paper_map, monke
             starters[0].join(timeout=10)
 
     monkeypatch.setattr(concurrent.futures, "ProcessPoolExecutor", SlowToStart)
-    monkeypatch.setattr(_runner, "_start_fork_server", lambda ctx: None)  # none here
-    monkeypatch.setattr(_runner, "_start_worker_processes", recorded_start)
+    monkeypatch.setattr(_workers, "_start_fork_server", lambda ctx: None)  # none here
+    monkeypatch.setattr(_workers, "_start_worker_processes", recorded_start)
     ds = workspace_map(PAPER_SPEC, PAPER_AXES, workers=2, chunk_size=148, progress=progress)
     _same(ds, paper_map)
     assert order[:2] == ["here", "here"] and "worker" in order
@@ -1138,7 +1138,7 @@ def test_dask_cluster_gives_the_same_map(paper_robot, paper_map, tmp_path):
 
 
 def test_robot_source_rebuilds_from_shipped_bytes(paper_robot, tmp_path):
-    from cdpm.maps._runner import RobotSource
+    from cdpm.maps._workers import RobotSource
 
     folder = tmp_path / "model"
     shutil.copytree(PAPER_SPEC.parent, folder)

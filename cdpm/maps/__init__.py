@@ -16,8 +16,8 @@ from contextlib import nullcontext
 from typing import TYPE_CHECKING, Any
 
 from cdpm.errors import InputError, is_integer
-from cdpm.maps._runner import MapRunInfo
-from cdpm.maps._scheduler import check_scheduler_address
+from cdpm.maps._dask import check_scheduler_address
+from cdpm.maps._progress import MapRunInfo
 from cdpm.maps._store import RESULT_IN_MEMORY_MAX, StoreSettingsError, open_map
 from cdpm.maps._store_names import store_path_problem
 from cdpm.maps.plan import (
@@ -199,8 +199,10 @@ def workspace_map(
     from cdpm._version import __version__
     from cdpm.dynamics.reach import reach_settings
     from cdpm.maps._lock import store_lock
-    from cdpm.maps._runner import ProgressPrinter, RobotSource, prestart_workers, run_chunks
+    from cdpm.maps._progress import ProgressPrinter
+    from cdpm.maps._runner import run_chunks
     from cdpm.maps._store import MemorySink, ZarrSink
+    from cdpm.maps._workers import RobotSource, prestart_workers
     from cdpm.maps.plan import make_plan
     from cdpm.maps.regions import attach_new_regions
     from cdpm.model.robot import CableRobot, load_robot
@@ -348,7 +350,7 @@ def _check_executor(workers: Any, scheduler: Any) -> None:
             "`dask worker ADDRESS`), or leave out scheduler to run locally"
         )
     if isinstance(scheduler, str):
-        from cdpm.maps._scheduler import check_scheduler_address
+        from cdpm.maps._dask import check_scheduler_address
 
         check_scheduler_address(scheduler)  # before the store is created
 
