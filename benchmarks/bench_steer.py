@@ -94,10 +94,11 @@ class _Counter:
 @contextlib.contextmanager
 def counting():
     """Count RHS evaluations (``_Dynamics.acceleration``) and the simulations
-    steer runs (``cdpm.steering.steer.simulate``) while the block runs. Yields
+    steer runs (``cdpm.steering.shooting.simulate``) while the block runs. Yields
     (rhs, simulations) counters; rhs is None when cdpm's private dynamics
     class is not there to wrap."""
-    from cdpm import simulation, steering
+    from cdpm.dynamics import simulation
+    from cdpm.steering import shooting as steering
 
     dynamics = getattr(simulation, "_Dynamics", None)
     original_acc = getattr(dynamics, "acceleration", None)

@@ -90,7 +90,7 @@ def test_the_kernels_are_loaded_once_per_process(monkeypatch):
     """load_kernels runs every kernel on tiny inputs the first time only
     (the suite's fixture did): a map calls it before its chunks, and
     later maps of a script pay nothing for it."""
-    from cdpm import compiled
+    from cdpm.pipeline import compiled
 
     assert compiled._LOADED.is_set()
     calls = []

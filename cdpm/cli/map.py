@@ -432,7 +432,7 @@ def _check_outputs(args: argparse.Namespace) -> None:
 
 def _interrupted(args: argparse.Namespace, store: str | None) -> int:
     """Say how to go on (the progress bar ends its own line when the map is
-    interrupted: cdpm.maps._runner.ProgressPrinter.stopped); ``store``: the
+    interrupted: cdpm.maps._progress.ProgressPrinter.stopped); ``store``: the
     store the run had opened (``map_store`` of the interrupt), else None."""
     if args.out and store is None:
         hint = f"{args.out} was not opened yet: run the same command again to make or resume it"

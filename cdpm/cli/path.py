@@ -256,7 +256,7 @@ def _steer_legs(robot: CableRobot, ds, path, legs: int, out) -> list[dict]:
     A leg that misses with steering's default duration (made for small
     moves) is steered again with LEG_DURATION_FACTORS times it, longer
     durations first reaching far targets; at most the longest duration
-    steering accepts at the waypoint (:func:`cdpm.steering.steer.longest_duration`).
+    steering accepts at the waypoint (:func:`cdpm.steering.shooting.longest_duration`).
 
     Returns:
         One dict per leg: from, to (waypoint numbers), distance |y_to - y_from|
@@ -265,7 +265,7 @@ def _steer_legs(robot: CableRobot, ds, path, legs: int, out) -> list[dict]:
     import numpy as np
 
     from cdpm.dynamics.linearisation import linearise
-    from cdpm.steering.steer import longest_duration, steer
+    from cdpm.steering.shooting import longest_duration, steer
 
     k = path.n_waypoints
     if k == 1:

@@ -86,7 +86,7 @@ def run(args: argparse.Namespace) -> int:
 
     from cdpm.errors import InputError
     from cdpm.model.robot import load_robot
-    from cdpm.steering.steer import STEER_MAX_INTERVALS, steer
+    from cdpm.steering.shooting import STEER_MAX_INTERVALS, steer
 
     robot = load_robot(args.spec)
     pose = pose_from_args(robot, args)

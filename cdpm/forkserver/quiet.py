@@ -1,5 +1,5 @@
 """First of the modules the fork server of a map's local workers imports
-(``cdpm.maps._runner``): Ctrl-C, which the terminal sends to the whole
+(``cdpm.maps._workers``): Ctrl-C, which the terminal sends to the whole
 process group, is ignored while the server imports the rest (about a
 second), so that an early Ctrl-C does not print the server's traceback
 beside the map's own one-line message; the map's process handles it, and

@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from cdpm.errors import InputError, checked_seed, is_integer, positive_number
-from cdpm.steering.steer import SteerResult, steer
+from cdpm.steering.shooting import SteerResult, steer
 
 if TYPE_CHECKING:  # pragma: no cover
     from cdpm.model.robot import CableRobot
@@ -45,7 +45,7 @@ class VerifyReport:
         radius: R, the distance of the targets [output units].
         y0: the output at the pose (p,).
         directions: unit target directions, shape (n, p).
-        runs: one :class:`~cdpm.steering.steer.SteerResult` per direction.
+        runs: one :class:`~cdpm.steering.shooting.SteerResult` per direction.
         blocked_direction: at a NO pose, the separating vector v (p,).
         robot_size: the length R is a fraction of [m].
     """
