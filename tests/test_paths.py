@@ -427,9 +427,9 @@ def test_path_command_steers_the_gravity_arm(stores, capsys):
 
 
 def test_path_command_exits_4_when_a_leg_misses(stores, capsys, monkeypatch):
-    import cdpm.steering.steer
+    import cdpm.steering.shooting
 
-    real = cdpm.steering.steer.steer
+    real = cdpm.steering.shooting.steer
 
     def missing_second_leg(robot, q, target, **kwargs):
         result = real(robot, q, target, **kwargs)
@@ -437,7 +437,7 @@ def test_path_command_exits_4_when_a_leg_misses(stores, capsys, monkeypatch):
             return dataclasses.replace(result, reached=False)
         return result
 
-    monkeypatch.setattr(cdpm.steering.steer, "steer", missing_second_leg)
+    monkeypatch.setattr(cdpm.steering.shooting, "steer", missing_second_leg)
     store = str(stores["vertical"])
     argv = ["path", store, "--from", "0.2", "0.8", "--to", "0.2", "1.25", "--steer", "--legs", "2"]
     assert main(argv) == 4

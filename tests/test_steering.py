@@ -258,9 +258,9 @@ def test_steering_refuses_durations_and_targets_its_plan_cannot_handle():
     # elbow_up, which :.4g named 4.159, a value then refused)
     lin = cdpm.linearise(robot, "elbow_up")
     with pytest.raises(cdpm.InputError, match=r"at most 8\.31737 s") as info:
-        cdpm.steering.steer._checked_steer_duration(lin, 9.0)
+        cdpm.steering.shooting._checked_steer_duration(lin, 9.0)
     named = float(str(info.value).split("at most ")[1].split(" s")[0])
-    assert cdpm.steering.steer._checked_steer_duration(lin, named) == named
+    assert cdpm.steering.shooting._checked_steer_duration(lin, named) == named
     assert cdpm.steer(robot, "nominal", [0.867025, 1.5], duration=3).reached
     # a target of 1e300 m overflowed into "REACHED" with miss inf
     with pytest.raises(cdpm.InputError, match=r"at most 100000 in magnitude"):
