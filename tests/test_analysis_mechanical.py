@@ -61,6 +61,7 @@ def mechanical_system(seed: int, nv: int, m: int, p: int, damping: str, rows: st
     damping=st.sampled_from(["none", "small"]),
     rows=st.sampled_from(["random", "invariant"]),
 )
+@pytest.mark.slow
 def test_random_mechanical_systems_against_reference(seed, nv, m, p_frac, damping, rows):
     p = 1 + int(p_frac * (nv - 1) + 0.5)
     A, B, C, mask = mechanical_system(seed, nv, m, p, damping, rows)

@@ -126,6 +126,7 @@ def reference(A, B, C, mask):
     p=st.integers(1, 3),
     kind=st.sampled_from(["real", "complex", "mechanical", "nilpotent"]),
 )
+@pytest.mark.slow
 def test_random_systems_certificates_and_reference(seed, n, m, p, kind):
     A, B, C, mask = random_system(seed, n, m, p, kind)
     res = positive_output_controllability(A, B, C, mask)

@@ -224,6 +224,7 @@ def _scan(robot, poses):
     return counts, marginal, counts["marginal"] / max(decided, 1)
 
 
+@pytest.mark.slow
 def test_grid_scan_of_two_link_vertical_is_rarely_marginal(vertical):
     # the 24 x 24 grid of maps (step pi/12); before the per-vector sampling
     # tolerance 33 of 486 feasible poses (6.8%) with every cable slack were

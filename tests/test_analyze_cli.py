@@ -157,6 +157,7 @@ def test_wide_matrices_keep_one_line_per_row(capsys):
 # ---------------------------------------------------------------- the command
 
 
+@pytest.mark.slow
 def test_python_dash_m_runs_the_cli():
     result = subprocess.run(
         [sys.executable, "-m", "cdpm", "analyze", str(PAPER_SPEC), "--pose", "nominal"],

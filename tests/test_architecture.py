@@ -216,6 +216,7 @@ def describe_cycle(cycle: list[str], package_dir: Path) -> str:
 # the rules, on cdpm
 
 
+@pytest.mark.slow
 def test_cdpm_has_no_import_cycles():
     graph, files = import_graph(PACKAGE)
     # the graph is read at all: cdpm.maps imports its evaluation module

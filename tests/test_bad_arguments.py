@@ -118,6 +118,7 @@ TABLE = [
 ]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("argv", "expected"), TABLE, ids=[" ".join(a[:3]) for a, _ in TABLE])
 def test_bad_argument_is_one_short_error(folder, argv, expected, capsys):
     argv = [a.replace("{d}", str(folder)) for a in argv]

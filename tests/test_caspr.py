@@ -280,6 +280,7 @@ JOINT_GROUPS = [
 ]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("joints", JOINT_GROUPS, ids=["+".join(g) for g in JOINT_GROUPS])
 def test_joint_chains_match_caspr_kinematics(tmp_path, joints):
     bodies, cables = _write_model(tmp_path, joints)
@@ -989,6 +990,7 @@ SJTU_SETS = {
 }
 
 
+@pytest.mark.slow
 @needs_library
 @pytest.mark.parametrize("operational_set", list(SJTU_SETS))
 def test_library_orientation_operational_spaces_import_and_analyse(tmp_path, operational_set):

@@ -47,6 +47,7 @@ def _pytest_with_library(folder: Path, test: str) -> str:
     return out.stdout + out.stderr
 
 
+@pytest.mark.slow
 def test_library_tests_skip_naming_the_variable(tmp_path):
     text = _pytest_with_library(tmp_path, SPHERICAL_TEST)
     assert "1 skipped" in text, text
@@ -54,6 +55,7 @@ def test_library_tests_skip_naming_the_variable(tmp_path):
     assert f"{CASPR_MODELS_ENV}={tmp_path}" in text, text
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(_CASPR_MISSING is not None, reason=_CASPR_MISSING or "")
 def test_library_tests_read_the_folder_the_variable_names(tmp_path):
     # a library of one model, copied: the test finds it there

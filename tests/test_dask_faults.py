@@ -129,6 +129,7 @@ def _same(a, b) -> None:
         np.testing.assert_array_equal(a[name].values, b[name].values, err_msg=name)
 
 
+@pytest.mark.slow
 def test_killed_worker_is_restarted_and_the_map_completes(tmp_path, reference):
     marker = uuid.uuid4().hex
     cluster = Cluster(marker)
@@ -159,6 +160,7 @@ def test_killed_worker_is_restarted_and_the_map_completes(tmp_path, reference):
     assert not _marked(marker)
 
 
+@pytest.mark.slow
 def test_lost_scheduler_is_one_error_and_the_map_resumes(tmp_path, reference):
     marker = uuid.uuid4().hex
     store = tmp_path / "s.zarr"

@@ -35,6 +35,7 @@ OUTCOMES: Counter = Counter()
     database=None,
     suppress_health_check=[HealthCheck.too_slow],
 )
+@pytest.mark.slow
 @given(model=st.sampled_from(MODELS), seed=st.integers(0, 2**32 - 1))
 def test_mutated_models_fail_cleanly_or_give_finite_results(model, seed):
     with tempfile.TemporaryDirectory() as folder:
@@ -73,6 +74,7 @@ _CASPR_MODELS = caspr_models(_CASPR_FOLDER) if _CASPR_SKIP is None else []
     database=None,
     suppress_health_check=[HealthCheck.too_slow],
 )
+@pytest.mark.slow
 @given(index=st.integers(0, max(len(_CASPR_MODELS) - 1, 0)), seed=st.integers(0, 2**32 - 1))
 def test_mutated_caspr_models_fail_cleanly_or_give_finite_results(index, seed):
     import warnings

@@ -63,6 +63,7 @@ def reference():
     return cdpm.workspace_map(VERTICAL, axes, workers=1, chunk_size=256)
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not Path("/proc/self/environ").exists(), reason="needs /proc")
 @pytest.mark.parametrize("trial", range(4))
 def test_killed_map_leaves_no_process_and_resumes_exactly(tmp_path, reference, trial):

@@ -43,6 +43,7 @@ def _same_variables(a, b, names=("poc", "static_feasible", "status", "tension_mi
 # ------------------------------------------------------------------ pretension
 
 
+@pytest.mark.slow
 def test_map_pretension_reaches_every_chunk_and_is_stored(tmp_path, capsys):
     from cdpm.pipeline.criteria import CRITERIA
     from cdpm.pipeline.evaluate import evaluate_batch
@@ -113,6 +114,7 @@ def _edited_model(tmp_path, gravity: str, bounds: dict[str, str]):
     return cdpm.load_robot(spec)
 
 
+@pytest.mark.slow
 def test_map_gravity_and_tension_bounds_equal_an_edited_spec(tmp_path, capsys):
     store = tmp_path / "g.zarr"
     plain_argv = ["map", str(VERTICAL), *AXES, "--no-margin", "--out", str(store)]
@@ -321,6 +323,7 @@ def test_map_on_dask_says_which_scheduler_and_keeps_the_overrides(tmp_path, caps
     _same_variables(open_map(tmp_path / "d.zarr"), reference)
 
 
+@pytest.mark.slow
 def test_map_resume_and_finished_store_say_so(tmp_path, capsys, monkeypatch):
     import cdpm.maps
 

@@ -784,6 +784,7 @@ def test_the_new_stores_regions_are_the_ones_zarr_writes(paper_robot, tmp_path):
     assert files() == written
 
 
+@pytest.mark.slow
 def test_every_array_document_is_the_one_zarr_creates(tmp_path):
     """The data variables of a kind share the metadata zarr made for the
     first of them, with their own attributes and dimension names: each
@@ -1086,6 +1087,7 @@ print("finished")
 """
 
 
+@pytest.mark.slow
 def test_unguarded_script_with_workers_fails_clearly_and_keeps_the_store(paper_map, tmp_path):
     """Local workers import the main script (as Python's spawn does): a map
     call at a script's top level must not run again in them (it would

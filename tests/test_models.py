@@ -81,6 +81,7 @@ def test_model_has_source_description_and_feasible_named_poses(spec):
         assert eq.feasible, f"{spec.parent.name} pose {name}: {eq.message}"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("spec", MODEL_SPECS, ids=lambda p: p.stem)
 def test_cdpm_analyze_runs_on_every_model(spec, capsys):
     robot = load(spec)

@@ -126,6 +126,7 @@ def rotation_rows(robot) -> dict[str, np.ndarray]:
 # ---------------------------------------------------------------- (a), (d)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("which", ["spatial_8cable_pose", "multilink_arm"])
 def test_orientation_rows_are_finite_differences_of_log3(which, pose_robot, arm_rotations):
     """The C rows of rx, ry, rz (the robot's output Jacobian and the

@@ -409,6 +409,7 @@ def test_path_command_off_the_map(tmp_path, capsys):
     assert "--to 1.5: pose q1 = 1.5 is off the map" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_path_command_steers_the_gravity_arm(stores, capsys):
     store = str(stores["vertical"])
     argv = ["path", store, "--from", "0.2", "0.8", "--to", "0.2", "1.25", "--steer", "--legs", "2"]
@@ -524,6 +525,7 @@ def _free_port() -> int:
         return s.getsockname()[1]
 
 
+@pytest.mark.slow
 def test_path_command_views_the_path_for_seconds(stores, capsys):
     pytest.importorskip("meshcat")
     port = _free_port()

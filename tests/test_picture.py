@@ -29,6 +29,7 @@ def _count_near(pixels, rgb, tol=10):
     return int(np.sum(np.all(np.abs(pixels - target) <= tol, axis=-1)))
 
 
+@pytest.mark.slow
 def test_paper_figure(paper_robot, tmp_path):
     from cdpm.plotting.picture import render_pose
 
@@ -136,6 +137,7 @@ def _inside(box, outer, slack=0.5):
     )
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("spec, pose", [(SPATIAL_SPEC, "centre"), (MULTILINK_SPEC, "hanging")])
 def test_long_titles_fit_the_figure(spec, pose, tmp_path):
     import cdpm
@@ -305,6 +307,7 @@ def test_heavier_cables_are_drawn_over_lighter_ones_and_every_marker_is_explaine
         assert marker in labels
 
 
+@pytest.mark.slow
 def test_orientation_outputs_draw_their_frame_axes(tmp_path):
     from cdpm.plotting.picture import render_pose
     from cdpm.viewer.state import AXIS_RGB

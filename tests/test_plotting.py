@@ -30,6 +30,7 @@ def _check_image(path, min_bytes=10_000, max_bytes=1_500_000):
     assert green.mean() > 0.003
 
 
+@pytest.mark.slow
 def test_grid_map_plot(paper_robot, tmp_path):
     from cdpm.plotting import plot_map, save_map_plot
 
@@ -45,6 +46,7 @@ def test_grid_map_plot(paper_robot, tmp_path):
     _check_image(save_map_plot(ds, tmp_path / "map.png"))
 
 
+@pytest.mark.slow
 def test_sample_and_slice_plots(tmp_path, write_spec):
     from cdpm.plotting import save_map_plot
 
@@ -211,6 +213,7 @@ def test_plot_rejects_unknown_variable(paper_robot):
         plot_map(ds, variable="status")
 
 
+@pytest.mark.slow
 def test_cli_map_and_plot(tmp_path, capsys):
     store, png = tmp_path / "m.zarr", tmp_path / "m.png"
     argv = [
@@ -300,6 +303,7 @@ def test_cli_map_samples_and_errors(tmp_path, capsys):
     assert "missing.zarr not found" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_map_command_without_margin_keeps_verdicts(tmp_path):
     import xarray as xr
 
@@ -405,6 +409,7 @@ def small_store(tmp_path_factory):
     return store
 
 
+@pytest.mark.slow
 def test_plot_command_checks_the_image_name_before_any_work(small_store, tmp_path, capsys):
     import shutil
 
@@ -454,6 +459,7 @@ def test_plot_and_picture_reject_a_dpi_that_is_not_positive_or_huge(dpi, tmp_pat
 # ---------------------------------------------------------------- one axis
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("sample", [False, True])
 def test_one_axis_map_is_a_strip_and_a_margin_line(paper_robot, tmp_path, sample):
     from matplotlib.collections import PathCollection, QuadMesh
@@ -511,6 +517,7 @@ def test_one_axis_map_is_a_strip_and_a_margin_line(paper_robot, tmp_path, sample
     assert len(fig.axes) == 1 and fig.axes[0].get_xlabel() == "q1 [rad]"
 
 
+@pytest.mark.slow
 def test_one_axis_margin_line_splits_poses_without_a_margin(tmp_path):
     """two_link_vertical along q1: zero margins as red ticks, poses without
     an equilibrium as grey spans, each in the legend."""
@@ -625,6 +632,7 @@ def _assert_legends_outside(fig) -> None:
             assert not box.overlaps(ax.get_window_extent(renderer)), (legend, ax)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("which", ["paper", "vertical"])
 def test_map_panels_read_at_a_glance(which, paper_map, vertical_map, tmp_path):
     from matplotlib.colors import LogNorm, to_rgb
@@ -734,6 +742,7 @@ def test_maps_made_before_the_reach_margin_show_the_unit_impulse_index(paper_map
     assert "unitless" in margin.child_axes[0].get_ylabel()
 
 
+@pytest.mark.slow
 def test_output_panel_plots_the_outputs_asked_for(paper_map, vertical_map, tmp_path, capsys):
     import xarray as xr
 
@@ -803,6 +812,7 @@ def test_plot_path_errors_name_the_fix(paper_map):
         plot_map(paper_map, path=[0.0, 1.0])
 
 
+@pytest.mark.slow
 def test_slices_of_a_three_axis_map_carry_regions_and_the_path(paper_map):
     import xarray as xr
 
@@ -948,6 +958,7 @@ def test_suspect_steps_are_marked_where_the_path_is_drawn_solid():
     assert len(marks.get_segments()) == 1  # step 2 ends away from the slice
 
 
+@pytest.mark.slow
 def test_sampled_map_gets_regions_path_and_log_margin(tmp_path):
     from matplotlib.colors import LogNorm
 
@@ -1096,6 +1107,7 @@ def _thin_and_wide_no(n=181):
     )
 
 
+@pytest.mark.slow
 def test_thin_no_lines_read_as_red_lines_not_as_outlined_dots(tmp_path):
     from matplotlib.colors import to_rgb
 
@@ -1184,6 +1196,7 @@ def test_every_piece_of_a_region_on_a_panel_is_numbered(vertical_map):
     assert max(pieces_of.values()) >= 2  # the gravity arm's regions wrap around
 
 
+@pytest.mark.slow
 def test_a_path_legend_does_not_squeeze_a_one_axis_map():
     """Above the strip of a one-axis map, a path's legend entries (with
     its suspect steps) set the width of the strip's column, which shrank
@@ -1205,6 +1218,7 @@ def test_a_path_legend_does_not_squeeze_a_one_axis_map():
     assert with_path > 0.9 * plain
 
 
+@pytest.mark.slow
 def test_a_pocpath_is_drawn_with_its_suspect_steps(paper_map):
     """plot_map takes a POCPath: its steps that may cross a thin NO set
     are drawn over in magenta on the verdict and margin panels, and the
@@ -1281,6 +1295,7 @@ def test_one_axis_margin_line_marks_stragglers_off_the_scale(paper_robot):
     assert f"$r_T$ above {positive.max():.2g}: off the scale (1)" in labels
 
 
+@pytest.mark.slow
 def test_map_and_plot_of_rotation_and_cable_outputs(tmp_path, capsys):
     """``cdpm map`` stores y of rotation and cable outputs with their
     units; ``cdpm plot --outputs`` labels each axis with name, formula and

@@ -188,6 +188,7 @@ def _support_min(A, B, C, lower, upper, T, directions=7200, nodes=4001):
     return float(np.trapezoid(integrand, t, axis=1).min())
 
 
+@pytest.mark.slow
 def test_gravity_poses_match_a_brute_force_reference(vertical):
     settings = reach_settings(vertical)
     rng = np.random.default_rng(5)
@@ -242,6 +243,7 @@ def test_reach_margin_is_continuous_along_a_sweep(spec, fixed):
     assert jumps[1] <= 0.01 * np.nanmax(r)
 
 
+@pytest.mark.slow
 def test_vertical_map_margins_span_fewer_than_six_orders(vertical):
     ds = cdpm.workspace_map(
         vertical,

@@ -86,6 +86,7 @@ def map_vectors(name: str, n: int, seed: int) -> np.ndarray:
 @pytest.mark.parametrize(
     ("name", "seed"), [("multilink_arm", 1), ("spatial_8cable", 2), ("double_pendulum_cables", 3)]
 )
+@pytest.mark.slow
 def test_map_sets_get_the_analysers_verdict(name, seed):
     """Every pose of a real map: the batched codes are the analyser's, and
     (6-DOF models) most sets are decided by a certificate."""
@@ -136,6 +137,7 @@ def random_sets(rng: np.random.Generator, n: int) -> list[np.ndarray]:
     return sets
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("tol", [1e-9, 1e-4])
 def test_random_and_degenerate_sets_get_the_analysers_verdict(tol):
     """3000 seeded random and degenerate sets, grouped by shape: the batched
@@ -398,6 +400,7 @@ def test_span_decisions_are_scale_invariant(scale):
             assert scaled.margin == pytest.approx(plain.margin * scale, rel=1e-9)
 
 
+@pytest.mark.slow
 def test_near_boundary_planar_certificates_recheck():
     """Crafted planar sets near the boundary (directions within 1e-16 to
     1e-3 rad of a first one, of its opposite or of a right angle from it,

@@ -85,6 +85,7 @@ def test_paper_nominal_targets_are_reached_pulling_only(paper, radius):
     [(VERTICAL, "nominal"), (SPATIAL, "centre"), (MULTILINK, "reach")],
     ids=["vertical", "spatial", "multilink"],
 )
+@pytest.mark.slow
 def test_loaded_and_spatial_yes_poses_reach_every_target(spec, pose):
     robot = cdpm.load_robot(spec)
     report = cdpm.verify_pose(robot, pose, radius=0.005)
@@ -96,6 +97,7 @@ def test_loaded_and_spatial_yes_poses_reach_every_target(spec, pose):
         assert np.all(run.tension >= robot.tension_min) and np.all(run.tension <= robot.tension_max)
 
 
+@pytest.mark.slow
 def test_no_pose_cannot_move_toward_its_blocked_direction():
     robot = cdpm.load_robot(TWO_CABLES)
     report = cdpm.verify_pose(robot, "nominal", radius=0.005)
@@ -112,6 +114,7 @@ def test_no_pose_cannot_move_toward_its_blocked_direction():
     assert back.reached
 
 
+@pytest.mark.slow
 def test_results_holding_simulations_have_a_short_repr():
     """A REPL shows a result's repr: the key numbers, not the tens of
     kilobytes of its arrays (a VerifyReport's repr was 90 kB)."""
@@ -267,6 +270,7 @@ def test_steering_refuses_durations_and_targets_its_plan_cannot_handle():
         cdpm.steer(robot, "nominal", [1e300, 1.5])
 
 
+@pytest.mark.slow
 def test_a_motion_too_fast_for_the_tolerances_stops_with_how_far_it_got(paper):
     # 1e6 rad/s needs about a million evaluations per simulated millisecond at
     # the default tolerances: without a budget this ran for hours
@@ -285,6 +289,7 @@ def test_a_motion_too_fast_for_the_tolerances_stops_with_how_far_it_got(paper):
     assert cdpm.simulate(paper, "nominal", tension=np.zeros(4), duration=0.2).t[-1] == 0.2
 
 
+@pytest.mark.slow
 def test_verify_and_steer_commands(capsys, tmp_path):
     spec = str(PAPER_SPEC)
     assert main(["verify", spec, "--pose", "nominal", "--radius", "0.002", "--json"]) == 0
@@ -310,6 +315,7 @@ def test_verify_and_steer_commands(capsys, tmp_path):
     assert "SOME TARGETS MISSED" in capsys.readouterr().out
 
 
+@pytest.mark.slow
 def test_motion_plots_show_each_output_in_its_unit_and_the_cables_that_pull():
     """Output changes are drawn in mm or mrad by the output's unit (rotations
     were labelled mm), directions in output names, cables at 0 N throughout

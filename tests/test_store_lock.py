@@ -38,6 +38,7 @@ def _wait_for(predicate, seconds: float) -> bool:
     return False
 
 
+@pytest.mark.slow
 def test_second_run_on_a_busy_store_refuses(tmp_path):
     out = tmp_path / "busy.zarr"
     first = subprocess.Popen(_map_command(out), stderr=subprocess.PIPE, text=True)
@@ -61,6 +62,7 @@ def test_second_run_on_a_busy_store_refuses(tmp_path):
     assert not lock_path(out).exists()
 
 
+@pytest.mark.slow
 def test_lock_of_a_killed_run_is_taken_over_and_the_map_resumes(tmp_path):
     out = tmp_path / "killed.zarr"
     first = subprocess.Popen(_map_command(out), stderr=subprocess.DEVNULL)

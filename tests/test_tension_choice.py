@@ -152,6 +152,7 @@ def test_min_norm_is_no_and_another_feasible_tension_is_yes(one_joint):
     assert data["poc_possible"] == "yes" and data["default"]["verdict"] == "no"
 
 
+@pytest.mark.slow
 def test_margin_objective_finds_the_hand_worked_best_margin(one_joint):
     """With T = 2 s the margin r_T = (1 + cos wT) / (w^2 I) (F = 1 N) peaks
     inside pi <= wT <= 2 pi; the refined search comes within 1% of it."""
@@ -226,6 +227,7 @@ def _assert_map_matches_best_tension(robot, ds, axes):
         assert int(here["poc"]) == best.default_verdict
 
 
+@pytest.mark.slow
 def test_map_with_tension_best_equals_best_tension_per_pose(one_joint):
     axes = {"q1": np.linspace(-0.4, 0.4, 5)}
     ds = cdpm.workspace_map(one_joint, axes, tension="best", workers=1)
@@ -239,6 +241,7 @@ def test_map_with_tension_best_equals_best_tension_per_pose(one_joint):
     _assert_map_matches_best_tension(one_joint, ds, axes)
 
 
+@pytest.mark.slow
 def test_map_with_tension_best_under_gravity_equals_best_tension():
     robot = cdpm.load_robot(VERTICAL)
     axes = {"q1": [-0.5, 0.3, 1.0], "q2": [-1.0, 0.4]}

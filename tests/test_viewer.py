@@ -297,6 +297,7 @@ def _verdict(code: int):
     return None if code == NOT_ANALYSED else Verdict(verdict_key(code))
 
 
+@pytest.mark.slow
 def test_verdict_colours_agree_in_marker_overlay_plot_and_picture(paper_robot):
     pytest.importorskip("matplotlib")
     xr = pytest.importorskip("xarray")
@@ -518,6 +519,7 @@ def _steer_target(robot, dy: float = 0.005) -> np.ndarray:
     return robot.output("nominal") + dy
 
 
+@pytest.mark.slow
 def test_play_ends_on_the_last_pose_with_cables_coloured_by_tension(paper_robot):
     pytest.importorskip("meshcat")
     import pinocchio as pin
@@ -624,6 +626,7 @@ def test_play_refuses_what_it_cannot_play(viewer, paper_robot):
     viewer.display("nominal")
 
 
+@pytest.mark.slow
 def test_ctrl_c_stops_playback_and_the_viewer_stays_usable(viewer, paper_robot):
     import threading
 
@@ -659,6 +662,7 @@ def test_ctrl_c_stops_playback_and_the_viewer_stays_usable(viewer, paper_robot):
     assert viewer.display("nominal").verdict_key == "yes"
 
 
+@pytest.mark.slow
 def test_steer_command_views_for_seconds_then_stops_its_server(capsys):
     pytest.importorskip("meshcat")
     from cdpm.cli import main
@@ -954,6 +958,7 @@ def test_view_command_overlays_a_map_without_warnings(paper_map, capsys):
     assert not from_map_reading, [str(w.message) for w in from_map_reading]
 
 
+@pytest.mark.slow
 def test_view_command_refuses_a_map_of_another_spec(paper_map, write_spec, capsys):
     from cdpm.cli import main
 

@@ -210,6 +210,7 @@ def _scene_port(page) -> int:
     return int(page.viewer.url().split(":")[2].split("/")[0])
 
 
+@pytest.mark.slow
 def test_page_endpoints_and_shutdown(paper_robot):
     pytest.importorskip("meshcat")
     from cdpm.viewer import InspectionPage

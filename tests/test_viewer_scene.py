@@ -144,6 +144,7 @@ def test_two_output_points_on_one_frame(write_spec):
 # ---------------------------------------------------------------- with a server
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("geometry", ["auto", "generated"])
 def test_viewer_draws_link2_and_the_marker_on_the_output_point(pendulum, geometry):
     pytest.importorskip("meshcat")
@@ -215,6 +216,7 @@ def _arm_with_mesh(write_spec, mesh: str):
     return cdpm.load_robot(spec)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("mesh", ["package://no_such_package/meshes/link.stl", "unreadable.stl"])
 def test_missing_mesh_falls_back_to_generated_links_with_one_warning(write_spec, mesh):
     pytest.importorskip("meshcat")
