@@ -53,8 +53,8 @@ _EXPORTS: dict[str, str] = {
     "simulate": "cdpm.dynamics.simulation",
     "Trajectory": "cdpm.dynamics.simulation",
     "TensionProfile": "cdpm.dynamics.simulation",
-    "steer": "cdpm.steering.steer",
-    "SteerResult": "cdpm.steering.steer",
+    "steer": "cdpm.steering.shooting",
+    "SteerResult": "cdpm.steering.shooting",
     "verify_pose": "cdpm.steering.verify",
     "VerifyReport": "cdpm.steering.verify",
     # pose report
@@ -79,6 +79,12 @@ _EXPORTS: dict[str, str] = {
     "reach_settings": "cdpm.dynamics.reach",
     "poc_neighbourhood": "cdpm.regions.neighbourhood",
     "Neighbourhood": "cdpm.regions.neighbourhood",
+    # searching for poses worth analysing (cdpm find)
+    "find_poses": "cdpm.regions.search",
+    "search_box": "cdpm.regions.search",
+    "PoseSearch": "cdpm.regions.search",
+    "SearchBox": "cdpm.regions.search",
+    "FoundPose": "cdpm.regions.search",
     # choosing the equilibrium tension
     "tension_range": "cdpm.dynamics.tension_choice",
     "TensionRange": "cdpm.dynamics.tension_choice",
@@ -184,7 +190,14 @@ if TYPE_CHECKING:  # pragma: no cover - for static type checkers only
     from cdpm.plotting.picture import render_pose  # noqa: F401
     from cdpm.regions.neighbourhood import Neighbourhood, poc_neighbourhood  # noqa: F401
     from cdpm.regions.paths import NotConnectedError, POCPath, poc_path  # noqa: F401
-    from cdpm.steering.steer import SteerResult, steer  # noqa: F401
+    from cdpm.regions.search import (  # noqa: F401
+        FoundPose,
+        PoseSearch,
+        SearchBox,
+        find_poses,
+        search_box,
+    )
+    from cdpm.steering.shooting import SteerResult, steer  # noqa: F401
     from cdpm.steering.verify import VerifyReport, verify_pose  # noqa: F401
     from cdpm.text.report import PoseReport, analyze_pose  # noqa: F401
     from cdpm.viewer import CableState, PoseInspector, PoseState, Viewer, pose_state  # noqa: F401

@@ -309,11 +309,11 @@ class _Dynamics:
         self.data = robot.model.createData()
         self.damping = robot.joint_damping
         self.w_ext = robot.external_wrench
-        from cdpm.model.coordinates import _kind
+        from cdpm.model.coordinates import joint_kind
 
         # every joint a plain vector space: the chart is q = q_c + delta
         self.flat = robot.nq == robot.nv and all(
-            _kind(self.model.joints[j]) == "euclidean" for j in range(1, self.model.njoints)
+            joint_kind(self.model.joints[j]) == "euclidean" for j in range(1, self.model.njoints)
         )
 
     def acceleration(self, q, v, f) -> np.ndarray:

@@ -16,13 +16,22 @@ free-flyer         x, y, z [m], roll, pitch,    (x, y, z, qx, qy, qz, qw)
                    yaw [rad] (ZYX Euler)
 =================  ==========================  ======================
 
-This module converts between the two without touching the robot layer, so
-specs, the CLI and maps share one definition.
+This module is the one home of the coordinates: their names
+(:func:`coordinate_names`), the kind of each joint (:func:`joint_kind`),
+their units (:func:`coordinate_units`), URDF limits
+(:func:`coordinate_limits`) and default ranges (:func:`default_ranges`, the
+search box of ``cdpm find`` and the viewer's sliders), and the conversions
+between natural coordinates and configurations, so specs, the CLI, maps,
+regions, simulation and the viewer share one definition. Only
+:func:`default_ranges` needs the robot (its poses and anchor points); the
+rest take the Pinocchio model.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -33,8 +42,15 @@ from cdpm.numerics import CONFIGURATION_UNIT_NORM_TOL
 
 __all__ = [
     "ConfigurationError",
+    "JOINT_KINDS",
+    "joint_kind",
     "coordinate_names",
     "coordinate_units",
+    "coordinate_limits",
+    "DefaultRanges",
+    "default_ranges",
+    "RANGE_REASONS",
+    "TRANSLATION_HALF_SPAN",
     "configuration_from_values",
     "configuration_from_natural",
     "natural_from_configuration",
@@ -67,7 +83,33 @@ def _joints(model):
     return [(model.names[j], model.joints[j]) for j in range(1, model.njoints)]
 
 
-def _kind(joint) -> str:
+#: what :func:`joint_kind` calls each kind of joint, by how its natural
+#: coordinates (nv) sit in its q entries (nq): ``"euclidean"`` q = natural
+#: (revolute, prismatic, translation, any joint with nq = nv);
+#: ``"continuous"`` an angle as (cos, sin); ``"spherical"`` roll, pitch, yaw as
+#: a quaternion; ``"planar"`` x, y, theta as (x, y, cos, sin); ``"freeflyer"``
+#: x, y, z, roll, pitch, yaw as a position and a quaternion
+JOINT_KINDS = ("euclidean", "continuous", "spherical", "planar", "freeflyer")
+
+#: the translations among a multi-DOF joint's natural coordinates: the first
+#: this many (x, y, z of a free flyer; x, y of a planar joint) [m]
+_TRANSLATIONS = {"freeflyer": 3, "planar": 2}
+
+#: index of the pitch among a joint's natural coordinates (roll, pitch, yaw)
+_PITCH = {"freeflyer": 4, "spherical": 1}
+
+
+def joint_kind(joint) -> str:
+    """The kind of a Pinocchio joint model (one of :data:`JOINT_KINDS`): how
+    its natural coordinates map to its configuration entries.
+
+    Args:
+        joint: a Pinocchio ``JointModel`` (``model.joints[j]``).
+
+    Raises:
+        ConfigurationError: a joint type whose q cannot be written in natural
+            coordinates (nq != nv and not one of the kinds above).
+    """
     name = joint.shortname()
     if name == "JointModelFreeFlyer":
         return "freeflyer"
@@ -80,6 +122,18 @@ def _kind(joint) -> str:
     if joint.nq == joint.nv:
         return "euclidean"
     raise ConfigurationError(f"joint type {name} is not supported in natural coordinates")
+
+
+def _is_translation(joint, k: int) -> bool:
+    """Whether the joint's k-th natural coordinate is a length [m] (else an
+    angle [rad]): x, y, z of a free flyer, x, y of a planar joint, every
+    coordinate of a prismatic or translation joint."""
+    kind = joint_kind(joint)
+    if kind in _TRANSLATIONS:
+        return k < _TRANSLATIONS[kind]
+    name = joint.shortname()
+    prismatic = name.startswith("JointModelP") or name == "JointModelTranslation"
+    return kind == "euclidean" and prismatic  # JointModelPX/PY/PZ/PrismaticUnaligned
 
 
 def coordinate_names(model) -> list[str]:
@@ -95,7 +149,7 @@ def coordinate_names(model) -> list[str]:
         "planar": ("x", "y", "theta"),
     }
     for jname, joint in _joints(model):
-        kind = _kind(joint)
+        kind = joint_kind(joint)
         if kind in suffixes:
             names.extend(f"{jname}.{s}" for s in suffixes[kind])
         elif joint.nv == 1:
@@ -106,20 +160,193 @@ def coordinate_names(model) -> list[str]:
 
 
 def coordinate_units(model) -> list[str]:
-    """Unit of each natural coordinate: ``"m"`` for translations, ``"rad"`` for angles."""
-    units: list[str] = []
-    for j in range(1, model.njoints):
-        name = model.joints[j].shortname()
-        nv = model.joints[j].nv
-        if name == "JointModelFreeFlyer":
-            units += ["m"] * 3 + ["rad"] * 3
-        elif name == "JointModelPlanar":
-            units += ["m", "m", "rad"]
-        elif name == "JointModelTranslation" or name.startswith("JointModelP"):
-            units += ["m"] * nv
-        else:
-            units += ["rad"] * nv
-    return units
+    """Unit of each of the ``nv`` natural coordinates, in the order of
+    :func:`coordinate_names`: ``"m"`` for translations (prismatic and
+    translation joints, a free flyer's x, y, z, a planar joint's x, y),
+    ``"rad"`` for angles."""
+    return [
+        "m" if _is_translation(joint, k) else "rad"
+        for _jname, joint in _joints(model)
+        for k in range(joint.nv)
+    ]
+
+
+def coordinate_limits(model) -> tuple[np.ndarray, np.ndarray]:
+    """The URDF position limits of each natural coordinate, as Pinocchio
+    holds them (``model.lowerPositionLimit``/``upperPositionLimit``).
+
+    Args:
+        model: the Pinocchio model.
+
+    Returns:
+        (lower, upper), each shape (nv,) [rad or m], in the order of
+        :func:`coordinate_names`; -inf and +inf where a coordinate has no
+        limit in natural coordinates: the angles of continuous, spherical,
+        planar and free-flyer joints (their q entries are a (cos, sin) pair
+        or a quaternion). Values are as the URDF gives them: they may be
+        equal, or huge where the URDF means "no limit"
+        (:func:`default_ranges` tells which are usable).
+    """
+    limits_q = np.array([model.lowerPositionLimit, model.upperPositionLimit], dtype=float)
+    limits = np.array([np.full(model.nv, -np.inf), np.full(model.nv, np.inf)])
+    for _jname, joint in _joints(model):
+        kind = joint_kind(joint)
+        count = joint.nv if kind == "euclidean" else _TRANSLATIONS.get(kind, 0)
+        iq, iv = joint.idx_q, joint.idx_v
+        limits[:, iv : iv + count] = limits_q[:, iq : iq + count]
+    return limits[0], limits[1]
+
+
+#: half-width [m] of the default range of a translation without usable URDF
+#: limits (and not a world-aligned free flyer's or planar joint's x, y, z),
+#: either side of its value at the reference pose (:func:`default_ranges`)
+TRANSLATION_HALF_SPAN = 1.0
+
+#: narrowest box of fixed anchor points [m] along an axis that
+#: :func:`default_ranges` uses (anchors in one plane leave that axis to the
+#: +-1 m rule)
+ANCHOR_BOX_MIN_WIDTH = 1e-9
+
+
+#: why a coordinate got its default range (:attr:`DefaultRanges.reasons`)
+RANGE_REASONS = {
+    "limits": "URDF limits",
+    "turn": "one turn",
+    "pitch": "half a turn (a pitch of roll, pitch, yaw)",
+    "anchors": "the box of the anchor points fixed to the world",
+    "reference": f"+-{TRANSLATION_HALF_SPAN:g} m around the reference pose",
+}
+
+
+@dataclass(frozen=True)
+class DefaultRanges:
+    """The default range of each natural coordinate (:func:`default_ranges`).
+
+    Attributes:
+        names: the nv coordinate names (:func:`coordinate_names`).
+        low, high: the range of each coordinate [rad or m], shape (nv,)
+            each, ``low < high``; read-only.
+        units: ``"rad"`` or ``"m"`` per coordinate (:func:`coordinate_units`).
+        limited: shape (nv,) bool, read-only: the range is the URDF's limits.
+        reasons: why each coordinate got its range (a value of
+            :data:`RANGE_REASONS`).
+    """
+
+    names: tuple[str, ...]
+    low: np.ndarray
+    high: np.ndarray
+    units: tuple[str, ...]
+    limited: np.ndarray
+    reasons: tuple[str, ...]
+
+    def as_dict(self) -> dict[str, tuple[float, float]]:
+        """``{coordinate name: (low, high)}`` [rad or m], in the robot's order."""
+        return {
+            n: (float(lo), float(hi))
+            for n, lo, hi in zip(self.names, self.low, self.high, strict=True)
+        }
+
+    def __str__(self) -> str:
+        rows = zip(self.names, self.low, self.high, self.units, self.reasons, strict=True)
+        return "\n".join(
+            f"{n} [{lo:.4g}, {hi:.4g}] {unit} ({why})" for n, lo, hi, unit, why in rows
+        )
+
+
+def default_ranges(robot: Any, reference: Any = None) -> DefaultRanges:
+    """Where each natural coordinate of ``robot`` ranges by default: the
+    one rule of ``cdpm find``'s search box and the viewer's sliders.
+
+    - The URDF's limits (:func:`coordinate_limits`) when both are finite,
+      ``low < high`` and within +-:data:`MAX_COORDINATE` (larger values mean
+      "no limit").
+    - Else an angle gets one turn [-pi, pi]; the pitch of a spherical joint
+      or free flyer (roll, pitch, yaw) half a turn [-pi/2, pi/2].
+    - Else a free flyer's x, y, z or a planar joint's x, y, when the joint
+      hangs from the world with its axes along the world's, gets the box of
+      the cables' route points fixed to the world along that axis (where
+      the platform of a cable robot can be), when it has a width.
+    - Else a length gets its value at ``reference`` +-
+      :data:`TRANSLATION_HALF_SPAN` m.
+
+    Args:
+        robot: a :class:`~cdpm.model.robot.CableRobot` (typed ``Any``: the
+            robot module imports this one).
+        reference: the pose the +-1 m spans are centred on: a pose name, a
+            configuration (nq,) or natural coordinates (nv,); default the
+            spec's first pose, else the neutral configuration.
+
+    Returns:
+        :class:`DefaultRanges`, in the order of ``robot.coordinate_names``.
+
+    Raises:
+        InputError: ``reference`` is not a pose of the robot.
+    """
+    model = robot.model
+    if reference is None:
+        reference = next(iter(robot.poses.values())) if robot.poses else robot.neutral()
+    natural = robot.to_natural(robot.as_q(reference))
+    lower, upper = coordinate_limits(model)
+    anchors = _fixed_anchors(robot)
+    low, high = np.empty(model.nv), np.empty(model.nv)
+    whys: list[str] = []
+    for j, (_jname, joint) in enumerate(_joints(model), start=1):
+        kind = joint_kind(joint)
+        for k in range(joint.nv):
+            iv = joint.idx_v + k
+            lo, hi = lower[iv], upper[iv]
+            if -MAX_COORDINATE <= lo < hi <= MAX_COORDINATE:
+                why = "limits"
+            elif not _is_translation(joint, k):
+                why = "pitch" if _PITCH.get(kind) == k else "turn"
+                lo, hi = (-math.pi / 2, math.pi / 2) if why == "pitch" else (-math.pi, math.pi)
+            else:
+                why = "reference"
+                lo, hi = natural[iv] - TRANSLATION_HALF_SPAN, natural[iv] + TRANSLATION_HALF_SPAN
+                offset = _world_aligned_offset(model, j) if kind in _TRANSLATIONS else None
+                if offset is not None and anchors.size:
+                    a_lo, a_hi = anchors[:, k].min() - offset[k], anchors[:, k].max() - offset[k]
+                    if a_hi - a_lo >= ANCHOR_BOX_MIN_WIDTH:
+                        why, lo, hi = "anchors", a_lo, a_hi
+            low[iv], high[iv] = lo, hi
+            whys.append(why)
+    limited = np.array([why == "limits" for why in whys], dtype=bool)
+    for array in (low, high, limited):
+        array.setflags(write=False)
+    return DefaultRanges(
+        names=tuple(coordinate_names(model)),
+        low=low,
+        high=high,
+        units=tuple(coordinate_units(model)),
+        limited=limited,
+        reasons=tuple(RANGE_REASONS[why] for why in whys),
+    )
+
+
+def _fixed_anchors(robot: Any) -> np.ndarray:
+    """World positions (k, 3) [m] of the cables' route points fixed to the
+    world (on a frame of the world's joint 0), in the order of the spec."""
+    from cdpm.model.outputs import anchor_in_joint
+
+    fixed = []
+    for cable in robot.spec.cables:
+        for point in cable.route:
+            joint, position = anchor_in_joint(
+                robot.model, point.frame, np.asarray(point.point_in_frame, dtype=float)
+            )
+            if joint == 0:
+                fixed.append(position)
+    return np.array(fixed, dtype=float).reshape(-1, 3)
+
+
+def _world_aligned_offset(model, j: int) -> np.ndarray | None:
+    """The world position (3,) [m] of joint j's origin at zero translation,
+    when the joint hangs from the world with its axes along the world's
+    (its x, y, z are then world x, y, z less this offset); else None."""
+    placement = model.jointPlacements[j]
+    if model.parents[j] != 0 or not np.allclose(placement.rotation, np.eye(3), rtol=0, atol=1e-12):
+        return None
+    return np.asarray(placement.translation, dtype=float)
 
 
 #: the components of a multi-DOF joint's tangent displacement and of its
@@ -167,7 +394,7 @@ def _tangent_names(model, which: int, suffix: str) -> list[str]:
     start = 0
     coords = coordinate_names(model)
     for jname, joint in _joints(model):
-        kind = _kind(joint)
+        kind = joint_kind(joint)
         if kind in _LOCAL_TANGENT:
             names.extend(f"{jname}.{s}" for s in _LOCAL_TANGENT[kind][which])
         else:
@@ -211,7 +438,7 @@ def configuration_from_natural(model, natural: Any) -> np.ndarray:
 
 
 def _joint_q_from_natural(jname: str, joint, part: np.ndarray) -> np.ndarray:
-    kind = _kind(joint)
+    kind = joint_kind(joint)
     if kind == "euclidean":
         return part
     if kind == "continuous":
@@ -232,7 +459,7 @@ def natural_from_configuration(model, q: Any) -> np.ndarray:
     for _jname, joint in _joints(model):
         iq, iv = joint.idx_q, joint.idx_v
         part = q[iq : iq + joint.nq]
-        kind = _kind(joint)
+        kind = joint_kind(joint)
         if kind == "euclidean":
             value = part
         elif kind == "continuous":
@@ -271,7 +498,7 @@ def as_configuration(model, q: Any, name: str = "q") -> np.ndarray:
         )
     if model.nq != model.nv:
         for jname, joint in _joints(model):
-            kind = _kind(joint)
+            kind = joint_kind(joint)
             if kind == "euclidean":
                 continue
             sl = {

@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from cdpm.model.coordinates import MAX_COORDINATE, _kind
+from cdpm.model.coordinates import MAX_COORDINATE, joint_kind
 
 if TYPE_CHECKING:  # pragma: no cover
     from cdpm.model.robot import CableRobot
@@ -45,13 +45,13 @@ def configurations(robot: CableRobot, natural: np.ndarray) -> np.ndarray:
     model = robot.model
     natural = np.asarray(natural, dtype=float).reshape(-1, robot.nv)
     if robot.nq == robot.nv and all(
-        _kind(model.joints[j]) == "euclidean" for j in range(1, model.njoints)
+        joint_kind(model.joints[j]) == "euclidean" for j in range(1, model.njoints)
     ):
         return natural
     qs = np.empty((natural.shape[0], robot.nq))
     for j in range(1, model.njoints):
         joint = model.joints[j]
-        iq, iv, kind = joint.idx_q, joint.idx_v, _kind(joint)
+        iq, iv, kind = joint.idx_q, joint.idx_v, joint_kind(joint)
         part = natural[:, iv : iv + joint.nv]
         if kind == "euclidean":
             qs[:, iq : iq + joint.nq] = part

@@ -1,11 +1,24 @@
 """What a labelled map's POC regions are used for: paths of POC poses
 between two poses (:mod:`~cdpm.regions.paths`, on the graphs of
-:mod:`~cdpm.regions.graph`) and the POC neighbourhood of one pose
-(:mod:`~cdpm.regions.neighbourhood`). A map's regions themselves are labelled
+:mod:`~cdpm.regions.graph`), the POC neighbourhood of one pose
+(:mod:`~cdpm.regions.neighbourhood`) and a random search for poses worth
+analysing (:mod:`~cdpm.regions.search`, ``cdpm find``). A map's regions themselves are labelled
 with the map (:mod:`cdpm.maps.regions`): the store keeps them.
 """
 
 from cdpm.regions.neighbourhood import Neighbourhood, poc_neighbourhood
 from cdpm.regions.paths import NotConnectedError, POCPath, poc_path
+from cdpm.regions.search import FoundPose, PoseSearch, SearchBox, find_poses, search_box
 
-__all__ = ["Neighbourhood", "poc_neighbourhood", "NotConnectedError", "POCPath", "poc_path"]
+__all__ = [
+    "Neighbourhood",
+    "poc_neighbourhood",
+    "NotConnectedError",
+    "POCPath",
+    "poc_path",
+    "find_poses",
+    "search_box",
+    "PoseSearch",
+    "SearchBox",
+    "FoundPose",
+]

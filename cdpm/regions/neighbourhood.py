@@ -410,21 +410,6 @@ def _default_points(k: int, budget: int) -> int:
     return odd[-1] if odd else 1
 
 
-def _limits(robot: CableRobot) -> tuple[np.ndarray, np.ndarray]:
-    """URDF position limits in natural coordinates, (nv,) each; +-inf
-    where a coordinate has none (rotations of multi-DOF joints)."""
-    from cdpm.model.coordinates import _kind
-
-    model = robot.model
-    limits_q = np.array([model.lowerPositionLimit, model.upperPositionLimit], dtype=float)
-    limits = np.array([np.full(robot.nv, -np.inf), np.full(robot.nv, np.inf)])
-    for joint in list(model.joints)[1:]:
-        count = {"euclidean": joint.nv, "freeflyer": 3, "planar": 2}.get(_kind(joint), 0)
-        iq, iv = joint.idx_q, joint.idx_v
-        limits[:, iv : iv + count] = limits_q[:, iq : iq + count]
-    return limits[0], limits[1]
-
-
 def _lattice(k: int, n: int, rays: bool) -> tuple[np.ndarray, int, int, int, np.ndarray]:
     """Sampled offsets as integers ``U`` (N, k), ``s = U R / L``: (U without
     the zero row, L, axis rays, corner rays, the steps (V, k) between
@@ -563,7 +548,7 @@ def poc_neighbourhood(
     """
     from cdpm.dynamics.equilibrium import EquilibriumWarning
     from cdpm.dynamics.reach import reach_settings, reach_unit
-    from cdpm.model.coordinates import coordinate_units
+    from cdpm.model.coordinates import coordinate_limits, coordinate_units
     from cdpm.model.robot import CableRobot, load_robot
     from cdpm.pipeline.evaluate import check_tol, single_threaded_blas, zero_equilibrium
     from cdpm.regions.paths import suspect_edges
@@ -606,7 +591,7 @@ def poc_neighbourhood(
             )
         U, offsets, poses = U[: poc.size], offsets[: poc.size], poses[: poc.size]
     inf_int, sq_int = np.abs(U).max(axis=1), (U**2).sum(axis=1)
-    lower, upper = _limits(robot)
+    lower, upper = coordinate_limits(robot.model)
     outside = np.any((poses < lower - 1e-12) | (poses > upper + 1e-12), axis=1)
     good, in_ball = poc == YES, sq_int <= L * L
 

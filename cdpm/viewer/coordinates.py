@@ -1,18 +1,18 @@
 """Slider ranges and units of a robot's natural coordinates.
 
 :func:`coordinate_sliders` gives, for each natural coordinate, its range
-(from the URDF joint limits, else a default) and its unit; the notebook
-sliders of :class:`cdpm.viewer.PoseInspector` and the inspection page of
-``cdpm view`` (:mod:`cdpm.viewer.page`) both use it. No optional dependency.
+(its default range, :func:`cdpm.model.coordinates.default_ranges`, holding
+the current value) and its unit; the notebook sliders of
+:class:`cdpm.viewer.PoseInspector` and the inspection page of ``cdpm view``
+(:mod:`cdpm.viewer.page`) both use it. No optional dependency.
 """
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
-import numpy as np
+from cdpm.model.coordinates import default_ranges
 
 if TYPE_CHECKING:  # pragma: no cover - for static type checkers only
     from cdpm.model.robot import CableRobot
@@ -39,13 +39,16 @@ class CoordinateRange:
 
 
 def coordinate_sliders(robot: CableRobot, natural: Any = None) -> tuple[CoordinateRange, ...]:
-    """Range and unit of each natural coordinate, from the URDF joint limits.
+    """Range and unit of each natural coordinate: its default range
+    (:func:`cdpm.model.coordinates.default_ranges`, centred on ``natural``),
+    widened to contain the current value.
 
-    Finite limits (``robot.model.lowerPositionLimit``/``upperPositionLimit``)
-    are used as they are; an angle without them gets [-pi, pi] (pitch of a
-    ball joint or free flyer [-pi/2, pi/2]); a length without them gets the
-    current value +- 1 m. A free flyer's position (x, y, z) is a length, its
-    roll, pitch and yaw are angles. The range always contains the current value.
+    The default range is the URDF's limits when finite; else [-pi, pi] for
+    an angle ([-pi/2, pi/2] for the pitch of a ball joint or free flyer);
+    else, for a free flyer's x, y, z (a planar joint's x, y) hanging from
+    the world, the box of the cables' anchor points fixed to the world;
+    else the current value +- 1 m. A free flyer's position (x, y, z) is a
+    length, its roll, pitch and yaw are angles.
 
     Args:
         robot: a :class:`~cdpm.model.robot.CableRobot`.
@@ -56,45 +59,20 @@ def coordinate_sliders(robot: CableRobot, natural: Any = None) -> tuple[Coordina
         One :class:`CoordinateRange` per coordinate, in the order of
         ``robot.coordinate_names``.
     """
-    model = robot.model
     natural = robot.to_natural(robot.neutral() if natural is None else robot.as_q(natural))
-    lower, upper = np.asarray(model.lowerPositionLimit), np.asarray(model.upperPositionLimit)
-    names = list(robot.coordinate_names)
-    sliders: list[CoordinateRange] = []
-    for j in range(1, model.njoints):
-        joint = model.joints[j]
-        kind = joint.shortname()
-        for k in range(joint.nv):
-            iv = joint.idx_v + k
-            name = names[iv]
-            suffix = name.rsplit(".", 1)[-1] if "." in name else ""
-            # JointModelPX/PY/PZ/PrismaticUnaligned, Translation: lengths
-            prismatic = kind.startswith(("JointModelP", "JointModelTranslation"))
-            is_length = (joint.nq == joint.nv and prismatic) or (
-                joint.nq != joint.nv and suffix in ("x", "y", "z")
-            )
-            if joint.nq == joint.nv or is_length:
-                lo, hi = float(lower[joint.idx_q + k]), float(upper[joint.idx_q + k])
-            else:
-                lo, hi = -math.inf, math.inf
-            if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
-                if is_length:
-                    lo, hi = natural[iv] - 1.0, natural[iv] + 1.0
-                elif suffix == "pitch":
-                    lo, hi = -math.pi / 2, math.pi / 2
-                else:
-                    lo, hi = -math.pi, math.pi
-            value = float(natural[iv])
-            sliders.append(
-                CoordinateRange(
-                    name=name,
-                    low=min(lo, value),
-                    high=max(hi, value),
-                    unit="m" if is_length else "rad",
-                    value=value,
-                )
-            )
-    return tuple(sliders)
+    ranges = default_ranges(robot, natural)
+    return tuple(
+        CoordinateRange(
+            name=name,
+            low=min(float(lo), float(value)),
+            high=max(float(hi), float(value)),
+            unit=unit,
+            value=float(value),
+        )
+        for name, lo, hi, unit, value in zip(
+            ranges.names, ranges.low, ranges.high, ranges.units, natural, strict=True
+        )
+    )
 
 
 def coordinate_ranges(robot: CableRobot, natural: Any = None) -> dict[str, tuple[float, float]]:
