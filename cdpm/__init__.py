@@ -110,13 +110,37 @@ _EXPORTS: dict[str, str] = {
 __all__ = ["__version__", *_EXPORTS]
 
 
-#: submodules reachable as attributes after a plain ``import cdpm``
-_SUBMODULES = ("analysis", "maps", "viewer", "equilibrium", "caspr", "reach", "numerics")
+#: submodules reachable as attributes after a plain ``import cdpm``: the
+#: packages, and two modules under the names they had before they moved
+#: into ``cdpm.dynamics`` (``cdpm.equilibrium``, ``cdpm.reach``)
+_SUBMODULES = {
+    **{
+        name: f"cdpm.{name}"
+        for name in (
+            "model",
+            "dynamics",
+            "analysis",
+            "pipeline",
+            "maps",
+            "regions",
+            "steering",
+            "caspr",
+            "text",
+            "plotting",
+            "viewer",
+            "numerics",
+            "verdicts",
+            "errors",
+        )
+    },
+    "equilibrium": "cdpm.dynamics.equilibrium",
+    "reach": "cdpm.dynamics.reach",
+}
 
 
 def __getattr__(name: str):
     if name in _SUBMODULES:
-        return importlib.import_module(f"cdpm.{name}")
+        return importlib.import_module(_SUBMODULES[name])
     module = _EXPORTS.get(name)
     if module is None:
         raise AttributeError(f"module 'cdpm' has no attribute {name!r}")
