@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import enum
 import math
+import re
 
 import numpy as np
 from scipy import linalg as sla
@@ -345,7 +346,6 @@ def cluster(values: np.ndarray, atol: float) -> list[np.ndarray]:
 def fmt_array(x, digits: int = 4) -> str:
     """Compact one-line rendering of a small array; an entry shown as zero
     has no minus sign (-6e-17 beside 1 reads ``0.``, not ``-0.``)."""
-    import re
 
     text = np.array2string(
         np.asarray(x), precision=digits, suppress_small=True, max_line_width=10_000, separator=", "

@@ -9,6 +9,7 @@ combination exactly on the straight-line outputs.
 from __future__ import annotations
 
 import numpy as np
+from scipy.optimize import nnls
 
 from cdpm.analysis._common import Verdict, is_square_zero
 from cdpm.analysis._reduced import Reduced, marginal
@@ -144,7 +145,6 @@ def _nilpotent_pairs_sign(x0, x1, idx, m, tau):
 def _nilpotent_pairs(P0, P1, tau, tol):
     """p >= 2: weights >= 1 on every nonzero column (one NNLS), then pairs
     (0, j) and (t_j, j) reproducing alpha_j CB_j + beta_j CAB_j exactly."""
-    from scipy.optimize import nnls
 
     m = P0.shape[1]
     S = np.hstack([P0, P1 * tau])

@@ -34,6 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from cdpm.analysis.brammer import _positive_controllability
 from cdpm.analysis.exits import (
     free_controllable,
     nilpotent_mechanical,
@@ -43,6 +44,8 @@ from cdpm.analysis.exits import (
     span_codes,
     times,
 )
+from cdpm.analysis.poc import _poc, poc_margins
+from cdpm.analysis.span import span_result
 from cdpm.errors import CdpmError
 from cdpm.numerics import BRAMMER_DEFER, RANK_RATIO, SPAN_TOL, WRENCH_DEFER_BAND
 from cdpm.verdicts import NO, NOT_ANALYSED, YES, verdict_code
@@ -90,7 +93,6 @@ def positively_spanning(vectors: np.ndarray, tol: float = SPAN_TOL) -> np.ndarra
         int8 codes (k,): YES, NO, or MARGINAL where the analyser's
         certificate does not re-check.
     """
-    from cdpm.analysis.span import span_result
 
     if vectors.shape[1] <= 2:
         band = (tol - WRENCH_DEFER_BAND, tol + WRENCH_DEFER_BAND)
@@ -168,8 +170,6 @@ def analyse_systems(
         oc_g[~mixed] = output_controllable(Ag[~mixed], Bg[~mixed], Cg[~mixed])
         oc[gen] = oc_g
         if margin and C.shape[1] and mixed.any():
-            from cdpm.analysis.poc import poc_margins
-
             mg[gen[mixed]] = poc_margins(Ag[mixed], Bg[mixed], Cg[mixed], mk[mixed], True)
         open_poc[gen[~mixed]] = True
     _per_system(A, B, C, mask, open_poc, poc, mg, oc, pc, failed, tol)
@@ -180,8 +180,6 @@ def analyse_systems(
 
 def _per_system(A, B, C, mask, open_poc, poc, mg, oc, pc, failed, tol) -> None:
     """The per-system analyser for what the exits left open (in place)."""
-    from cdpm.analysis.brammer import _positive_controllability
-    from cdpm.analysis.poc import _poc
 
     for i in np.flatnonzero(open_poc | (pc == NOT_ANALYSED)):
         try:

@@ -16,6 +16,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from defusedxml import DefusedXmlException
+from defusedxml.ElementTree import fromstring
 
 from cdpm.errors import InputError, UnsupportedError
 
@@ -146,8 +148,6 @@ def _parse_xml(path: Path, what: str) -> ET.Element:
     references are refused (they can expand without bound or read files);
     the ``<!DOCTYPE ... SYSTEM "...dtd">`` line CASPR's files carry is
     allowed and not followed."""
-    from defusedxml import DefusedXmlException
-    from defusedxml.ElementTree import fromstring
 
     try:
         if not path.is_file():

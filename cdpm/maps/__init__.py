@@ -10,25 +10,42 @@ run that was interrupted resumes where it stopped. See docs/maps.md.
 
 from __future__ import annotations
 
+import multiprocessing
 import os
+import sys
 from collections.abc import Callable, Mapping
 from contextlib import nullcontext
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
+from numpy import bool_
+
+from cdpm._version import __version__
+from cdpm.dynamics.reach import reach_settings
 from cdpm.errors import InputError, is_integer
 from cdpm.maps._dask import check_scheduler_address
-from cdpm.maps._progress import MapRunInfo
-from cdpm.maps._store import RESULT_IN_MEMORY_MAX, StoreSettingsError, open_map
+from cdpm.maps._progress import MapRunInfo, ProgressPrinter
+from cdpm.maps._store import (
+    RESULT_IN_MEMORY_MAX,
+    MemorySink,
+    StoreSettingsError,
+    ZarrSink,
+    open_map,
+)
 from cdpm.maps._store_names import store_path_problem
+from cdpm.maps._workers import RobotSource, prestart_workers
 from cdpm.maps.plan import (
     DEFAULT_CHUNK_SIZE,
     IN_MEMORY_MAX,
     MAX_MAP_POSES,
     SampledAxes,
+    make_plan,
     override_robot,
     sample_axes,
 )
+from cdpm.model.robot import CableRobot, load_robot
 from cdpm.numerics import SPAN_TOL
+from cdpm.pipeline.criteria import bytes_per_pose
 from cdpm.pipeline.evaluate import (
     STATUS_CODES,
     VERDICT_CODES,
@@ -36,6 +53,7 @@ from cdpm.pipeline.evaluate import (
     check_tol,
     evaluate_poses,
     resolve_tension,
+    zero_equilibrium,
 )
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -196,21 +214,12 @@ def workspace_map(
         StoreSettingsError: ``store`` holds a map made with other settings
             (an InputError; the message names each difference).
     """
-    from cdpm._version import __version__
-    from cdpm.dynamics.reach import reach_settings
     from cdpm.maps._lock import store_lock
-    from cdpm.maps._progress import ProgressPrinter
     from cdpm.maps._runner import run_chunks
-    from cdpm.maps._store import MemorySink, ZarrSink
-    from cdpm.maps._workers import RobotSource, prestart_workers
-    from cdpm.maps.plan import make_plan
     from cdpm.maps.regions import attach_new_regions
-    from cdpm.model.robot import CableRobot, load_robot
-    from cdpm.pipeline.evaluate import zero_equilibrium
 
     _refuse_in_worker_bootstrap()
     _check_executor(workers, scheduler)
-    from numpy import bool_
 
     if progress is None or isinstance(progress, bool_):
         progress = bool(progress)
@@ -333,7 +342,6 @@ def workspace_map(
 
 
 def _print_to_stderr(info: MapRunInfo) -> None:
-    import sys
 
     for line in info.lines():
         print(line, file=sys.stderr)
@@ -350,8 +358,6 @@ def _check_executor(workers: Any, scheduler: Any) -> None:
             "`dask worker ADDRESS`), or leave out scheduler to run locally"
         )
     if isinstance(scheduler, str):
-        from cdpm.maps._dask import check_scheduler_address
-
         check_scheduler_address(scheduler)  # before the store is created
 
 
@@ -376,7 +382,6 @@ def _refuse_in_worker_bootstrap() -> None:
     top level would run the map again in every worker (replacing the store
     being written).
     """
-    import multiprocessing
 
     if getattr(multiprocessing.current_process(), "_inheriting", False):
         raise InputError(
@@ -388,7 +393,6 @@ def _refuse_in_worker_bootstrap() -> None:
 
 def _n_poses(axes) -> int:
     """Number of poses of ``axes`` (a grid's product, or the samples)."""
-    import numpy as np
 
     if isinstance(axes, SampledAxes):
         return int(axes.n)
@@ -411,9 +415,6 @@ def default_workers() -> int:
 
 def _check_in_memory_size(robot: CableRobot, plan) -> None:
     """Refuse an in-memory map larger than IN_MEMORY_MAX before any work."""
-    import numpy as np
-
-    from cdpm.pipeline.criteria import bytes_per_pose
 
     n = int(np.prod(plan.shape))
     per_pose = bytes_per_pose(robot)

@@ -16,6 +16,7 @@ the arrays, in ``<store>/.cdpm/`` (zarr ignores it):
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import shutil
@@ -327,7 +328,6 @@ class ZarrSink:
         the same metadata read back from the store (the same document,
         without parsing two dozen documents again: 3-5 ms)."""
         import asyncio
-        import dataclasses
 
         from zarr import AsyncArray, AsyncGroup
         from zarr.core.group import ConsolidatedMetadata
@@ -373,7 +373,6 @@ class ZarrSink:
             (the group, every array {name: zarr AsyncArray}).
         """
         import asyncio
-        import dataclasses
 
         from zarr import AsyncArray
         from zarr.api.asynchronous import create_group

@@ -23,6 +23,7 @@ from __future__ import annotations
 import json
 import multiprocessing
 import os
+import signal
 import tempfile
 import threading
 import time
@@ -31,6 +32,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from cdpm.errors import CdpmError, InputError
+from cdpm.maps.plan import override_robot, robot_overrides
+from cdpm.model.robot import load_robot
 from cdpm.pipeline.compiled import KERNEL_MODULES
 from cdpm.pipeline.evaluate import MapJob, single_threaded_blas
 
@@ -67,7 +70,6 @@ class RobotSource:
 
     @classmethod
     def from_robot(cls, robot) -> RobotSource:
-        from cdpm.maps.plan import robot_overrides
 
         spec = Path(robot.spec.path).resolve()
         urdf = Path(robot.spec.urdf_path).resolve()
@@ -99,7 +101,6 @@ class RobotSource:
         temporary folder, deleted once the robot is loaded (a worker loads
         one per process; the folders were left behind in the temporary
         directory)."""
-        from cdpm.model.robot import load_robot
 
         if Path(self.spec_path).is_file():
             robot = load_robot(self.spec_path)
@@ -118,7 +119,6 @@ class RobotSource:
 
     def load(self):
         """The robot: its spec file's, with the overrides applied."""
-        from cdpm.maps.plan import override_robot
 
         robot = self.load_spec_file()
         if not self.overrides:
@@ -158,7 +158,6 @@ def _init_process(
 ) -> None:
     # Ctrl-C goes to the whole process group: the driver handles it and
     # stops the workers, which must not print tracebacks of their own
-    import signal
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     if driver is not None:

@@ -6,6 +6,8 @@ map store's folder (:func:`file_store`)."""
 from __future__ import annotations
 
 import contextlib
+import threading
+import time
 import warnings
 from pathlib import Path
 
@@ -66,8 +68,6 @@ def sync(make):
     "coroutine ... was never awaited" warning follows: hence ``make``, which
     makes the coroutine only once it runs."""
     import asyncio
-    import threading
-    import time
 
     from zarr.core import sync as zarr_sync
 

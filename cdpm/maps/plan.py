@@ -8,6 +8,7 @@ workers and Dask workers all agree on what chunk k is.
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import json
 from collections.abc import Mapping
@@ -16,6 +17,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from cdpm.dynamics.equilibrium import checked_pretension
 from cdpm.errors import (
     InputError,
     checked_seed,
@@ -25,6 +27,8 @@ from cdpm.errors import (
     short_repr,
 )
 from cdpm.model.coordinates import MAX_COORDINATE
+from cdpm.model.robot import CableRobot
+from cdpm.model.spec import tension_bound_problems
 from cdpm.numerics import MAX_EXTERNAL_LOAD, MAX_GRAVITY, SPAN_TOL
 from cdpm.pipeline.criteria import CRITERIA
 
@@ -422,7 +426,6 @@ def _bound_pair(cable: str, value: Any) -> tuple[float, float]:
         raise InputError(
             f"tension bounds of cable {cable!r} must be (min, max) in N, got {short_repr(value)}"
         ) from exc
-    from cdpm.model.spec import tension_bound_problems
 
     problems = tension_bound_problems(low, high, "{:g} N".format)
     if problems:
@@ -479,9 +482,6 @@ def override_robot(
         InputError: a value of the wrong shape, a bound a cable cannot have
             (negative, max < min, max 0) or an unknown cable name.
     """
-    import dataclasses
-
-    from cdpm.model.robot import CableRobot
 
     spec = robot.spec
     changes: dict[str, Any] = {}
@@ -499,8 +499,6 @@ def override_robot(
             for c in spec.cables
         )
     if pretension is not None:
-        from cdpm.dynamics.equilibrium import checked_pretension
-
         changes["pretension"] = checked_pretension(pretension)
     if external_wrench is not None:
         changes["external_wrench"] = _finite_vector(

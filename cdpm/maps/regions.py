@@ -23,6 +23,8 @@ from typing import Any
 import numpy as np
 
 from cdpm.errors import InputError, float_scalar
+from cdpm.maps._store import open_map
+from cdpm.model.robot import load_robot
 from cdpm.numerics import (
     REGION_BASE_ATOL,
     REGION_GAP_FACTOR,
@@ -253,8 +255,6 @@ def map_layout(ds) -> MapLayout:
 def as_dataset(map_or_path):
     """A map dataset from a Dataset or the path of its store."""
     if isinstance(map_or_path, (str, os.PathLike)):
-        from cdpm.maps._store import open_map
-
         return open_map(map_or_path)
     if not hasattr(map_or_path, "data_vars"):
         raise InputError(
@@ -589,7 +589,6 @@ def map_robot(ds, why: str):
     """The map's robot, loaded from the spec the map records (``spec``) and
     checked against its hash (``spec_sha256``); InputError when the spec is
     not found or changed since the map was made."""
-    from cdpm.model.robot import load_robot
 
     spec = ds.attrs.get("spec")
     if not spec or not Path(spec).is_file():

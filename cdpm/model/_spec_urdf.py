@@ -8,6 +8,7 @@ import contextlib
 import os
 import sys
 import tempfile
+import warnings
 from pathlib import Path
 from typing import Any
 
@@ -155,8 +156,6 @@ def build_model(problems: Problems, urdf_path: Path):
         )
         return None
     if detail:  # e.g. a visual element it skipped: the dynamics are read
-        import warnings
-
         warnings.warn(f"{urdf_path.name}: the URDF parser reported: {detail}", stacklevel=3)
     return model
 

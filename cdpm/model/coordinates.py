@@ -38,6 +38,7 @@ import numpy as np
 
 from cdpm.errors import InputError, float_array
 from cdpm.expressions import parse_number
+from cdpm.model.outputs import anchor_in_joint
 from cdpm.numerics import CONFIGURATION_UNIT_NORM_TOL
 
 __all__ = [
@@ -326,7 +327,6 @@ def default_ranges(robot: Any, reference: Any = None) -> DefaultRanges:
 def _fixed_anchors(robot: Any) -> np.ndarray:
     """World positions (k, 3) [m] of the cables' route points fixed to the
     world (on a frame of the world's joint 0), in the order of the spec."""
-    from cdpm.model.outputs import anchor_in_joint
 
     fixed = []
     for cable in robot.spec.cables:

@@ -7,10 +7,13 @@ through :meth:`cdpm.model.robot.CableRobot.kinematics_batch`.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import TYPE_CHECKING
 
 import numpy as np
 
+from cdpm.errors import InputError, float_array
+from cdpm.expressions import parse_number
 from cdpm.model.coordinates import MAX_COORDINATE, joint_kind
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -74,10 +77,6 @@ def check_poses(robot: CableRobot, natural) -> np.ndarray:
     (nv,); or poses one by one, each natural coordinates (nv,), a pose name
     of the spec or ``{coordinate: value}`` (coordinates not named are 0, as
     in a spec's poses); or one pose name or mapping alone."""
-    from collections.abc import Mapping
-
-    from cdpm.errors import InputError, float_array
-    from cdpm.expressions import parse_number
 
     def named(pose) -> bool:  # a pose name or mapping, not a number such as "pi/6"
         if isinstance(pose, Mapping):

@@ -15,6 +15,7 @@ all cables is ``-L^T f``.
 
 from __future__ import annotations
 
+import ctypes
 import functools
 import math
 import os
@@ -24,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from cdpm.errors import ModelError
+from cdpm.errors import InputError, ModelError
 from cdpm.model.coordinates import (
     as_configuration,
     configuration_from_natural,
@@ -244,8 +245,6 @@ class CableRobot:
         natural coordinates) or a mapping ``{joint: value}``."""
         if isinstance(value, str):
             if value not in self.poses:
-                from cdpm.errors import InputError
-
                 names = ", ".join(self.poses) or "(the spec defines none)"
                 raise InputError(f"pose {value!r} not in spec; poses: {names}")
             return self.poses[value].copy()
@@ -354,7 +353,6 @@ class CableRobot:
         views = getattr(self, "_batch_views_cache", None)
         if views is not None:
             return views
-        import ctypes
 
         pin, model = self._pin, self.model
         data = model.createData()

@@ -63,6 +63,7 @@ from cdpm.model._spec_urdf import (
     package_share_directory,
     usable_path,
 )
+from cdpm.model.coordinates import ConfigurationError, configuration_from_values
 from cdpm.model.outputs import (
     OUTPUT_COMPONENTS,
     POSITION_COMPONENTS,
@@ -448,7 +449,6 @@ def _parse_poses(problems: Problems, raw: Any, model) -> dict[str, np.ndarray]:
         return {}
     if model is None:
         return {}
-    from cdpm.model.coordinates import ConfigurationError, configuration_from_values
 
     poses: dict[str, np.ndarray] = {}
     for name, value in raw.items():

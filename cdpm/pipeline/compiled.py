@@ -26,6 +26,10 @@ from collections.abc import Callable
 
 import numpy as np
 
+from cdpm.dynamics.equilibrium.newton import min_norm_tensions
+from cdpm.errors import CdpmError
+from cdpm.pipeline.evaluate import resolve_tension, zero_equilibrium
+
 __all__ = [
     "KERNEL_MODULES",
     "COMPILE_NOTICE_SECONDS",
@@ -87,7 +91,6 @@ def _load_kernels() -> None:
     from cdpm.analysis.exits import free_controllable, output_controllable
     from cdpm.analysis.rank_kernel import krylov_matrices
     from cdpm.analysis.reach import zonotope_inradii
-    from cdpm.dynamics.equilibrium.newton import min_norm_tensions
     from cdpm.model.stiffness_kernel import stiffness_batch
 
     simplex = np.array([[[1.0, 0.0, 0.0, -1.0], [0.0, 1.0, 0.0, -1.0], [0.0, 0.0, 1.0, -1.0]]])
@@ -116,8 +119,6 @@ def load_kernels_for(robot, tension=None, notice: Callable[[str], None] | None =
     tension setting goes through the kernels (not the zero-load path, which
     needs none); a tension setting that is not valid does nothing (the
     caller reports it)."""
-    from cdpm.errors import CdpmError
-    from cdpm.pipeline.evaluate import resolve_tension, zero_equilibrium
 
     try:
         setting = resolve_tension(robot, tension)

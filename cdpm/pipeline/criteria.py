@@ -20,6 +20,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from cdpm.dynamics.reach import reach_margins_at, reach_unit
+from cdpm.errors import InputError
 from cdpm.verdicts import NO, NOT_ANALYSED, STATUS_CODES, VERDICT_CODES
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -226,7 +228,6 @@ def missing_criteria_error(names) -> Exception | None:
     missing = [n for n in names if n not in CRITERIA]
     if not missing:
         return None
-    from cdpm.errors import InputError
 
     return InputError(
         f"criteria {', '.join(map(repr, missing))} are not registered in this worker process: "
@@ -261,8 +262,6 @@ def _reach(batch: PoseBatch):
         return None
     cached = batch.reach_cache
     if cached is None:
-        from cdpm.dynamics.reach import reach_margins_at
-
         no = batch.verdicts.poc == NO
         cached = reach_margins_at(batch.robot, batch.linearisation, batch.reach, no)
         batch.reach_cache = cached
@@ -329,7 +328,6 @@ def _output_attrs(robot: CableRobot) -> dict:
     """``y``'s attributes: each output's unit (``output_units``), their
     common one (``units``) and each output's formula (``output_formulas``,
     "" for a single frame component)."""
-    from cdpm.dynamics.reach import reach_unit
 
     units = list(robot.output_units)
     common = units[0] if units and len(set(units)) == 1 else "see output_units"
@@ -354,7 +352,6 @@ def _formula(out) -> str:
 def _reach_attrs(robot: CableRobot) -> dict:
     """The reach margin's unit: the outputs' common unit, or ``"m and rad,
     one to one"`` for mixed outputs (:func:`cdpm.dynamics.reach.reach_unit`)."""
-    from cdpm.dynamics.reach import reach_unit
 
     return {"units": reach_unit(robot.output_units)}
 

@@ -21,18 +21,30 @@ Degenerate poses never raise: they get a ``status`` code and the verdicts
 
 from __future__ import annotations
 
+import contextlib
+import ctypes
 import functools
+import platform
+import warnings
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 import cdpm.pipeline.tension_criteria  # noqa: F401  (registers the tension search's criteria)
+from cdpm.dynamics.equilibrium import (
+    EQUILIBRIUM_METHODS,
+    EquilibriumWarning,
+    checked_tensions,
+    equilibrium_tensions,
+    statics,
+)
+from cdpm.dynamics.linearisation import linearise_batch, mass_inverse
 from cdpm.dynamics.reach import ReachSettings, reach_settings
-from cdpm.errors import check_tol
-from cdpm.model.poses import check_poses
+from cdpm.errors import InputError, check_tol
+from cdpm.model.poses import check_poses, configurations
 from cdpm.numerics import MIN_SEGMENT_LENGTH, SPAN_TOL
-from cdpm.pipeline.criteria import CRITERIA, PoseBatch
+from cdpm.pipeline.criteria import CRITERIA, PoseBatch, missing_criteria_error
 from cdpm.verdicts import NO, NOT_ANALYSED, STATUS_CODES, VERDICT_CODES, YES
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -75,8 +87,6 @@ def reuse_freed_memory() -> None:
     """Set glibc's malloc thresholds to HEAP_BLOCK_MAX and KEPT_FREE_MEMORY,
     once per process (a process-wide setting); nothing where the C library
     is not glibc (macOS, musl), whose allocators behave otherwise."""
-    import ctypes
-    import platform
 
     if platform.system() != "Linux" or platform.libc_ver()[0] != "glibc":
         return
@@ -98,7 +108,6 @@ def single_threaded_blas():
     that the limit covers it too. The libraries are looked up once per
     process (a few milliseconds: every loaded library is inspected).
     """
-    import contextlib
 
     controller = _blas_controller()
     if controller is None:  # pragma: no cover - optional (the maps extra has it)
@@ -132,8 +141,6 @@ def resolve_tension(robot: CableRobot, tension: Any) -> str | list[float]:
         InputError: an unknown method, or tensions that
             :func:`~cdpm.dynamics.equilibrium.checked_tensions` refuses.
     """
-    from cdpm.dynamics.equilibrium import EQUILIBRIUM_METHODS, checked_tensions
-    from cdpm.errors import InputError
 
     if tension is None:
         tension = str(robot.spec.equilibrium_method)
@@ -144,10 +151,6 @@ def resolve_tension(robot: CableRobot, tension: Any) -> str | list[float]:
                 f"{', '.join(EQUILIBRIUM_METHODS)} or give tensions [N]"
             )
         if EQUILIBRIUM_METHODS[tension].uses_pretension and not robot.spec.pretension:
-            import warnings
-
-            from cdpm.dynamics.equilibrium import EquilibriumWarning
-
             warnings.warn(
                 f"the {tension!r} method with the spec's pretension of 0 N is the 'min_norm' "
                 "method; set equilibrium.pretension in the spec to keep every cable taut",
@@ -173,8 +176,6 @@ def zero_equilibrium(robot: CableRobot, setting) -> bool:
     if np.any(robot.tension_min != 0) or np.any(robot.tension_max <= 0):
         return False
     if isinstance(setting, str):
-        from cdpm.dynamics.equilibrium import EQUILIBRIUM_METHODS
-
         box = EQUILIBRIUM_METHODS[setting].box
         pretension = float(robot.spec.pretension or 0.0)
         return box is None or not np.any(box(robot.tension_min, robot.tension_max, pretension)[0])
@@ -209,7 +210,6 @@ class MapJob:
         """:func:`evaluate_poses` of ``natural`` (N, nv) with these settings;
         raises a clear InputError when a map variable's criterion is not
         registered in this (worker) process."""
-        from cdpm.pipeline.criteria import missing_criteria_error
 
         error = missing_criteria_error(self.variables)
         if error is not None:
@@ -286,9 +286,6 @@ def evaluate_batch(
     """The pipeline's stages at N poses (module docstring), as a
     :class:`~cdpm.pipeline.criteria.PoseBatch` for the criteria to read."""
     from cdpm.analysis.batch import analyse_systems, positively_spanning
-    from cdpm.dynamics.equilibrium import equilibrium_tensions, statics
-    from cdpm.dynamics.linearisation import linearise_batch, mass_inverse
-    from cdpm.model.poses import configurations
 
     natural = check_poses(robot, natural)
     tol = check_tol(tol)

@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import math
 import os
+import shutil
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -37,6 +38,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from cdpm.errors import InputError, is_integer
+from cdpm.maps import open_map
+from cdpm.pipeline.criteria import CRITERIA
 from cdpm.plotting._common import (
     DRAW_ORDER,
     cell_edges,
@@ -72,7 +75,7 @@ from cdpm.plotting._slabs import SampleSlab, sample_slabs, slabs_text
 from cdpm.plotting._slices import margin_slice, near_slice, slice_picks
 from cdpm.plotting._titles import map_suptitle, slices_text
 from cdpm.plotting.trajectories import plot_trajectory, plot_verify_report
-from cdpm.verdicts import VERDICT_COLORS
+from cdpm.verdicts import NOT_ANALYSED, VERDICT_COLORS
 
 if TYPE_CHECKING:  # pragma: no cover
     from cdpm.regions.paths import POCPath
@@ -131,8 +134,6 @@ def check_image_path(path: str | os.PathLike) -> Path:
             f"use one of {', '.join(formats)}"
         )
     if extension == "pgf":
-        import shutil
-
         import matplotlib
 
         tex = matplotlib.rcParams["pgf.texsystem"]
@@ -168,8 +169,6 @@ def _computed(ds, variable: str) -> bool:
     """Whether the map computed ``variable``: not a variable computed only
     on request (the tension search) in a map made without that request,
     where every pose is 'not analysed'."""
-    from cdpm.pipeline.criteria import CRITERIA
-    from cdpm.verdicts import NOT_ANALYSED
 
     criterion = CRITERIA.get(variable)
     if criterion is None or not criterion.on_request:
@@ -188,8 +187,6 @@ def _require_computed(ds, variable: str) -> None:
 
 def _load(ds_or_path):
     if isinstance(ds_or_path, (str, os.PathLike)):
-        from cdpm.maps import open_map
-
         return open_map(ds_or_path)
     return ds_or_path
 

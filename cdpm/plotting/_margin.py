@@ -299,7 +299,6 @@ def margin_computed(ds, scale: MarginScale) -> bool:
     ``margin=False`` (``cdpm map --no-margin``: its settings say so) and for
     a map without a single finite margin, unless none of its poses has
     been computed yet (``status`` pending everywhere)."""
-    import json
 
     try:
         settings = json.loads(ds.attrs.get("cdpm_settings", "{}"))

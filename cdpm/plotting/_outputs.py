@@ -94,7 +94,6 @@ def _unit(ds, name: str) -> str | None:
 def _varying_outputs(ds, outs: list[str]) -> list[str]:
     """The first two outputs, unless fewer than two of them vary over the
     map: then the two whose values span the widest range (in map order)."""
-    import numpy as np
 
     y = np.asarray(ds["y"].values, dtype=float).reshape(-1, len(outs))
     with np.errstate(invalid="ignore"):

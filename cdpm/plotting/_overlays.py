@@ -11,6 +11,7 @@ import numpy as np
 
 from cdpm.errors import InputError
 from cdpm.plotting._common import halo
+from cdpm.regions.paths import POCPath
 
 #: most regions numbered on a panel (the largest ones)
 MAX_NUMBERED_REGIONS = 15
@@ -291,7 +292,6 @@ def check_path(path, available: list[str], required: list[str]) -> PathCoordinat
             plotted coordinate missing, values not 1-D finite numbers of one
             length.
     """
-    from cdpm.regions.paths import POCPath
 
     suspect: tuple[int, ...] = ()
     if isinstance(path, POCPath):

@@ -9,6 +9,8 @@ import math
 
 import numpy as np
 
+from cdpm.maps.regions import grid_wrap
+
 __all__ = [
     "axis_wrap",
     "distinct_poses",
@@ -35,7 +37,6 @@ def slice_index(ds, third: str, values: np.ndarray) -> np.ndarray:
 def axis_wrap(ds, axis: str) -> str | None:
     """How the grid axis ``axis`` wraps: ``"closed"``, ``"open"`` or None
     (:func:`cdpm.maps.regions.grid_wrap` of its values and unit)."""
-    from cdpm.maps.regions import grid_wrap
 
     values = np.asarray(ds[axis].values, dtype=float)
     return grid_wrap(values, ds[axis].attrs.get("units", ""))

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from cdpm.maps.plan import describe_overrides
 from cdpm.plotting._common import clean_value, coordinate_value
 from cdpm.plotting._margin import MarginScale
 from cdpm.plotting._slices import distinct_poses
@@ -93,7 +94,6 @@ def _poses_text(ds, axes_names: Sequence[str]) -> str:
 def _overrides_text(ds) -> str:
     """``"overrides of the spec: gravity [0, 0, -5] m/s^2; ..."``: what the
     map's robot changed of its spec (attribute ``overrides``), or ""."""
-    from cdpm.maps.plan import describe_overrides
 
     try:
         overrides = json.loads(ds.attrs.get("overrides", "{}"))

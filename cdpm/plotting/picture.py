@@ -18,12 +18,14 @@ the legend) and the verdict in the title. matplotlib is imported only here (``pi
 from __future__ import annotations
 
 import os
+import textwrap
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from cdpm.errors import InputError
+from cdpm.plotting import check_dpi, check_output_folder
 from cdpm.plotting._common import matplotlib_parts
 from cdpm.viewer.state import (
     AXIS_RGB,
@@ -101,8 +103,6 @@ def render_pose(
     """
     _, Figure = matplotlib_parts("pictures", extra="viz")
     from matplotlib.backends.backend_agg import FigureCanvasAgg
-
-    from cdpm.plotting import check_dpi
 
     dpi = check_dpi(dpi)
     target = None if path is None else check_picture_path(path)
@@ -400,7 +400,6 @@ def check_picture_path(path: str | os.PathLike) -> Path:
     Raises:
         InputError: any other suffix.
     """
-    from cdpm.plotting import check_output_folder
 
     target = Path(path).expanduser()
     if target.suffix.lower() not in (".png", ".pdf", ".svg"):
@@ -450,7 +449,6 @@ def _coordinates_text(state: PoseState) -> str:
 def _fit_title(ax, titles: list[str], renderer, fontsize: float = 10) -> None:
     """Set the first of ``titles`` that fits the figure's width, else the
     last one wrapped (at spaces) until it fits."""
-    import textwrap
 
     def fits() -> bool:
         box, figure = ax.title.get_window_extent(renderer), ax.figure.bbox
