@@ -94,11 +94,6 @@ class OutputDrawing:
     cables: dict[int, tuple[str, ...]]
     joints: dict[str, tuple[str, ...]]
 
-    @property
-    def marker_outputs(self) -> tuple[int, ...]:
-        """Indices of the outputs drawn with a marker (at a point)."""
-        return tuple(sorted(k for point in self.points for k in point.outputs))
-
 
 def output_drawing(robot: CableRobot) -> OutputDrawing:
     """Gather where each output of the robot is drawn.
