@@ -31,8 +31,8 @@ from cdpm.maps._store import (
     StoreSettingsError,
     ZarrSink,
     open_map,
+    store_path_problem,
 )
-from cdpm.maps._store_names import store_path_problem
 from cdpm.maps._workers import RobotSource, prestart_workers
 from cdpm.maps.plan import (
     DEFAULT_CHUNK_SIZE,
