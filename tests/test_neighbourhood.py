@@ -12,6 +12,7 @@ import pytest
 import cdpm
 from cdpm.errors import InputError
 from cdpm.regions.neighbourhood import Neighbourhood, poc_neighbourhood
+from cdpm.text import neighbourhood_json, neighbourhood_lines, neighbourhood_text
 from cdpm.verdicts import NO, NOT_ANALYSED, STATUS_CODES, YES
 from tests.conftest import MODELS
 
@@ -53,14 +54,14 @@ def test_paper_nominal_pose_lies_in_a_ball_of_poc_poses(nominal, paper_robot):
     np.testing.assert_allclose(nb.nearest.natural, [1.4636, 1.6072], atol=1e-4)
     assert nb.ball_bracket == pytest.approx((math.hypot(0.2, 0.08), math.hypot(0.2, 0.1)))
     assert nb.counts["yes"] + nb.counts["no"] == nb.n_poses and nb.counts["no"] > 0
-    assert nb.lines()[0] == (
+    assert neighbourhood_lines(nb)[0] == (
         "POC neighbourhood: radius 0.16 rad (box, inf-norm) on a 101x101 grid of half-width 1 "
         "rad: every sampled pose within it is YES and r_T stays clear of 0 between neighbouring "
         "samples"
     )
     assert (
         "or where r_T comes within one step's change of 0, where a NO set thinner than the "
-        "grid may pass" in nb.lines()[1]
+        "grid may pass" in neighbourhood_lines(nb)[1]
     )
 
 
@@ -103,7 +104,13 @@ def test_whole_box_yes_gives_at_least_r(paper_robot):
     assert nb.box_bracket == (0.1, None) and nb.ball_bracket == (0.1, None)
     assert nb.counts == {"yes": 441, "no": 0, "marginal": 0, "not_analysed": 0}
     assert nb.suspect_edges == 0
-    assert "the whole box, so the radius is at least 0.1 rad" in nb.lines()[0]
+    assert "the whole box, so the radius is at least 0.1 rad" in neighbourhood_lines(nb)[0]
+    # print and a notebook cell show a summary; neighbourhood_text the report's lines
+    assert str(nb).splitlines()[0] == (
+        "POC neighbourhood of pose 'nominal' (two_link_planar.yaml): radius at least 0.1 rad "
+        "(box, inf-norm), at least 0.1 rad (ball, 2-norm)"
+    )
+    assert nb._repr_html_().startswith("<pre>POC neighbourhood of pose &#x27;nominal&#x27;")
 
 
 def test_growing_the_box_beyond_the_region_keeps_the_radius(paper_robot):
@@ -141,11 +148,15 @@ def test_no_pose_has_radius_zero(two_cables):
     assert nb.box_bracket == (0.0, 0.0) and nb.ball_bracket == (0.0, 0.0)
     assert nb.box_radius == nb.ball_radius == 0.0
     np.testing.assert_allclose(nb.nearest.natural, nb.natural)
-    assert nb.lines() == [
+    assert neighbourhood_lines(nb) == [
         "POC neighbourhood: radius 0: the pose itself is NO (no neighbourhood evaluated)"
     ]
-    plain = json.loads(json.dumps(nb.to_plain()))
+    plain = json.loads(json.dumps(neighbourhood_json(nb)))
     assert plain["box_radius"] == 0 and plain["verdict"] == "no"
+    assert str(nb) == (
+        "POC neighbourhood of pose 'nominal' (two_link_two_cables.yaml): radius 0 (the pose "
+        "itself is NO)"
+    )
 
 
 def test_six_dof_model_with_default_points(tmp_path):
@@ -162,7 +173,7 @@ def test_six_dof_model_with_default_points(tmp_path):
     assert not cdpm.equilibrium_tension(robot, near.natural).feasible
     assert cdpm.equilibrium_tension(robot, nb.natural + 0.1 * np.sign(near.offset)).feasible
     path = tmp_path / "nb.json"
-    path.write_text(json.dumps(nb.to_plain()))
+    path.write_text(json.dumps(neighbourhood_json(nb)))
     plain = json.loads(path.read_text())
     assert plain["nearest"]["description"] == "not analysed (no equilibrium)"
     assert plain["rays"] == {"axis": 12, "corner": 64}
@@ -192,7 +203,7 @@ def test_coordinates_scale_and_rays(paper_robot):
     assert nb.counts["yes"] == 11 and nb.nearest is None and not nb.whole_box_yes
     assert nb.box_bracket == pytest.approx((0.0, 0.2), abs=1e-12)
     assert [p.distance_box for p in nb.nearest_suspect] == pytest.approx([0.0, 0.2])
-    assert nb.lines()[0].startswith(
+    assert neighbourhood_lines(nb)[0].startswith(
         "POC neighbourhood: radius 0 on a 11-point grid of half-width 1 rad: the pose is YES, "
         "but r_T comes within one step's change of 0 between sampled poses at 0 and 0.2"
     )
@@ -218,7 +229,7 @@ def test_poses_outside_the_joint_limits_are_counted(paper_robot):
     inside = np.abs(q) <= math.pi
     expected = 49 - np.count_nonzero(inside[0][:, None] & inside[1][None, :])
     assert nb.outside_limits == expected > 0
-    assert any("outside the URDF joint limits" in line for line in nb.lines())
+    assert any("outside the URDF joint limits" in line for line in neighbourhood_lines(nb))
 
 
 @pytest.mark.parametrize(
@@ -265,7 +276,7 @@ def test_bad_pose_raises_input_error(paper_robot):
 def test_radius_as_expression(paper_robot):
     nb = poc_neighbourhood(paper_robot, [math.pi / 6, math.pi / 3], "pi/8", points=5)
     assert nb.radius == pytest.approx(math.pi / 8)
-    assert nb.pose_name is None and nb.to_plain()["pose"] is None
+    assert nb.pose_name is None and neighbourhood_json(nb)["pose"] is None
     # the axis rays (step pi/80) refine the grid steps along the axes through q
     assert nb.box_bracket == pytest.approx((3 * math.pi / 80, 4 * math.pi / 80), abs=1e-12)
 
@@ -275,7 +286,7 @@ def test_pose_name_and_reach_settings_reach_the_result(paper_robot):
     nb = poc_neighbourhood(
         paper_robot, q, 0.1, points=5, rays=False, pose_name="nominal", horizon=0.5
     )
-    plain = json.loads(json.dumps(nb.to_plain()))
+    plain = json.loads(json.dumps(neighbourhood_json(nb)))
     assert plain["pose"] == "nominal" and nb.pose_name == "nominal"
     assert plain["reach"]["horizon"] == 0.5 and nb.reach.horizon == 0.5
     assert plain["suspect_lipschitz_safety"] >= 2
@@ -285,8 +296,8 @@ def test_radius_zero_reads_as_such():
     # held by one cable, the gravity arm's nominal pose has no equilibrium a step away
     nb = poc_neighbourhood(VERTICAL, "nominal", 0.3)
     assert nb.verdict == YES and nb.box_radius == 0.0
-    assert nb.lines()[0].startswith(
+    assert neighbourhood_lines(nb)[0].startswith(
         "POC neighbourhood: radius 0 on a 63x63 grid of half-width 0.3 rad: the pose is YES, "
         "but the nearest non-YES sampled pose is not analysed (no equilibrium) at 0.00968"
     )
-    assert "within 0 rad" not in str(nb)
+    assert "within 0 rad" not in neighbourhood_text(nb)

@@ -21,6 +21,7 @@ from cdpm.cli import main
 from cdpm.errors import InputError
 from cdpm.maps.regions import attach_regions, label_regions
 from cdpm.regions.paths import NotConnectedError, POCPath, poc_path, suspect_region_steps
+from cdpm.text import path_json, path_text
 from cdpm.verdicts import NO, NOT_ANALYSED, YES
 from tests.conftest import MODELS, PAPER_SPEC
 
@@ -144,7 +145,9 @@ def test_shortest_path_is_a_shortest_walk_of_poc_poses(paper):
     assert path.steps == _bfs_steps(_distinct_yes(paper), start, goal)
     assert path.margin_variable in ("reach_margin", "poc_margin")
     assert path.min_margin == pytest.approx(np.min(path.margins)) and path.min_margin > 0
-    assert "POC path (shortest) in region 1" in str(path)
+    assert "POC path (shortest) in region 1" in path_text(path)
+    assert str(path).startswith("POC path (shortest) in region 1: ")
+    assert len(str(path).splitlines()) == 1  # a summary; path_text lists the waypoints
 
 
 def test_maximin_path_keeps_the_largest_smallest_margin(paper):
@@ -196,7 +199,7 @@ def test_a_path_across_the_seam_takes_the_short_way(paper):
     # move in q1 (pi to -pi is one pose) and crosses no seam
     along = poc_path(paper, [math.pi, TURN[3]], [-math.pi, TURN[6]])
     assert along.coordinates["q1"].tolist() == pytest.approx([math.pi] * 3 + [-math.pi])
-    assert not along.seam_crossings and "crosses the seam" not in str(along)
+    assert not along.seam_crossings and "crosses the seam" not in path_text(along)
 
 
 def test_same_start_and_goal_is_a_path_of_one_pose(paper):
@@ -272,9 +275,9 @@ def test_sampled_path_steps_within_the_radius():
     assert widest.min_margin >= path.min_margin
 
 
-def test_path_as_dict_is_json(paper):
+def test_path_json_is_strict_json(paper):
     path = poc_path(paper, NOMINAL, [1.0, 0.5])
-    data = json.loads(json.dumps(path.as_dict()))
+    data = json.loads(json.dumps(path_json(path), allow_nan=False))
     assert data["region"] == 1 and data["n_waypoints"] == len(data["coordinates"]["q1"]) == 6
     assert data["waypoints"][0] == data["start_pose"] == {"q1": TURN[18], "q2": TURN[20]}
     assert data["waypoints"][-1] == data["goal_pose"] == {"q1": TURN[20], "q2": TURN[17]}
@@ -288,7 +291,7 @@ def test_path_repr_is_short(paper):
         f"min_margin={path.min_margin:.4g}, suspect_steps={path.suspect_steps})"
     )
     one = poc_path(paper, [0.6, 1.0], [0.62, 1.03])
-    assert "1 waypoint, 0 steps" in str(one)
+    assert "1 waypoint, 0 steps" in path_text(one)
 
 
 def test_pose_names_in_python(paper):
@@ -323,7 +326,7 @@ def test_suspect_steps_are_flagged_and_avoided_by_maximin():
     assert shortest.coordinates["q1"][4:6].tolist() == pytest.approx([0.4, 0.5])
     assert (
         "may cross a NO set thinner than the map's resolution between waypoints 4 and 5 "
-        "(q1 0.4 -> 0.5)" in str(shortest)
+        "(q1 0.4 -> 0.5)" in path_text(shortest)
     )
     # the widest path over all steps would cross there (bottleneck 0.05 > 0.045)
     widest = poc_path(ds, [0.0, 0.0], [1.0, 0.0], maximise_margin=True)
@@ -331,7 +334,7 @@ def test_suspect_steps_are_flagged_and_avoided_by_maximin():
     assert np.max(widest.coordinates["q2"]) == pytest.approx(0.6)
     # without reach_margin nothing is checked
     plain = poc_path(ds.drop_vars("reach_margin"), [0.0, 0.0], [1.0, 0.0])
-    assert plain.suspect_steps is None and "not checked" in str(plain)
+    assert plain.suspect_steps is None and "not checked" in path_text(plain)
 
 
 def test_sampled_path_across_a_thin_no_line_is_flagged():
@@ -446,17 +449,17 @@ def test_path_command_exits_4_when_a_leg_misses(stores, capsys, monkeypatch):
     assert out.rstrip().endswith("1 of 2 legs reached their waypoint's output")
     # the picture's title says so too, naming the leg
     pytest.importorskip("matplotlib")
-    import cdpm.plotting
+    import cdpm.plotting.map_plot
 
     titles = []
-    real_plot = cdpm.plotting.plot_map
+    real_plot = cdpm.plotting.map_plot.plot_map
 
     def recorded(*args, **kwargs):
         fig = real_plot(*args, **kwargs)
         titles.append(fig.get_suptitle())
         return fig
 
-    monkeypatch.setattr(cdpm.plotting, "plot_map", recorded)
+    monkeypatch.setattr(cdpm.plotting.map_plot, "plot_map", recorded)
     assert main([*argv, "--plot", str(stores["vertical"].parent / "legs.png")]) == 4
     leg = re.search(r"^  +2 +(\d+) +(\d+) .* no$", capsys.readouterr().out, re.M)
     assert (

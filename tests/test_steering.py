@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import html
 import json
 
 import numpy as np
@@ -12,6 +13,7 @@ import cdpm
 from cdpm.cli import main
 from cdpm.dynamics.simulation import TensionProfile
 from cdpm.plotting.trajectories import plot_trajectory, plot_verify_report
+from cdpm.text import steer_json, steer_text, verify_text
 from tests.conftest import MODELS, PAPER_SPEC
 from tests.paper_model import paper_L as _paper_L
 from tests.paper_model import paper_M
@@ -136,6 +138,18 @@ def test_results_holding_simulations_have_a_short_repr():
         "outputs=('tip_x',), within_bounds=True)"
     )
     assert traj.t.size > 10 and run.tension.shape[0] > 5  # arrays a full repr would print
+    # print shows a summary (a notebook cell too); cdpm.text gives the table
+    assert str(report) == (
+        "cdpm verify: two_link_two_cables.yaml, pose 'nominal': POC NO\n"
+        "  0 of 1 targets reached at R = 0.005 m; the verdict is shown on the robot"
+    )
+    assert report._repr_html_() == f"<pre>{html.escape(str(report))}</pre>"
+    assert str(run).splitlines()[0] == f"Steering: NOT REACHED ({run.status})"
+    assert len(str(run).splitlines()) == 2 and len(str(traj).splitlines()) == 4
+    full = verify_text(report).splitlines()
+    assert full[0] == str(report).splitlines()[0] and len(full) == 7
+    assert full[2].startswith("  blocked direction v = +tip_x; pulling each cable in turn")
+    assert full[4].startswith(f"  {'+tip_x':<28} {'NO':>7} ")
 
 
 def test_free_flyer_stays_on_the_manifold_and_energy_is_kept():
@@ -322,7 +336,7 @@ def test_motion_plots_show_each_output_in_its_unit_and_the_cables_that_pull():
     named instead of drawn under each other, and f* dotted."""
     pytest.importorskip("matplotlib")
     from cdpm.plotting.trajectories import display_unit
-    from cdpm.steering.verify import direction_text
+    from cdpm.text import direction_text
 
     assert display_unit("m") == (1e3, "mm") and display_unit("rad") == (1e3, "mrad")
     assert display_unit("m and rad, one to one") == (1e3, "mm, mrad")
@@ -356,7 +370,7 @@ def test_motion_plots_show_each_output_in_its_unit_and_the_cables_that_pull():
     ds = traj.to_dataset()
     assert list(ds["velocity"].values) == list(traj.velocity_labels)
     assert ds.v.attrs["units"] == "per component, see velocity_unit"
-    lines = str(res).splitlines()
+    lines = steer_text(res).splitlines()
     # the outputs' values on a line of their own, to 6 decimals, no -0
     values = lines[
         lines.index(f"  outputs ({', '.join(f'{n} [{u}]' for n, u in units.items())}):") + 1
@@ -371,7 +385,7 @@ def test_motion_plots_show_each_output_in_its_unit_and_the_cables_that_pull():
     parts = [part.split() for part in speeds.split(", ")]
     assert [p[0] for p in parts] == list(traj.velocity_labels)
     assert [p[2] for p in parts] == ["m/s"] * 3 + ["rad/s"] * 3
-    as_json = res.as_dict()
+    as_json = steer_json(res)
     assert as_json["velocity_names"] == list(traj.velocity_labels)
     assert as_json["velocity_units"] == list(traj.velocity_units)
     np.testing.assert_allclose(

@@ -41,6 +41,12 @@ import cdpm
 from cdpm.cli import main
 from cdpm.dynamics.equilibrium import InfeasibleEquilibriumError
 from cdpm.errors import InputError
+from cdpm.text import (
+    best_tension_json,
+    best_tension_text,
+    tension_range_json,
+    tension_range_text,
+)
 from cdpm.verdicts import NO, NOT_ANALYSED, YES
 from tests.conftest import MODELS
 
@@ -75,9 +81,13 @@ def test_tension_range_of_the_hand_model(one_joint):
     np.testing.assert_allclose(r.interior, [5.0, 0.0], atol=1e-9)
     assert r.interior_slack == pytest.approx(5.0)
     assert r.cable_states() == ["slack or taut", "must be slack"]
-    text = str(r)
+    text = tension_range_text(r)
     assert "c2" in text and "must be slack" in text and "capped at 10 N" in text
-    data = json.loads(json.dumps(r.as_dict(), allow_nan=False))  # strict JSON
+    assert str(r) == (
+        "Feasible equilibrium tensions: rank L^T = 1, 1 internal-force direction(s); "
+        "can be slack: c1, c2; must be slack: c2"
+    )
+    data = json.loads(json.dumps(tension_range_json(r), allow_nan=False))  # strict JSON
     assert data["cables"][0]["greatest"] is None and data["cables"][0]["tension_max"] is None
     assert data["null_space_dimension"] == 1
 
@@ -111,8 +121,8 @@ def test_tension_range_at_a_pose_without_equilibrium():
     robot = cdpm.load_robot(VERTICAL)
     r = cdpm.tension_range(robot, NOWHERE)
     assert not r.feasible and np.all(np.isnan(r.least))
-    assert "none" in str(r)
-    json.dumps(r.as_dict(), allow_nan=False)
+    assert "none" in str(r) and "none" in tension_range_text(r)
+    json.dumps(tension_range_json(r), allow_nan=False)
 
 
 # ---------------------------------------------------------------- best_tension
@@ -145,10 +155,14 @@ def test_min_norm_is_no_and_another_feasible_tension_is_yes(one_joint):
     assert again.certificate.verify(lin.A, lin.B_cone, lin.C)
     assert best.poc.verdict == cdpm.Verdict.YES
     assert best.poc.certificate.verify(lin.A, lin.B_cone, lin.C)
-    text = str(best)
+    text = best_tension_text(best)
+    assert text.startswith(tension_range_text(best.tension_range) + "\n")
     assert "YES: this feasible tension makes the pose POC (certified)" in text
     assert "default tension: NO" in text and "a NO means that none of the" in text
-    data = json.loads(json.dumps(best.as_dict(), allow_nan=False))
+    assert str(best).startswith(
+        f"Best tension (objective poc): YES, r_T = {best.reach_margin[0]:.4g} m"
+    )
+    data = json.loads(json.dumps(best_tension_json(best), allow_nan=False))
     assert data["poc_possible"] == "yes" and data["default"]["verdict"] == "no"
 
 

@@ -45,7 +45,6 @@ here runs them in that order and writes the outputs. Thresholds live in
 
 from __future__ import annotations
 
-import html
 import os
 import re
 import warnings
@@ -54,6 +53,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import yaml
 
 from cdpm.caspr._spec import (
     GRAVITY,
@@ -73,6 +73,8 @@ from cdpm.caspr._xml import (
     cable_sets,
 )
 from cdpm.errors import InputError
+from cdpm.model.robot import load_robot
+from cdpm.printing import TextRepr
 
 __all__ = [
     "CasprImport",
@@ -90,7 +92,7 @@ class CasprWarning(UserWarning):
 
 
 @dataclass(frozen=True)
-class CasprImport:
+class CasprImport(TextRepr):
     """Result of :func:`import_caspr`.
 
     Attributes:
@@ -176,9 +178,6 @@ class CasprImport:
             lines.extend(f"    - {w}" for w in self.warnings)
         return "\n".join(lines)
 
-    def _repr_html_(self) -> str:
-        return f"<pre>{html.escape(str(self))}</pre>"
-
 
 def import_caspr(
     bodies_xml: str | os.PathLike,
@@ -226,7 +225,6 @@ def import_caspr(
         InputError: a file is missing, malformed or inconsistent.
         MissingExtraError: yourdfpy is not installed.
     """
-    import yaml
 
     bodies_path = Path(bodies_xml).expanduser().resolve()
     cables_path = Path(cables_xml).expanduser().resolve()
@@ -314,7 +312,6 @@ def import_caspr(
         )
 
     write_spec()
-    from cdpm.model.robot import load_robot
 
     robot = load_robot(spec_path)
     dof_of_joint = {d.joint_name: d for d in dofs}

@@ -218,6 +218,8 @@ def _best_tension(robot: CableRobot, q, args: argparse.Namespace):
 
 def _print_with_best(report, best, fmt: str, output: Path | None) -> int:
     """Print (or write) the report followed by the tension search."""
+    from cdpm.text.tension import best_tension_json, best_tension_text
+
     if best is None:
         print(
             "cdpm analyze: error: no tension within the cable bounds holds this pose, so there "
@@ -232,13 +234,13 @@ def _print_with_best(report, best, fmt: str, output: Path | None) -> int:
         )
     if fmt == "json":
         data = report.as_dict()
-        data["best_tension"] = None if best is None else best.as_dict()
+        data["best_tension"] = None if best is None else best_tension_json(best)
         text = json_text(data)
     else:
         search = (
             "Tension search: none (no tension within the cable bounds holds the pose)"
             if best is None
-            else str(best)
+            else best_tension_text(best)
         )
         text = f"{report}\n\n{search}"
     if output is None:

@@ -124,6 +124,7 @@ def run(args: argparse.Namespace) -> int:
     from cdpm.maps import open_map
     from cdpm.maps.regions import REGION_VARIABLE, attach_regions
     from cdpm.regions.paths import NotConnectedError, poc_path
+    from cdpm.text.regions import path_json, path_text, path_warnings
 
     check_play_arguments(args, "the path")
     if args.legs is not None and not args.steer:
@@ -146,9 +147,9 @@ def run(args: argparse.Namespace) -> int:
     out = sys.stderr if args.json else sys.stdout  # keep --json output parseable
     if not args.json:
         print(f"map {args.map}: axes {', '.join(path.axes)}")
-        print(path)
+        print(path_text(path))
     else:
-        for line in path.warnings():
+        for line in path_warnings(path):
             print(f"cdpm path: {line}", file=sys.stderr)
     legs = None
     if args.steer:
@@ -160,7 +161,7 @@ def run(args: argparse.Namespace) -> int:
         written = save_map_plot(ds, args.plot, path=path, subtitle=subtitle)
         print(f"plot written to {written}", file=out)
     if args.json:
-        result = {"connected": True, **path.as_dict()}
+        result = {"connected": True, **path_json(path)}
         if legs is not None:
             result["steering"] = legs
             result["legs_reached"] = sum(leg["reached"] for leg in legs)

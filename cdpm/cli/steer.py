@@ -87,6 +87,7 @@ def run(args: argparse.Namespace) -> int:
     from cdpm.errors import InputError
     from cdpm.model.robot import load_robot
     from cdpm.steering.shooting import STEER_MAX_INTERVALS, steer
+    from cdpm.text.steering import steer_json, steer_text
 
     robot = load_robot(args.spec)
     pose = pose_from_args(robot, args)
@@ -130,9 +131,9 @@ def run(args: argparse.Namespace) -> int:
             equilibrium=result.equilibrium_tension,
         )
     if args.json:
-        print(json_text(result.as_dict()))
+        print(json_text(steer_json(result)))
     else:
-        print(result)
+        print(steer_text(result))
         _print_profile(result)
         if args.plot:
             print(f"plot written to {args.plot}")

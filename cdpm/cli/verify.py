@@ -106,6 +106,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from cdpm.model.robot import load_robot
     from cdpm.steering.verify import verify_pose
+    from cdpm.text.steering import verify_json, verify_text
 
     robot = load_robot(args.spec)
     pose = pose_from_args(robot, args)
@@ -125,9 +126,9 @@ def run(args: argparse.Namespace) -> int:
 
         plot_verify_report(report, args.plot)
     if args.json:
-        print(json_text(report.as_dict()))
+        print(json_text(verify_json(report)))
     else:
-        print(report)
+        print(verify_text(report))
         if args.plot:
             print(f"plot written to {args.plot}")
     return 0 if report.demonstrated else 1

@@ -25,7 +25,6 @@ or a feedback callable ``f(t, q, v) -> (m,)``. The result is a
 
 from __future__ import annotations
 
-import html
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -35,6 +34,7 @@ import numpy as np
 
 from cdpm.errors import InputError, float_array, is_integer, positive_number, short_repr
 from cdpm.numerics import MAX_TENSION, MAX_TIME_SPAN
+from cdpm.printing import TextRepr
 
 if TYPE_CHECKING:  # pragma: no cover
     from cdpm.model.robot import CableRobot
@@ -130,7 +130,7 @@ def _one_unit(units: tuple[str, ...], coordinate: str) -> str:
 
 
 @dataclass(frozen=True)
-class Trajectory:
+class Trajectory(TextRepr):
     """A simulated motion, sampled at times t.
 
     Attributes:
@@ -270,9 +270,6 @@ class Trajectory:
             f"cables={self.cable_names}, outputs={self.output_names}, "
             f"within_bounds={self.within_bounds})"
         )
-
-    def _repr_html_(self) -> str:
-        return f"<pre>{html.escape(str(self))}</pre>"
 
 
 def _as_tension(robot: CableRobot, tension: Any) -> TensionProfile | Feedback | np.ndarray:

@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from cdpm.plotting._common import matplotlib_parts
-from cdpm.steering.verify import direction_text
+from cdpm.text.steering import direction_text
 
 if TYPE_CHECKING:  # pragma: no cover
     from cdpm.dynamics.simulation import Trajectory

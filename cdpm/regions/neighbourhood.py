@@ -14,7 +14,6 @@ POC neighbourhood", gives the sampling rules, the defaults and examples.
 
 from __future__ import annotations
 
-import html
 import itertools
 import math
 import os
@@ -27,7 +26,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from cdpm.errors import InputError, is_integer
-from cdpm.numerics import SPAN_TOL, SUSPECT_LIPSCHITZ_SAFETY
+from cdpm.numerics import SPAN_TOL
+from cdpm.printing import TextRepr
 from cdpm.verdicts import NOT_ANALYSED, STATUS_CODES, STATUS_LABELS, VERDICT_CODES, YES, verdict_key
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -78,29 +78,12 @@ class SampledPose:
         """The verdict in words: ``NO``, ``MARGINAL`` or ``not analysed (no equilibrium)``."""
         return _describe(self.verdict, self.status)
 
-    def where(self, names: Sequence[str], varied: Sequence[str]) -> str:
-        """The pose as ``"q1 = 1.4636, q2 = 1.6072"`` (the varied coordinates)."""
-        return ", ".join(f"{c} = {self.natural[list(names).index(c)]:.5g}" for c in varied)
-
-    def as_dict(self, coordinate_names: Sequence[str]) -> dict:
-        """Plain JSON data (coordinates by name)."""
-        return {
-            "coordinates": dict(zip(coordinate_names, map(float, self.natural), strict=True)),
-            "distance_box": self.distance_box,
-            "distance_ball": self.distance_ball,
-            "verdict": verdict_key(self.verdict),
-            "status": STATUS_LABELS.get(self.status, str(self.status)),
-            "description": self.describe(),
-            "outside_limits": self.outside_limits,
-            "reach_margin": self.margin if math.isfinite(self.margin) else None,
-        }
-
 
 NonYesPose = SampledPose  # the nearest non-YES poses are SampledPose too
 
 
 @dataclass(frozen=True)
-class Neighbourhood:
+class Neighbourhood(TextRepr):
     """The POC neighbourhood of a pose, measured on a local refined map;
     distances in scaled natural coordinates ``s = dq / scale``, in :attr:`unit`.
 
@@ -192,128 +175,19 @@ class Neighbourhood:
             return f"{self.points}-point"
         return "x".join([str(self.points)] * k) if k <= 3 else f"{self.points}^{k}"
 
-    def lines(self) -> list[str]:
-        """The neighbourhood in words, for the pose report (first line: the
-        summary)."""
-        u, R, (lo, hi) = self.unit, self.radius, self.box_bracket
-        if self.verdict != YES:
-            return [f"POC neighbourhood: radius 0: {self.reason} (no neighbourhood evaluated)"]
-        grid = f"{self.grid_shape} grid{' plus rays' if self.axis_rays else ''} of half-width"
-        grid = f"on a {grid} {R:.4g} {u}"
-        clear = "is YES and r_T stays clear of 0 between neighbouring samples"
-        if self.whole_box_yes:
-            head = f"every sampled pose within {R:.4g} {u} (box, inf-norm) of the pose {clear}, "
-            out = [f"{head}{grid}: the whole box, so the radius is at least {R:.4g} {u}"]
-        elif lo > 0:
-            head = f"radius {lo:.4g} {u} (box, inf-norm) {grid}: every sampled pose within it "
-            out = [f"{head}{clear}"]
-        else:
-            out = [f"radius 0 {grid}: the pose is YES, but {self.reason}"]
-        out[0] = "POC neighbourhood: " + out[0]
-        if not self.whole_box_yes:
-            out.append(
-                f"  box radius in [{lo:.4g}, {hi:.4g}] {u}: it stops at the nearest non-YES pose "
-                "or where r_T comes within one step's change of 0, where a NO set thinner than "
-                "the grid may pass (the region may end between the two)"
-            )
-        names, varied, near = self.coordinate_names, self.coordinates, self.nearest
-        if near is not None:
-            where = f"{near.describe()} at ({near.where(names, varied)})"
-            out.append(f"  nearest non-YES pose: {where}, {near.distance_box:.4g} {u} away")
-        if self.nearest_suspect is not None:
-            a, b = self.nearest_suspect
-            out.append(
-                f"  nearest suspect edge: r_T = {a.margin:.3g} and {b.margin:.3g} "
-                f"{self.margin_unit} at ({a.where(names, varied)}) and ({b.where(names, varied)}), "
-                f"{a.distance_box:.4g} and {b.distance_box:.4g} {u} away "
-                f"({self.suspect_edges} suspect edges in all)"
-            )
-        ball, end = self.ball_bracket
-        out.append(
-            f"  ball (2-norm): every sampled pose within {R:.4g} {u} {clear}"
-            if end is None
-            else f"  ball (2-norm): radius {ball:.4g} {u}, the region may end at {end:.4g}"
-        )
-        out.append("  " + self._sampled_text())
-        out.append(
-            f"  r_T: T {self.reach.horizon:.3g} s, budget {self.reach.tension_budget:.3g} N; "
-            f"suspect: r(a) + r(b) <= {SUSPECT_LIPSCHITZ_SAFETY:g} L h, L the largest slope of "
-            "r_T sampled at a or b (a heuristic)"
-        )
-        if u == "m or rad":
-            out.append("  mixed units: 1 m of translation counts as 1 rad (set scale= to change)")
-        elif u == "scaled units":
-            parts = zip(self.coordinates, self.scale, self.units, strict=True)
-            scales = ", ".join(f"{c} {x:g} {unit}" for c, x, unit in parts)
-            out.append(f"  distances in dq / scale; scale: {scales}")
-        counts = ", ".join(f"{v} {k.replace('_', ' ')}" for k, v in self.counts.items() if v)
-        out.append(f"  verdicts: {counts}")
-        if self.outside_limits:
-            also = self.nearest is not None and self.nearest.outside_limits
-            out.append(
-                f"  {self.outside_limits} sampled poses lie outside the URDF joint limits "
-                "(evaluated anyway)" + ("; the nearest non-YES pose is one of them" if also else "")
-            )
-        return out
-
-    def _sampled_text(self) -> str:
-        names = ", ".join(self.coordinates)
-        if self.points > 1:
-            steps = {f"{s:.3g} {unit}" for s, unit in zip(self.step, self.units, strict=True)}
-            text = f"sampled: {self.grid_shape} grid over {names}, step {' / '.join(sorted(steps))}"
-        else:
-            text = f"sampled: over {names}, no grid beyond q"
-        if self.axis_rays + self.corner_rays:
-            text += (
-                f", plus {self.axis_rays} axis and {self.corner_rays} corner rays of "
-                f"{self.ray_points} points (step {self.radius / self.ray_points:.3g} {self.unit})"
-            )
-        return text + f"; {self.n_poses} poses in {self.seconds:.2g} s"
-
     def __str__(self) -> str:
-        return "\n".join(self.lines())
-
-    def _repr_html_(self) -> str:
-        return f"<pre>{html.escape(str(self))}</pre>"
-
-    def to_plain(self) -> dict:
-        """JSON-serialisable content (None for an unbounded bracket)."""
-        from cdpm.printing import to_plain
-
-        names, varied, suspect = self.coordinate_names, self.coordinates, self.nearest_suspect
-
-        def plain(pose):
-            return None if pose is None else pose.as_dict(names)
-
-        same = (
-            "radius points ray_points n_poses box_radius box_bracket ball_radius ball_bracket "
-            "whole_box_yes suspect_edges counts status_counts outside_limits tension pretension "
-            "tol seconds reason"
+        # a summary; cdpm.text.neighbourhood_text gives the pose report's text
+        where = f"pose {self.pose_name!r}" if self.pose_name else "the given q"
+        head = f"POC neighbourhood of {where} ({self.model_name})"
+        if self.verdict != YES:
+            return f"{head}: radius 0 ({self.reason})"
+        u = self.unit
+        least = "at least " if self.whole_box_yes else ""
+        return (
+            f"{head}: radius {least}{self.box_radius:.4g} {u} (box, inf-norm), "
+            f"{least}{self.ball_radius:.4g} {u} (ball, 2-norm)\n"
+            f"  {self.reason}; {self.n_poses} poses sampled within {self.radius:.4g} {u}"
         )
-        return to_plain(
-            {
-                "model": self.model_name,
-                "pose": self.pose_name,
-                "coordinates": dict(zip(names, self.natural.tolist(), strict=True)),
-                "varied": list(varied),
-                "units": list(self.units),
-                "unit": self.unit,
-                "scale": dict(zip(varied, self.scale.tolist(), strict=True)),
-                "grid": self.grid_shape,
-                "step": dict(zip(varied, self.step.tolist(), strict=True)),
-                "rays": {"axis": self.axis_rays, "corner": self.corner_rays},
-                "verdict": verdict_key(self.verdict),
-                "status": STATUS_LABELS.get(self.status, str(self.status)),
-                "nearest": plain(self.nearest),
-                "nearest_ball": plain(self.nearest_ball),
-                "nearest_suspect": None if suspect is None else [plain(p) for p in suspect],
-                "suspect_lipschitz_safety": SUSPECT_LIPSCHITZ_SAFETY,
-                "reach": self.reach.as_dict(),
-                **{key: getattr(self, key) for key in same.split()},
-            }
-        )
-
-    as_dict = to_plain
 
 
 def _describe(verdict: int, status: int) -> str:

@@ -32,8 +32,6 @@ step and flags those steps (``POCPath.suspect_steps``).
 
 from __future__ import annotations
 
-import html
-import json
 import math
 from dataclasses import dataclass, field
 from typing import Any
@@ -51,7 +49,7 @@ from cdpm.maps.regions import (
     region_labels,
     sample_distance,
 )
-from cdpm.numerics import SUSPECT_LIPSCHITZ_SAFETY
+from cdpm.printing import TextRepr
 from cdpm.regions.graph import (
     MARGIN_VARIABLES,
     bottleneck,
@@ -74,11 +72,6 @@ __all__ = [
     "MARGIN_VARIABLES",
 ]
 
-#: waypoints printed in full; longer paths print the first and last halves
-PRINT_WAYPOINTS = 16
-#: suspect steps printed with a warning line each; the others are listed
-PRINT_SUSPECT = 4
-
 
 class NotConnectedError(InputError):
     """No path of POC poses joins the start and the goal.
@@ -100,7 +93,7 @@ class NotConnectedError(InputError):
 
 
 @dataclass(frozen=True)
-class POCPath:
+class POCPath(TextRepr):
     """A path of POC map poses inside one region.
 
     Attributes:
@@ -174,106 +167,19 @@ class POCPath:
         """{axis: value} of waypoint i [rad or m]."""
         return {a: float(self.coordinates[a][i]) for a in self.axes}
 
-    def as_dict(self) -> dict:
-        """JSON-serialisable content: ``waypoints`` lists {axis: value} per
-        waypoint (``n_waypoints`` of them), ``margins`` the margin at each."""
-        return {
-            "region": self.region,
-            "region_size": self.region_size,
-            "start_pose": dict(self.start_pose),
-            "goal_pose": dict(self.goal_pose),
-            "n_waypoints": self.n_waypoints,
-            "steps": self.steps,
-            "length": self.length,
-            "maximise_margin": self.maximise_margin,
-            "margin_variable": self.margin_variable,
-            "margin_unit": self.margin_unit,
-            "min_margin": _json_float(self.min_margin),
-            "suspect_steps": None if self.suspect_steps is None else list(self.suspect_steps),
-            "seam_crossings": list(self.seam_crossings),
-            "dims": list(self.dims),
-            "axes": list(self.axes),
-            "units": dict(self.units),
-            "waypoints": [self.waypoint(i) for i in range(self.n_waypoints)],
-            "margins": [_json_float(x) for x in self.margins],
-            "indices": self.indices.tolist(),
-            "coordinates": {a: v.tolist() for a, v in self.coordinates.items()},
-            "natural_names": list(self.natural_names),
-            "natural": self.natural.tolist(),
-        }
-
-    def _unit_text(self) -> str:
-        units = {self.units.get(a, "") for a in self.axes}
-        if len(units) == 1:
-            return next(iter(units)) or "axis units"
-        return "axis units: " + ", ".join(f"{a} {self.units.get(a, '?')}" for a in self.axes)
-
-    def warnings(self) -> list[str]:
-        """One line per suspect step: where the path may cross a NO set
-        thinner than the map's resolution (empty when none or not checked)."""
-        out = []
-        for i in self.suspect_steps or ():
-            moves = ", ".join(
-                f"{a} {self.coordinates[a][i]:.4g} -> {self.coordinates[a][i + 1]:.4g}"
-                for a in self.axes
-                if self.coordinates[a][i] != self.coordinates[a][i + 1]
-            )
-            out.append(
-                f"warning: the path may cross a NO set thinner than the map's resolution "
-                f"between waypoints {i} and {i + 1} ({moves}): their reach margins "
-                f"{self.margins[i]:.4g} and {self.margins[i + 1]:.4g} are within one step's "
-                f"change of 0 ({SUSPECT_LIPSCHITZ_SAFETY:g} times the largest slope of r_T "
-                "sampled nearby)"
-            )
-        return out
-
     def __str__(self) -> str:
+        # a summary; cdpm.text.path_text gives the waypoints and warnings
         kind = "largest smallest margin" if self.maximise_margin else "shortest"
-        k = self.n_waypoints
-        lines = [
-            f"POC path ({kind}) in region {self.region} ({self.region_size} poses): "
-            f"{k} waypoint{'s' if k != 1 else ''}, {self.steps} step"
-            f"{'s' if self.steps != 1 else ''}, length {self.length:.4g} [{self._unit_text()}]"
-        ]
+        text = (
+            f"POC path ({kind}) in region {self.region}: {self.n_waypoints} waypoint(s), "
+            f"length {self.length:.4g}"
+        )
         if self.margin_variable is not None and np.any(np.isfinite(self.margins)):
-            at = int(np.nanargmin(self.margins))
-            lines.append(
-                f"  smallest {self.margin_variable} along it: {self.min_margin:.4g}"
-                f"{' ' + self.margin_unit if self.margin_unit else ''} (waypoint {at})"
-            )
-        else:
-            lines.append("  no margins in this map")
-        if self.seam_crossings:
-            lines.append(
-                f"  crosses the seam of a full-turn axis after waypoint(s) "
-                f"{', '.join(map(str, self.seam_crossings))}"
-            )
-        if self.suspect_steps is None and self.steps:
-            lines.append(
-                "  no reach_margin in this map: thin NO sets between waypoints not checked"
-            )
-        lines += ["  " + line for line in self.warnings()[:PRINT_SUSPECT]]
-        rest = (self.suspect_steps or ())[PRINT_SUSPECT:]
-        if rest:
-            lines.append(
-                f"  warning: {len(rest)} more such step{'s' if len(rest) > 1 else ''}, from "
-                f"waypoint{'s' if len(rest) > 1 else ''} {', '.join(map(str, rest))} to the next"
-            )
-        head = "  waypoints:  #  " + " ".join(f"{a:>10}" for a in self.axes)
-        unit = f" [{self.margin_unit}]" if self.margin_unit else ""
-        lines.append(head + (f"  margin{unit}" if self.margin_variable else ""))
-        show = list(range(k))
-        if k > PRINT_WAYPOINTS:
-            half = PRINT_WAYPOINTS // 2
-            show = list(range(half)) + [-1] + list(range(k - half, k))
-        for i in show:
-            if i < 0:
-                lines.append(f"{'':>14}... ({k - PRINT_WAYPOINTS} more)")
-                continue
-            row = " ".join(f"{self.coordinates[a][i]:>10.4g}" for a in self.axes)
-            margin = f"  {self.margins[i]:.4g}" if self.margin_variable else ""
-            lines.append(f"  {'':>10}{i:>3}  {row}{margin}")
-        return "\n".join(lines)
+            unit = f" {self.margin_unit}" if self.margin_unit else ""
+            text += f"; smallest {self.margin_variable} {self.min_margin:.4g}{unit}"
+        if self.suspect_steps:
+            text += f"; {len(self.suspect_steps)} suspect step(s)"
+        return text
 
     def __repr__(self) -> str:
         return (
@@ -281,13 +187,6 @@ class POCPath:
             f"length={self.length:.4g}, min_margin={self.min_margin:.4g}, "
             f"suspect_steps={self.suspect_steps})"
         )
-
-    def _repr_html_(self) -> str:
-        return f"<pre>{html.escape(str(self))}</pre>"
-
-
-def _json_float(x: float):
-    return float(x) if math.isfinite(float(x)) else None
 
 
 # ------------------------------------------------------------------ graph
@@ -556,8 +455,3 @@ def _not_connected(ds, layout, labels, s_idx, g_idx, joined: bool = True) -> Not
         start_size=s_size,
         goal_size=g_size,
     )
-
-
-def path_json(path: POCPath) -> str:
-    """The path as indented JSON."""
-    return json.dumps(path.as_dict(), indent=2)

@@ -19,7 +19,6 @@ positive output controllability) and ranks those that satisfy ``where``:
 
 from __future__ import annotations
 
-import html
 import math
 import os
 from collections.abc import Mapping
@@ -29,6 +28,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from cdpm.errors import InputError, is_integer
+from cdpm.printing import TextRepr
 
 if TYPE_CHECKING:  # pragma: no cover - for static type checkers only
     from cdpm.dynamics.reach import ReachSettings
@@ -253,7 +253,7 @@ class FoundPose:
 
 
 @dataclass(frozen=True)
-class PoseSearch:
+class PoseSearch(TextRepr):
     """What :func:`find_poses` found.
 
     Attributes:
@@ -307,9 +307,6 @@ class PoseSearch:
                 f"{pose.peak_tension:.4g} N: {values}"
             )
         return "\n".join(lines)
-
-    def _repr_html_(self) -> str:
-        return f"<pre>{html.escape(str(self))}</pre>"
 
 
 def find_poses(

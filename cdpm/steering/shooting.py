@@ -24,7 +24,6 @@ simulated, and the result says why the target is not reached.
 
 from __future__ import annotations
 
-import html
 import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
@@ -42,6 +41,7 @@ from cdpm.errors import (
 )
 from cdpm.model.coordinates import MAX_COORDINATE
 from cdpm.numerics import HORIZON_BOUND_RTOL, HORIZON_GIVEN_MAX_UNITS
+from cdpm.printing import TextRepr
 
 if TYPE_CHECKING:  # pragma: no cover
     from cdpm.dynamics.linearisation import Linearisation
@@ -66,7 +66,7 @@ STEER_MAX_GROWTH = 1e16
 
 
 @dataclass(frozen=True)
-class SteerResult:
+class SteerResult(TextRepr):
     """A steering attempt.
 
     Attributes:
@@ -126,57 +126,17 @@ class SteerResult:
         """Every tension inside its cable's bounds at every instant."""
         return self.trajectory.within_bounds
 
-    def as_dict(self) -> dict:
-        """JSON-serialisable content."""
-        return {
-            "reached": bool(self.reached),
-            "status": self.status,
-            "target": self.target.tolist(),
-            "y0": self.y0.tolist(),
-            "y_final": self.trajectory.y[-1].tolist(),
-            "miss": float(self.miss),
-            "tolerance": float(self.tolerance),
-            "duration": self.duration,
-            "iterations": int(self.iterations),
-            "peak_tension": self.peak_tension,
-            "within_bounds": bool(self.within_bounds),
-            "final_velocity": self.final_velocity.tolist(),
-            "velocity_names": list(self.trajectory.velocity_labels),
-            "velocity_units": list(self.trajectory.velocity_units),
-            "time": self.time.tolist(),
-            "tension": self.tension.tolist(),
-            "cable_names": list(self.trajectory.cable_names),
-            "blocked_direction": None
-            if self.blocked_direction is None
-            else self.blocked_direction.tolist(),
-            "blocked_progress": self.blocked_progress,
-        }
-
     def __str__(self) -> str:
+        # a summary; cdpm.text.steer_text gives the outputs and velocities
         from cdpm.dynamics.reach import reach_unit
 
-        word = "REACHED" if self.reached else "NOT REACHED"
-        traj = self.trajectory
-        unit = reach_unit(traj.units)
-        names = ", ".join(f"{n} [{u}]" for n, u in zip(traj.output_names, traj.units, strict=True))
-        lines = [
-            f"Steering: {word} ({self.status})",
-            f"  outputs ({names}):",
-            f"    target {_row(self.target)}; from y0 {_row(self.y0)}; y(T) {_row(traj.y[-1])}",
-            f"  miss {self.miss:.3g} {unit} (tolerance {self.tolerance:.3g} {unit}) after "
-            f"{self.iterations} simulation(s); T = {self.duration:.4g} s, "
-            f"{self.tension.shape[0]} intervals",
-            f"  peak tension {self.peak_tension:.4g} N; tensions "
-            f"{'inside' if self.within_bounds else 'OUTSIDE'} the bounds",
-            *_velocity_lines(self.final_velocity, traj),
-        ]
-        if self.blocked_direction is not None:
-            lines.append(
-                f"  blocked direction v = {np.array2string(self.blocked_direction, precision=4)}; "
-                f"pulling each cable in turn, v.(y - y0) reached at most "
-                f"{self.blocked_progress:.3g}"
-            )
-        return "\n".join(lines)
+        unit = reach_unit(self.trajectory.units)
+        return (
+            f"Steering: {'REACHED' if self.reached else 'NOT REACHED'} ({self.status})\n"
+            f"  miss {self.miss:.3g} {unit} (tolerance {self.tolerance:.3g} {unit}); "
+            f"T = {self.duration:.4g} s; peak tension {self.peak_tension:.4g} N, "
+            f"{'inside' if self.within_bounds else 'OUTSIDE'} the bounds"
+        )
 
     def __repr__(self) -> str:
         # a few numbers: the profile and its simulation are arrays of many rows
@@ -186,31 +146,6 @@ class SteerResult:
             f"intervals={self.tension.shape[0]}, iterations={self.iterations}, "
             f"peak_tension={self.peak_tension:.4g} N)"
         )
-
-    def _repr_html_(self) -> str:
-        return f"<pre>{html.escape(str(self))}</pre>"
-
-
-def _row(values: np.ndarray) -> str:
-    """A vector on one line, to 6 decimals (numpy breaks a long one into
-    lines of 75 characters, which in the printout started unindented, and
-    mixed 2.000000e-03 with -8.194993e-09)."""
-    shown = np.round(np.asarray(values, dtype=float), 6) + 0.0  # -8e-9 reads 0, not -0
-    return np.array2string(shown, precision=6, suppress_small=True, max_line_width=10**6)
-
-
-def _velocity_lines(v: np.ndarray, traj) -> list[str]:
-    """The printout's lines on the final velocities ``v`` (nv,), each
-    named and in its unit (``q1_dot 0.012 rad/s``; the trajectory's
-    ``velocity_labels`` and ``velocity_units``: a free-flyer's in its body
-    frame), as many to a line as fit (:func:`cdpm.text.format.packed_lines`)."""
-    from cdpm.printing import packed_lines
-
-    items = [
-        f"{name} {value + 0.0:.3g} {unit}"
-        for name, value, unit in zip(traj.velocity_labels, v, traj.velocity_units, strict=True)
-    ]
-    return packed_lines("  final velocity (the robot still moves at T):", items)
 
 
 def _duration_bounds(lin: Linearisation) -> tuple[float, float, float]:

@@ -11,13 +11,13 @@ in R.
 
 from __future__ import annotations
 
-import html
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from cdpm.errors import InputError, checked_seed, is_integer, positive_number
+from cdpm.printing import TextRepr
 from cdpm.steering.shooting import SteerResult, steer
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -36,7 +36,7 @@ MAX_RANDOM_DIRECTIONS = 1000
 
 
 @dataclass(frozen=True)
-class VerifyReport:
+class VerifyReport(TextRepr):
     """Steering runs around one pose.
 
     Attributes:
@@ -92,43 +92,6 @@ class VerifyReport:
         progress = self.runs[0].blocked_progress
         return None if progress is None else progress / self.radius
 
-    def rows(self) -> list[dict]:
-        """One dict per run: direction, reached, miss, miss/R, peak tension,
-        duration, simulations."""
-        return [
-            {
-                "direction": d.tolist(),
-                "reached": bool(r.reached),
-                "miss": float(r.miss),
-                "relative_miss": float(r.miss / self.radius),
-                "peak_tension": r.peak_tension,
-                "within_bounds": bool(r.within_bounds),
-                "duration": r.duration,
-                "simulations": int(r.iterations),
-                "status": r.status,
-            }
-            for d, r in zip(self.directions, self.runs, strict=True)
-        ]
-
-    def as_dict(self) -> dict:
-        """JSON-serialisable content."""
-        return {
-            "model": self.model_name,
-            "pose": self.pose_name,
-            "verdict": self.verdict,
-            "radius": self.radius,
-            "robot_size": self.robot_size,
-            "y0": self.y0.tolist(),
-            "all_reached": self.all_reached,
-            "worst_relative_miss": self.worst_relative_miss,
-            "blocked_direction": None
-            if self.blocked_direction is None
-            else self.blocked_direction.tolist(),
-            "blocked_progress_relative": self.blocked_progress(),
-            "demonstrated": self.demonstrated,
-            "runs": self.rows(),
-        }
-
     @property
     def unit(self) -> str:
         """The unit of R and the misses: the outputs' (``m``, ``rad`` or
@@ -138,82 +101,24 @@ class VerifyReport:
         return reach_unit(self.runs[0].trajectory.units) if self.runs else "m"
 
     def __str__(self) -> str:
+        # a summary; cdpm.text.verify_text gives the table of runs
         where = f"pose {self.pose_name!r}" if self.pose_name else "the given q"
-        names = self.runs[0].trajectory.output_names if self.runs else ()
-        how = (
-            "given"
-            if self.radius_given
-            else f"{RADIUS_FRACTION:g} x the robot's size {self.robot_size:.4g} m"
+        reached = sum(r.reached for r in self.runs)
+        shown = "shown" if self.demonstrated else "NOT shown"
+        return (
+            f"cdpm verify: {self.model_name}, {where}: POC {self.verdict.upper()}\n"
+            f"  {reached} of {len(self.runs)} targets reached at R = {self.radius:.4g} "
+            f"{self.unit}; the verdict is {shown} on the robot"
         )
-        lines = [
-            f"cdpm verify: {self.model_name}, {where}: POC {self.verdict.upper()}",
-            f"  targets at R = {self.radius:.4g} {self.unit} ({how}) from y0 = "
-            + (
-                ", ".join(f"{n} {v:.6g}" for n, v in zip(names, self.y0, strict=True))
-                if len(names) == len(self.y0)
-                else np.array2string(self.y0, precision=6)
-            ),
-        ]
-        if self.blocked_direction is not None:
-            lines.append(
-                f"  blocked direction v = {direction_text(self.blocked_direction, names)}"
-                f"; pulling each cable in turn, v.(y - y0) reached at most "
-                f"{self.blocked_progress():.3g} R"
-            )
-        lines.append(
-            f"  {'direction':<28} {'reached':>7} {'miss/R':>10} {'peak [N]':>10} "
-            f"{'T [s]':>7} {'sims':>5}"
-        )
-        for row in self.rows():
-            d = direction_text(np.array(row["direction"]), names)
-            lines.append(
-                f"  {d:<28} {'yes' if row['reached'] else 'NO':>7} {row['relative_miss']:>10.2e} "
-                f"{row['peak_tension']:>10.4g} {row['duration']:>7.3g} {row['simulations']:>5}"
-            )
-        if self.runs:
-            ok = "all tensions inside the cable bounds at every instant"
-            if not all(r.within_bounds for r in self.runs):
-                ok = "SOME TENSIONS OUTSIDE THE CABLE BOUNDS"
-            n = sum(r.reached for r in self.runs)
-            lines.append(f"  {n} of {len(self.runs)} targets reached; {ok}")
-            if self.verdict == "yes":
-                outcome = "every target reached" if self.demonstrated else "SOME TARGETS MISSED"
-            elif self.verdict == "no":
-                outcome = (
-                    "the blocked direction stays out of reach"
-                    if self.demonstrated
-                    else "NOT SHOWN (a pull moved the output along v; try a smaller --radius)"
-                )
-            else:
-                outcome = "a MARGINAL verdict shows nothing definite"
-            lines.append(f"  on the robot: {outcome}")
-        return "\n".join(lines)
 
     def __repr__(self) -> str:
-        # a few numbers: each run holds a whole simulation (print shows the table)
+        # a few numbers: each run holds a whole simulation (verify_text shows the table)
         reached = sum(r.reached for r in self.runs)
         return (
             f"VerifyReport(model_name={self.model_name!r}, pose_name={self.pose_name!r}, "
             f"verdict={self.verdict!r}, radius={self.radius:.4g}, runs={len(self.runs)}, "
             f"reached={reached}, demonstrated={self.demonstrated})"
         )
-
-    def _repr_html_(self) -> str:
-        return f"<pre>{html.escape(str(self))}</pre>"
-
-
-def direction_text(d: np.ndarray, names: tuple[str, ...]) -> str:
-    """An output-space direction in words: ``"+tip_x"``, ``"-tip_z"`` or
-    ``"0.71 tip_x - 0.71 tip_z"`` (components below 1e-9 left out)."""
-    terms = [(float(c), n) for c, n in zip(d, names, strict=False) if abs(c) > 1e-9]
-    if not names or len(names) != len(d):
-        return np.array2string(np.asarray(d) + 0.0, precision=2)
-    if not terms:
-        return "0"
-    if len(terms) == 1 and abs(abs(terms[0][0]) - 1.0) < 1e-9:
-        return ("+" if terms[0][0] > 0 else "-") + terms[0][1]
-    text = " ".join(f"{'-' if c < 0 else '+'} {abs(c):.2g} {n}" for c, n in terms)
-    return text[2:] if text.startswith("+ ") else "-" + text[2:]
 
 
 def default_radius(robot: CableRobot, q: Any) -> tuple[float, float]:

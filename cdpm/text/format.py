@@ -10,13 +10,12 @@ from typing import Any
 
 import numpy as np
 
-from cdpm.dynamics.linearisation import largest_magnitude, named_values, round_to_scale
-from cdpm.printing import LIST_LINE_WIDTH, packed_lines  # noqa: F401 (re-used by the report)
+from cdpm.printing import largest_magnitude, named_values, round_to_scale
 
 # ---------------------------------------------------------------- printing
 #
 # Numbers print rounded to the scale they stand next to (see the printing
-# helpers of cdpm.dynamics.linearisation); the analysis results' own text is cleaned
+# helpers of cdpm.printing); the analysis results' own text is cleaned
 # of round-off in the quantities they decide.
 
 #: a decided quantity (a margin, an eigenvalue) below this fraction of its

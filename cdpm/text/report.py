@@ -12,33 +12,34 @@ raising.
 
 from __future__ import annotations
 
-import html
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from cdpm.dynamics.equilibrium import InfeasibleEquilibriumError
-from cdpm.dynamics.linearisation import (
-    Linearisation,
-    largest_magnitude,
-    linearise,
-    matrix_text,
-)
+from cdpm.dynamics.linearisation import Linearisation, linearise
 from cdpm.errors import InputError
-from cdpm.printing import to_plain
+from cdpm.printing import (
+    TextRepr,
+    largest_magnitude,
+    matrix_text,
+    packed_lines,
+    strict,
+    to_plain,
+)
 from cdpm.text.format import (
     criteria_lines,
     impulse_scale,
     indent,
     labelled,
-    packed_lines,
     pose_head,
     tension_table,
     units_of_outputs,
     without_negative_zeros,
     without_round_off,
 )
+from cdpm.text.regions import neighbourhood_json, neighbourhood_lines
 
 if TYPE_CHECKING:  # pragma: no cover
     from cdpm.dynamics.equilibrium import EquilibriumResult
@@ -48,7 +49,7 @@ __all__ = ["PoseReport", "InfeasiblePoseReport", "analyze_pose"]
 
 
 @dataclass(frozen=True)
-class PoseReport:
+class PoseReport(TextRepr):
     """Verdicts at one pose of a cable robot.
 
     Attributes:
@@ -203,7 +204,9 @@ class PoseReport:
                 "error": self.reach_margin[1],
                 "unit": self.reach_unit,
             },
-            "neighbourhood": None if self.neighbourhood is None else self.neighbourhood.to_plain(),
+            "neighbourhood": None
+            if self.neighbourhood is None
+            else neighbourhood_json(self.neighbourhood),
         }
 
     def __str__(self) -> str:
@@ -241,7 +244,7 @@ class PoseReport:
         lines += ["", "Verdicts", *[indent(without_round_off(v, scales)) for v in verdicts]]
         lines += [indent(line) for line in self._reach_lines()]
         if self.neighbourhood is not None:
-            lines += ["", *self.neighbourhood.lines()]
+            lines += ["", *neighbourhood_lines(self.neighbourhood)]
         if self.criteria:
             lines += ["", "Map criteria (as a workspace map stores them)"]
             lines += [
@@ -291,12 +294,9 @@ class PoseReport:
             lin.cable_names, self.cable_lengths, lin.tension, states, words, "input"
         )
 
-    def _repr_html_(self) -> str:
-        return f"<pre>{html.escape(str(self))}</pre>"
-
 
 @dataclass(frozen=True)
-class InfeasiblePoseReport:
+class InfeasiblePoseReport(TextRepr):
     """What cdpm can say at a pose that no tension within the cable bounds
     holds (by the requested method): the pose, its kinematics, the closest
     tensions and the map criteria, but no linearisation and so no verdicts.
@@ -389,8 +389,9 @@ class InfeasiblePoseReport:
                     "length": float(length),
                     "tension": float(f),
                     "state": state,
-                    "tension_min": _finite_or_none(low),
-                    "tension_max": _finite_or_none(high),
+                    # an infinite bound is null (JSON has no infinity)
+                    "tension_min": strict(low),
+                    "tension_max": strict(high),
                 }
                 for name, length, f, state, low, high in zip(
                     self.cable_names,
@@ -462,9 +463,6 @@ class InfeasiblePoseReport:
             ]
         return without_negative_zeros("\n".join(lines))
 
-    def _repr_html_(self) -> str:
-        return f"<pre>{html.escape(str(self))}</pre>"
-
 
 def _closest_words(eq: EquilibriumResult) -> str:
     """Which tensions the infeasible result shows, in words."""
@@ -484,11 +482,6 @@ def _named_closure(result, cable_names) -> dict:
     if indices is not None:
         out["certificate"]["cables"] = [str(cable_names[i]) for i in indices]
     return out
-
-
-def _finite_or_none(x: float) -> float | None:
-    """x, or None for an infinite bound (JSON has no infinity)."""
-    return float(x) if np.isfinite(x) else None
 
 
 def _wrap(text: str, width: int = 88) -> str:

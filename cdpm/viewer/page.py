@@ -39,6 +39,7 @@ from urllib.parse import urlsplit
 import numpy as np
 
 from cdpm.errors import CdpmError, InputError, float_array
+from cdpm.printing import strict
 from cdpm.verdicts import VERDICT_COLORS, VERDICT_LABELS, VERDICT_ORDER
 from cdpm.viewer.coordinates import coordinate_sliders
 from cdpm.viewer.outputs import output_drawing
@@ -70,19 +71,6 @@ _STATIC = {
 
 #: Host names a request may name (a page on another host is refused).
 _LOCAL_HOSTS = {"127.0.0.1", "localhost", "::1"}
-
-
-def _plain(value: Any) -> Any:
-    """``value`` with numpy scalars as Python numbers and NaN/inf as None (JSON)."""
-    if isinstance(value, dict):
-        return {str(k): _plain(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_plain(v) for v in value]
-    if isinstance(value, np.generic):
-        value = value.item()
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    return value
 
 
 class InspectionPage:
@@ -229,13 +217,13 @@ class InspectionPage:
 
     def panel_dict(self) -> dict:
         """The current panel as the page gets it (JSON-serialisable)."""
-        return _plain({**self.panel.as_dict(), "pose": self.pose_name})
+        return strict({**self.panel.as_dict(), "pose": self.pose_name})
 
     def model_dict(self) -> dict:
         """What the page loads first: sliders, poses, legend, map, panel."""
         robot = self.robot
         web = urlsplit(self.viewer.url())
-        return _plain(
+        return strict(
             {
                 "model": robot.spec.path.name,
                 "coordinates": self._sliders,

@@ -9,13 +9,13 @@ warning with the options spelled as given (format strings, see
 
 from __future__ import annotations
 
-import html
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from cdpm.errors import InputError, ModelError
 from cdpm.numerics import ROUNDED_RESIDUAL_RTOL, STATICS_RTOL
+from cdpm.printing import TextRepr
 
 __all__ = [
     "EquilibriumResult",
@@ -187,7 +187,7 @@ class NotAnEquilibriumError(InputError):
 
 
 @dataclass(frozen=True)
-class EquilibriumResult:
+class EquilibriumResult(TextRepr):
     """Equilibrium tensions at one pose.
 
     Attributes:
@@ -292,6 +292,3 @@ class EquilibriumResult:
         for name, f, state in zip(self._names(), self.tension, self.cable_states(), strict=True):
             lines.append(f"  {name:<12} {f:>12.6g} N  {state}")
         return "\n".join(lines)
-
-    def _repr_html_(self) -> str:
-        return f"<pre>{html.escape(str(self))}</pre>"

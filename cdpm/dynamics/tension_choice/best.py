@@ -9,17 +9,17 @@ be re-checked with the per-pose API and its certificate verified.
 
 from __future__ import annotations
 
-import html
 import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from cdpm.dynamics.tension_choice.range import TensionRange, _strict
+from cdpm.dynamics.tension_choice.range import TensionRange
 from cdpm.dynamics.tension_choice.search import TensionSearch, best_tension_batch
 from cdpm.numerics import SPAN_TOL
-from cdpm.verdicts import NOT_ANALYSED, VERDICT_LABELS, YES
+from cdpm.printing import TextRepr, named_values
+from cdpm.verdicts import VERDICT_LABELS, YES
 
 if TYPE_CHECKING:  # pragma: no cover
     from cdpm.analysis.poc_result import POCResult
@@ -39,7 +39,7 @@ EXACT_AND_SAMPLED = (
 
 
 @dataclass(frozen=True)
-class BestTension:
+class BestTension(TextRepr):
     """Whether some feasible equilibrium tension makes a pose POC, and
     which tension the search chose.
 
@@ -101,82 +101,17 @@ class BestTension:
     def __bool__(self) -> bool:
         return int(self.poc_possible) == YES
 
-    def lines(self) -> list[str]:
-        """The text of :meth:`__str__`, one line each."""
-        r, err = self.reach_margin
-        default = VERDICT_LABELS[int(self.default_verdict)].upper()
-        if int(self.default_verdict) == NOT_ANALYSED:
-            default += f" (method {self.default_method!r} finds no equilibrium here)"
-        else:
-            default += (
-                f", r_T = {_margin(self.default_margin, self.margin_unit)} ({self.default_method})"
-            )
-        what = {
-            YES: "YES: this feasible tension makes the pose POC (certified)",
-        }.get(
-            int(self.poc_possible),
-            f"{self.verdict.upper()}: none of the {self.n_candidates} tensions tried is POC",
-        )
-        exact = "exact" if err == 0 else f"+- {err:.2g}"
-        gain = r - self.default_margin
-        if int(self.default_verdict) == YES and math.isfinite(gain) and 0 < gain <= err:
-            exact += "; its gain over the default is within this error estimate"
-        out = [
-            f"Best tension (objective {self.objective}): {what}",
-            f"  default tension: {default}",
-            f"  chosen tension: {self.found_by}; r_T = {_margin(r, self.margin_unit)} "
-            f"({exact}); POC "
-            f"{self.poc.verdict.value.upper()} ({self.poc.method})",
-        ]
-        from cdpm.dynamics.linearisation import named_values
-
-        out.append(f"  tension [N]: {named_values(self.cable_names, self.tension)}")
-        out.append(
-            f"  {self.n_candidates} tensions evaluated, {self.n_yes} of them POC; {self.method}"
-        )
-        out.append(f"  {EXACT_AND_SAMPLED}")
-        return out
-
     def __str__(self) -> str:
-        return "\n".join([*self.tension_range.lines(), *self.lines()])
-
-    def _repr_html_(self) -> str:
-        return f"<pre>{html.escape(str(self))}</pre>"
-
-    def as_dict(self) -> dict:
-        """Strict-JSON content (non-finite numbers are null)."""
-        return _strict(
-            {
-                "poc_possible": self.verdict,
-                "objective": self.objective,
-                "tension": dict(zip(self.cable_names, self.tension.tolist(), strict=True)),
-                "found_by": self.found_by,
-                "reach_margin": self.reach_margin[0],
-                "reach_margin_error": self.reach_margin[1],
-                "poc": self.poc.as_dict(),
-                "sign_constrained": self.linearisation.sign_constrained.tolist(),
-                "default": {
-                    "method": self.default_method,
-                    "tension": dict(
-                        zip(self.cable_names, self.default_tension.tolist(), strict=True)
-                    ),
-                    "verdict": VERDICT_LABELS[int(self.default_verdict)],
-                    "reach_margin": self.default_margin,
-                },
-                "n_candidates": self.n_candidates,
-                "n_yes": self.n_yes,
-                # the cap used (the default's value when none was given)
-                "search": {**self.search.as_dict(), "tension_cap": self.tension_range.tension_cap},
-                "reach": self.reach.as_dict(),
-                "method": self.method,
-                "exact_and_sampled": EXACT_AND_SAMPLED,
-                "tension_range": self.tension_range.as_dict(),
-            }
+        # a summary; cdpm.text.best_tension_text gives the range and the search
+        r = self.reach_margin[0]
+        margin = (
+            f"r_T = {r + 0.0:.4g} {self.margin_unit}" if math.isfinite(r) else "r_T not resolvable"
         )
-
-
-def _margin(r: float, unit: str) -> str:
-    return f"{r + 0.0:.4g} {unit}" if math.isfinite(r) else "not resolvable"
+        return (
+            f"Best tension (objective {self.objective}): {self.verdict.upper()}, {margin} "
+            f"({self.found_by}; {self.n_yes} of {self.n_candidates} tensions tried POC)\n"
+            f"  tension [N]: {named_values(self.cable_names, self.tension)}"
+        )
 
 
 def describe_search(search: TensionSearch, default_method: str, cap: float | None) -> str:

@@ -16,7 +16,6 @@ relative interior. Everything here is exact up to the LP tolerance
 from __future__ import annotations
 
 import dataclasses
-import math
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -24,6 +23,7 @@ import numpy as np
 
 from cdpm.dynamics.tension_choice._polytope import Polytope, polish, polytope, solve_lp
 from cdpm.numerics import TENSION_CAP_BUDGETS
+from cdpm.printing import TextRepr
 
 if TYPE_CHECKING:  # pragma: no cover
     from cdpm.model.robot import CableRobot
@@ -186,7 +186,7 @@ def _interior(P: Polytope, capped: np.ndarray, movable: np.ndarray):
 
 
 @dataclass(frozen=True)
-class TensionRange:
+class TensionRange(TextRepr):
     """The feasible equilibrium tensions of one pose: the polytope
     ``{f : L(q)^T f = load(q), f_min <= f <= f_max}``, load = -G - w_ext.
 
@@ -286,102 +286,23 @@ class TensionRange:
                 out.append("always taut")
         return out
 
-    def as_dict(self) -> dict:
-        """Strict-JSON content (an infinite or undefined tension is null)."""
-        return _strict(
-            {
-                "feasible": self.feasible,
-                "q": self.q,
-                "rank": self.rank,
-                "null_space_dimension": int(self.null_space.shape[1]),
-                "null_space": self.null_space,
-                "tension_cap": self.tension_cap,
-                "interior_slack": self.interior_slack,
-                "load": self.load,
-                "n_lps": self.n_lps,
-                "cables": [
-                    {
-                        "name": name,
-                        "tension_min": self.tension_min[i],
-                        "tension_max": self.tension_max[i],
-                        "least": self.least[i],
-                        "greatest": self.greatest[i],
-                        "can_be_slack": bool(self.can_be_slack[i]),
-                        "must_be_slack": bool(self.must_be_slack[i]),
-                        "can_be_taut": bool(self.can_be_taut[i]),
-                        "interior": self.interior[i],
-                        "state": state,
-                    }
-                    for i, (name, state) in enumerate(
-                        zip(self.cable_names, self.cable_states(), strict=True)
-                    )
-                ],
-            }
-        )
-
-    def lines(self) -> list[str]:
-        """The text of :meth:`__str__`, one line each."""
+    def __str__(self) -> str:
+        # a summary; cdpm.text.tension_range_text gives the table per cable
         if not self.feasible:
-            return [
+            return (
                 "Feasible equilibrium tensions: none (no tension within the cable bounds holds "
                 "the pose)"
-            ]
+            )
+
+        def names(mask: np.ndarray) -> str:
+            return ", ".join(n for n, m in zip(self.cable_names, mask, strict=True) if m) or "none"
+
         d = self.null_space.shape[1]
-        head = [
-            f"Feasible equilibrium tensions (LPs, exact): rank L^T = {self.rank}, {d} "
-            f"internal-force direction{'s' if d != 1 else ''} (null space of L^T)",
-            f"  {'name':<12} {'bounds [N]':>18} {'least [N]':>11} {'greatest [N]':>13} "
-            f"{'interior [N]':>13}  state",
-        ]
-        for i, name in enumerate(self.cable_names):
-            bounds = f"[{self.tension_min[i]:g}, {self.tension_max[i]:g}]"
-            head.append(
-                f"  {name:<12} {bounds:>18} {_num(self.least[i]):>11} "
-                f"{_num(self.greatest[i]):>13} {_num(self.interior[i]):>13}  "
-                f"{self.cable_states()[i]}"
-            )
-        if np.any(~np.isfinite(self.tension_max)):
-            head.append(
-                f"  interior point: smallest distance {self.interior_slack:.4g} N of the cables "
-                f"that can move to their bounds; cables without an upper bound capped at "
-                f"{self.tension_cap:.4g} N"
-            )
-        else:
-            head.append(
-                f"  interior point: smallest distance {self.interior_slack:.4g} N of the cables "
-                "that can move to their bounds"
-            )
-        return head
-
-    def __str__(self) -> str:
-        return "\n".join(self.lines())
-
-    def _repr_html_(self) -> str:
-        import html
-
-        return f"<pre>{html.escape(str(self))}</pre>"
-
-
-def _num(x: float) -> str:
-    if not np.isfinite(x):
-        return "inf" if x > 0 else "-"
-    return f"{x + 0.0:.6g}"
-
-
-def _strict(value: Any) -> Any:
-    """Plain JSON data with every non-finite float as None."""
-    from cdpm.printing import to_plain
-
-    def walk(x):
-        if isinstance(x, float):
-            return x if math.isfinite(x) else None
-        if isinstance(x, dict):
-            return {k: walk(v) for k, v in x.items()}
-        if isinstance(x, list):
-            return [walk(v) for v in x]
-        return x
-
-    return walk(to_plain(value))
+        return (
+            f"Feasible equilibrium tensions: rank L^T = {self.rank}, {d} internal-force "
+            f"direction(s); can be slack: {names(self.can_be_slack)}; must be slack: "
+            f"{names(self.must_be_slack)}"
+        )
 
 
 def pose_statics(robot: CableRobot, q: Any):

@@ -1,0 +1,285 @@
+"""Text and JSON of the regions' results: the POC neighbourhood of a pose
+(:class:`~cdpm.regions.neighbourhood.Neighbourhood`, in the pose report and
+``cdpm analyze --neighbourhood``) and a path of POC poses
+(:class:`~cdpm.regions.paths.POCPath`, ``cdpm path``)."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from cdpm.numerics import SUSPECT_LIPSCHITZ_SAFETY
+from cdpm.printing import strict
+from cdpm.verdicts import STATUS_LABELS, YES, verdict_key
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cdpm.regions.neighbourhood import Neighbourhood, SampledPose
+    from cdpm.regions.paths import POCPath
+
+
+#: waypoints printed in full; longer paths print the first and last halves
+PRINT_WAYPOINTS = 16
+#: suspect steps printed with a warning line each; the others are listed
+PRINT_SUSPECT = 4
+
+
+# ------------------------------------------------------------ neighbourhood
+
+
+def neighbourhood_lines(nb: Neighbourhood) -> list[str]:
+    """The neighbourhood in words, for the pose report (first line: the
+    summary)."""
+    u, R, (lo, hi) = nb.unit, nb.radius, nb.box_bracket
+    if nb.verdict != YES:
+        return [f"POC neighbourhood: radius 0: {nb.reason} (no neighbourhood evaluated)"]
+    grid = f"{nb.grid_shape} grid{' plus rays' if nb.axis_rays else ''} of half-width"
+    grid = f"on a {grid} {R:.4g} {u}"
+    clear = "is YES and r_T stays clear of 0 between neighbouring samples"
+    if nb.whole_box_yes:
+        head = f"every sampled pose within {R:.4g} {u} (box, inf-norm) of the pose {clear}, "
+        out = [f"{head}{grid}: the whole box, so the radius is at least {R:.4g} {u}"]
+    elif lo > 0:
+        head = f"radius {lo:.4g} {u} (box, inf-norm) {grid}: every sampled pose within it "
+        out = [f"{head}{clear}"]
+    else:
+        out = [f"radius 0 {grid}: the pose is YES, but {nb.reason}"]
+    out[0] = "POC neighbourhood: " + out[0]
+    if not nb.whole_box_yes:
+        out.append(
+            f"  box radius in [{lo:.4g}, {hi:.4g}] {u}: it stops at the nearest non-YES pose "
+            "or where r_T comes within one step's change of 0, where a NO set thinner than "
+            "the grid may pass (the region may end between the two)"
+        )
+    names, varied, near = nb.coordinate_names, nb.coordinates, nb.nearest
+    if near is not None:
+        where = f"{near.describe()} at ({_where(near, names, varied)})"
+        out.append(f"  nearest non-YES pose: {where}, {near.distance_box:.4g} {u} away")
+    if nb.nearest_suspect is not None:
+        a, b = nb.nearest_suspect
+        out.append(
+            f"  nearest suspect edge: r_T = {a.margin:.3g} and {b.margin:.3g} "
+            f"{nb.margin_unit} at ({_where(a, names, varied)}) and "
+            f"({_where(b, names, varied)}), {a.distance_box:.4g} and {b.distance_box:.4g} "
+            f"{u} away ({nb.suspect_edges} suspect edges in all)"
+        )
+    ball, end = nb.ball_bracket
+    out.append(
+        f"  ball (2-norm): every sampled pose within {R:.4g} {u} {clear}"
+        if end is None
+        else f"  ball (2-norm): radius {ball:.4g} {u}, the region may end at {end:.4g}"
+    )
+    out.append("  " + _sampled_text(nb))
+    out.append(
+        f"  r_T: T {nb.reach.horizon:.3g} s, budget {nb.reach.tension_budget:.3g} N; "
+        f"suspect: r(a) + r(b) <= {SUSPECT_LIPSCHITZ_SAFETY:g} L h, L the largest slope of "
+        "r_T sampled at a or b (a heuristic)"
+    )
+    if u == "m or rad":
+        out.append("  mixed units: 1 m of translation counts as 1 rad (set scale= to change)")
+    elif u == "scaled units":
+        parts = zip(nb.coordinates, nb.scale, nb.units, strict=True)
+        scales = ", ".join(f"{c} {x:g} {unit}" for c, x, unit in parts)
+        out.append(f"  distances in dq / scale; scale: {scales}")
+    counts = ", ".join(f"{v} {k.replace('_', ' ')}" for k, v in nb.counts.items() if v)
+    out.append(f"  verdicts: {counts}")
+    if nb.outside_limits:
+        also = nb.nearest is not None and nb.nearest.outside_limits
+        out.append(
+            f"  {nb.outside_limits} sampled poses lie outside the URDF joint limits "
+            "(evaluated anyway)" + ("; the nearest non-YES pose is one of them" if also else "")
+        )
+    return out
+
+
+def neighbourhood_text(nb: Neighbourhood) -> str:
+    """:func:`neighbourhood_lines` as one text."""
+    return "\n".join(neighbourhood_lines(nb))
+
+
+def _where(pose: SampledPose, names: Sequence[str], varied: Sequence[str]) -> str:
+    """The pose as ``"q1 = 1.4636, q2 = 1.6072"`` (the varied coordinates)."""
+    return ", ".join(f"{c} = {pose.natural[list(names).index(c)]:.5g}" for c in varied)
+
+
+def _sampled_text(nb: Neighbourhood) -> str:
+    names = ", ".join(nb.coordinates)
+    if nb.points > 1:
+        steps = {f"{s:.3g} {unit}" for s, unit in zip(nb.step, nb.units, strict=True)}
+        text = f"sampled: {nb.grid_shape} grid over {names}, step {' / '.join(sorted(steps))}"
+    else:
+        text = f"sampled: over {names}, no grid beyond q"
+    if nb.axis_rays + nb.corner_rays:
+        text += (
+            f", plus {nb.axis_rays} axis and {nb.corner_rays} corner rays of "
+            f"{nb.ray_points} points (step {nb.radius / nb.ray_points:.3g} {nb.unit})"
+        )
+    return text + f"; {nb.n_poses} poses in {nb.seconds:.2g} s"
+
+
+def sampled_pose_json(pose: SampledPose, coordinate_names: Sequence[str]) -> dict:
+    """Strict-JSON data of a sampled pose (coordinates by name; a margin
+    not analysed is null)."""
+    return strict(
+        {
+            "coordinates": dict(zip(coordinate_names, map(float, pose.natural), strict=True)),
+            "distance_box": pose.distance_box,
+            "distance_ball": pose.distance_ball,
+            "verdict": verdict_key(pose.verdict),
+            "status": STATUS_LABELS.get(pose.status, str(pose.status)),
+            "description": pose.describe(),
+            "outside_limits": pose.outside_limits,
+            "reach_margin": pose.margin,
+        }
+    )
+
+
+def neighbourhood_json(nb: Neighbourhood) -> dict:
+    """Strict-JSON data of the neighbourhood (None for an unbounded bracket,
+    a NaN step or margin)."""
+    names, varied, suspect = nb.coordinate_names, nb.coordinates, nb.nearest_suspect
+
+    def plain(pose):
+        return None if pose is None else sampled_pose_json(pose, names)
+
+    same = (
+        "radius points ray_points n_poses box_radius box_bracket ball_radius ball_bracket "
+        "whole_box_yes suspect_edges counts status_counts outside_limits tension pretension "
+        "tol seconds reason"
+    )
+    return strict(
+        {
+            "model": nb.model_name,
+            "pose": nb.pose_name,
+            "coordinates": dict(zip(names, nb.natural.tolist(), strict=True)),
+            "varied": list(varied),
+            "units": list(nb.units),
+            "unit": nb.unit,
+            "scale": dict(zip(varied, nb.scale.tolist(), strict=True)),
+            "grid": nb.grid_shape,
+            "step": dict(zip(varied, nb.step.tolist(), strict=True)),
+            "rays": {"axis": nb.axis_rays, "corner": nb.corner_rays},
+            "verdict": verdict_key(nb.verdict),
+            "status": STATUS_LABELS.get(nb.status, str(nb.status)),
+            "nearest": plain(nb.nearest),
+            "nearest_ball": plain(nb.nearest_ball),
+            "nearest_suspect": None if suspect is None else [plain(p) for p in suspect],
+            "suspect_lipschitz_safety": SUSPECT_LIPSCHITZ_SAFETY,
+            "reach": nb.reach.as_dict(),
+            **{key: getattr(nb, key) for key in same.split()},
+        }
+    )
+
+
+# --------------------------------------------------------------------- path
+
+
+def path_warnings(path: POCPath) -> list[str]:
+    """One line per suspect step: where the path may cross a NO set
+    thinner than the map's resolution (empty when none or not checked)."""
+    out = []
+    for i in path.suspect_steps or ():
+        moves = ", ".join(
+            f"{a} {path.coordinates[a][i]:.4g} -> {path.coordinates[a][i + 1]:.4g}"
+            for a in path.axes
+            if path.coordinates[a][i] != path.coordinates[a][i + 1]
+        )
+        out.append(
+            f"warning: the path may cross a NO set thinner than the map's resolution "
+            f"between waypoints {i} and {i + 1} ({moves}): their reach margins "
+            f"{path.margins[i]:.4g} and {path.margins[i + 1]:.4g} are within one step's "
+            f"change of 0 ({SUSPECT_LIPSCHITZ_SAFETY:g} times the largest slope of r_T "
+            "sampled nearby)"
+        )
+    return out
+
+
+def _unit_text(path: POCPath) -> str:
+    units = {path.units.get(a, "") for a in path.axes}
+    if len(units) == 1:
+        return next(iter(units)) or "axis units"
+    return "axis units: " + ", ".join(f"{a} {path.units.get(a, '?')}" for a in path.axes)
+
+
+def path_text(path: POCPath) -> str:
+    """The path as ``cdpm path`` prints it: the summary, its smallest
+    margin, seam crossings, a warning line per suspect step (the first
+    PRINT_SUSPECT; the others listed) and the waypoints (the first and last
+    PRINT_WAYPOINTS / 2 of a longer path)."""
+    kind = "largest smallest margin" if path.maximise_margin else "shortest"
+    k = path.n_waypoints
+    lines = [
+        f"POC path ({kind}) in region {path.region} ({path.region_size} poses): "
+        f"{k} waypoint{'s' if k != 1 else ''}, {path.steps} step"
+        f"{'s' if path.steps != 1 else ''}, length {path.length:.4g} [{_unit_text(path)}]"
+    ]
+    if path.margin_variable is not None and np.any(np.isfinite(path.margins)):
+        at = int(np.nanargmin(path.margins))
+        lines.append(
+            f"  smallest {path.margin_variable} along it: {path.min_margin:.4g}"
+            f"{' ' + path.margin_unit if path.margin_unit else ''} (waypoint {at})"
+        )
+    else:
+        lines.append("  no margins in this map")
+    if path.seam_crossings:
+        lines.append(
+            f"  crosses the seam of a full-turn axis after waypoint(s) "
+            f"{', '.join(map(str, path.seam_crossings))}"
+        )
+    if path.suspect_steps is None and path.steps:
+        lines.append("  no reach_margin in this map: thin NO sets between waypoints not checked")
+    lines += ["  " + line for line in path_warnings(path)[:PRINT_SUSPECT]]
+    rest = (path.suspect_steps or ())[PRINT_SUSPECT:]
+    if rest:
+        lines.append(
+            f"  warning: {len(rest)} more such step{'s' if len(rest) > 1 else ''}, from "
+            f"waypoint{'s' if len(rest) > 1 else ''} {', '.join(map(str, rest))} to the next"
+        )
+    head = "  waypoints:  #  " + " ".join(f"{a:>10}" for a in path.axes)
+    unit = f" [{path.margin_unit}]" if path.margin_unit else ""
+    lines.append(head + (f"  margin{unit}" if path.margin_variable else ""))
+    show = list(range(k))
+    if k > PRINT_WAYPOINTS:
+        half = PRINT_WAYPOINTS // 2
+        show = list(range(half)) + [-1] + list(range(k - half, k))
+    for i in show:
+        if i < 0:
+            lines.append(f"{'':>14}... ({k - PRINT_WAYPOINTS} more)")
+            continue
+        row = " ".join(f"{path.coordinates[a][i]:>10.4g}" for a in path.axes)
+        margin = f"  {path.margins[i]:.4g}" if path.margin_variable else ""
+        lines.append(f"  {'':>10}{i:>3}  {row}{margin}")
+    return "\n".join(lines)
+
+
+def path_json(path: POCPath) -> dict:
+    """Strict-JSON data of the path (``cdpm path --json``): ``waypoints``
+    lists {axis: value} per waypoint (``n_waypoints`` of them), ``margins``
+    the margin at each (null where the map has none)."""
+    return strict(
+        {
+            "region": path.region,
+            "region_size": path.region_size,
+            "start_pose": dict(path.start_pose),
+            "goal_pose": dict(path.goal_pose),
+            "n_waypoints": path.n_waypoints,
+            "steps": path.steps,
+            "length": path.length,
+            "maximise_margin": path.maximise_margin,
+            "margin_variable": path.margin_variable,
+            "margin_unit": path.margin_unit,
+            "min_margin": path.min_margin,
+            "suspect_steps": None if path.suspect_steps is None else list(path.suspect_steps),
+            "seam_crossings": list(path.seam_crossings),
+            "dims": list(path.dims),
+            "axes": list(path.axes),
+            "units": dict(path.units),
+            "waypoints": [path.waypoint(i) for i in range(path.n_waypoints)],
+            "margins": path.margins,
+            "indices": path.indices,
+            "coordinates": path.coordinates,
+            "natural_names": list(path.natural_names),
+            "natural": path.natural,
+        }
+    )
