@@ -8,7 +8,7 @@ from cdpm.cli._play import add_play_arguments, check_play_arguments
 from cdpm.cli._pose import Q_HELP, add_pose_arguments, pose_from_args
 from cdpm.cli._tension import add_tension_arguments, cli_equilibrium, tension_from_args
 from cdpm.cli.plot import argument_type
-from cdpm.cli.verify import _duration, _image
+from cdpm.cli.verify import _image, add_duration_argument
 from cdpm.printing import json_text
 
 NAME = "steer"
@@ -64,13 +64,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="DY",
         help="the target as a change of the outputs from the pose's, in their units [m or rad]",
     )
-    parser.add_argument(
-        "--duration",
-        type=argument_type(_duration),
-        metavar="T",
-        help="steering time [s], from 1e-6 to 1e6 and at most what the pose's linearisation "
-        "resolves (the error names it; default: per pose, from its dynamics)",
-    )
+    add_duration_argument(parser)
     parser.add_argument(
         "--intervals", type=int, default=20, metavar="K", help="piecewise-constant intervals"
     )

@@ -54,6 +54,17 @@ _radius = _positive("--radius", "distance [m]")
 _duration = _positive("--duration", "time [s]")
 
 
+def add_duration_argument(parser: argparse.ArgumentParser) -> None:
+    """``--duration T``: the steering time of ``cdpm verify`` and ``cdpm steer``."""
+    parser.add_argument(
+        "--duration",
+        type=argument_type(_duration),
+        metavar="T",
+        help="steering time [s], from 1e-6 to 1e6 and at most what the pose's linearisation "
+        "resolves (the error names it; default: per pose, from its dynamics)",
+    )
+
+
 def _count(text: str) -> int:
     from cdpm.errors import InputError
     from cdpm.steering.verify import MAX_RANDOM_DIRECTIONS
@@ -90,13 +101,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="N",
         help="also steer to N random directions at distance R (YES poses), at most 1000",
     )
-    parser.add_argument(
-        "--duration",
-        type=argument_type(_duration),
-        metavar="T",
-        help="steering time [s], from 1e-6 to 1e6 and at most what the pose's linearisation "
-        "resolves (the error names it; default: per pose, from its dynamics)",
-    )
+    add_duration_argument(parser)
     parser.add_argument("--json", action="store_true", help="print the report as JSON")
     parser.add_argument(
         "--plot", type=argument_type(_image), metavar="IMAGE", help="draw every run to IMAGE"
