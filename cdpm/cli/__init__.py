@@ -9,7 +9,9 @@ inside ``run`` so ``cdpm --help`` is instant.
 from __future__ import annotations
 
 import argparse
+import errno
 import importlib
+import os
 import sys
 
 from cdpm import __version__
@@ -102,15 +104,12 @@ def main(argv: list[str] | None = None) -> int:
         return 1
     except BrokenPipeError:
         # output piped into e.g. `head`, which closed early: not an error
-        import os
 
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
     except OSError as exc:
         # a file or folder the system refused (unwritable, missing parent,
         # name too long...): one line naming it, never a traceback
-        import errno
-        import os
 
         name = exc.filename if exc.filename is not None else ""
         what = f" {name!r}" if name else ""

@@ -6,6 +6,8 @@ from __future__ import annotations
 import argparse
 import math
 
+from cdpm.errors import InputError
+
 
 def _port(text: str) -> int:
     from cdpm.viewer import check_port
@@ -14,7 +16,6 @@ def _port(text: str) -> int:
 
 
 def _seconds(text: str) -> float:
-    from cdpm.errors import InputError
     from cdpm.expressions import parse_number
 
     try:
@@ -50,7 +51,6 @@ def add_play_arguments(parser: argparse.ArgumentParser, what: str) -> None:
 
 def check_play_arguments(args: argparse.Namespace, what: str) -> None:
     """--seconds and --port only mean something with --view."""
-    from cdpm.errors import InputError
 
     if args.seconds is not None and not args.view:
         raise InputError(f"--seconds goes with --view (how long to play {what})")

@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 from typing import TYPE_CHECKING
 
+from cdpm.errors import InputError
+
 if TYPE_CHECKING:  # pragma: no cover
     from cdpm.model.robot import CableRobot
 
@@ -43,7 +45,6 @@ def pose_from_args(robot: CableRobot, args: argparse.Namespace):
 
 def _configuration_from_q(robot: CableRobot, tokens: list[str]):
     """The configuration from the --q values, with errors that name --q."""
-    from cdpm.errors import InputError
     from cdpm.model.spec import parse_number
 
     values = []

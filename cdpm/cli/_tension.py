@@ -4,6 +4,8 @@ commands (analyze, verify, steer)."""
 from __future__ import annotations
 
 import argparse
+import sys
+import warnings
 from typing import TYPE_CHECKING
 
 from cdpm.errors import InputError
@@ -75,7 +77,6 @@ def cli_equilibrium(function, *args, command: str = "cdpm", **kwargs):
     command's words: they name its options (--tension, --pretension)
     instead of Python arguments. Equilibrium warnings print once each to
     stderr as ``<command>: warning: ...``; other warnings pass through."""
-    import warnings
 
     from cdpm.dynamics.equilibrium import (
         EquilibriumWarning,
@@ -98,8 +99,6 @@ def cli_equilibrium(function, *args, command: str = "cdpm", **kwargs):
 def _show_warnings(caught: list, command: str) -> None:
     """Print the equilibrium warnings (once each, in this command's
     words) and re-issue the others."""
-    import sys
-    import warnings
 
     from cdpm.dynamics.equilibrium import EquilibriumWarning
 

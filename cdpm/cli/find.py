@@ -15,6 +15,7 @@ import numpy as np
 from cdpm.cli._reach import add_reach_arguments, reach_from_args
 from cdpm.cli._tension import add_tension_arguments
 from cdpm.cli.map import add_robot_arguments, describe_robot, parse_axis, robot_from_args
+from cdpm.errors import InputError
 from cdpm.printing import json_text
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -131,7 +132,6 @@ def coordinate_ranges(robot: CableRobot) -> tuple[np.ndarray, np.ndarray, np.nda
 def _box_from_args(robot: CableRobot, args: argparse.Namespace) -> SearchBox:
     """The box poses are drawn from (:func:`cdpm.regions.search.search_box`)
     of --range, --near and --radius, each checked with a message naming it."""
-    from cdpm.errors import InputError
     from cdpm.expressions import parse_number
     from cdpm.regions.search import search_box
 
@@ -165,7 +165,6 @@ def _box_from_args(robot: CableRobot, args: argparse.Namespace) -> SearchBox:
 
 def _near_pose(robot: CableRobot, tokens: list[str]) -> tuple[np.ndarray, str]:
     """(natural coordinates, label) of the --near pose."""
-    from cdpm.errors import InputError
     from cdpm.expressions import parse_number
 
     if len(tokens) == 1:
@@ -240,7 +239,6 @@ def _row(box: SearchBox, pose: FoundPose) -> dict:
 
 
 def run(args: argparse.Namespace) -> int:
-    from cdpm.errors import InputError
     from cdpm.pipeline.compiled import load_kernels_for, notice_on_stderr
     from cdpm.regions.search import MAX_TRIES, find_poses
 

@@ -3,12 +3,19 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 from cdpm.cli._reach import add_reach_arguments, reach_from_args
-from cdpm.cli._tension import add_tension_arguments
+from cdpm.cli._tension import (
+    add_tension_arguments,
+    check_objective,
+    check_pretension,
+    tension_argument,
+)
+from cdpm.errors import InputError, MissingExtraError
 
 if TYPE_CHECKING:  # pragma: no cover
     from cdpm.model.robot import CableRobot
@@ -119,7 +126,6 @@ def parse_axis(text: str, sampled: bool):
 
     import numpy as np
 
-    from cdpm.errors import InputError
     from cdpm.model.spec import parse_number
 
     name, sep, rest = text.partition("=")
@@ -180,7 +186,6 @@ def parse_axis(text: str, sampled: bool):
 
 def parse_axes(texts: list[str], sampled: bool) -> dict:
     """{name: values or (low, high)} from every --axis; each coordinate once."""
-    from cdpm.errors import InputError
 
     axes: dict = {}
     given: dict[str, str] = {}
@@ -197,7 +202,6 @@ def parse_axes(texts: list[str], sampled: bool) -> dict:
 
 def parse_base(tokens):
     """A pose name, {name: value} or a list of values from --base tokens."""
-    from cdpm.errors import InputError
 
     if not tokens:
         return None
@@ -223,7 +227,6 @@ def parse_base(tokens):
 def _check_plot_path(path: str) -> None:
     """Fail before any work when --plot cannot be written: matplotlib
     missing, or an image format it does not write."""
-    from cdpm.errors import InputError, MissingExtraError
     from cdpm.plotting import check_image_path
 
     try:
@@ -262,7 +265,6 @@ def parse_gravity(tokens: list[str] | None):
     """The gravity vector [m/s^2] from --gravity, or None."""
     import math
 
-    from cdpm.errors import InputError
     from cdpm.model.spec import parse_number
 
     if tokens is None:
@@ -286,7 +288,6 @@ def parse_tension_bounds(texts: list[str] | None, robot: CableRobot):
     """{cable: (min, max)} [N] from every --tension-bounds (MIN:MAX for
     every cable, CABLE=MIN:MAX for one; one cable's over every cable's), or
     None."""
-    from cdpm.errors import InputError
     from cdpm.model.spec import parse_number
 
     if not texts:
@@ -328,8 +329,6 @@ def robot_from_args(args: argparse.Namespace):
     """(robot, the spec's robot, tension setting) from SPEC, --gravity,
     --tension-bounds, --tension and --pretension, all checked before any
     work; the robot carries the overrides (:func:`cdpm.maps.override_robot`)."""
-    from cdpm.cli._tension import check_objective, check_pretension, tension_argument
-    from cdpm.errors import InputError
     from cdpm.maps import override_robot
     from cdpm.model.robot import load_robot
 
@@ -366,8 +365,6 @@ def _check_tension(robot: CableRobot, tension, pretension: float | None) -> None
     the spec (with 0 N it is the min_norm method)."""
     import math
 
-    from cdpm.errors import InputError
-
     if tension == "best":  # the spec's method, and the search
         tension = None
     method = tension if isinstance(tension, str) or tension is None else "given"
@@ -392,9 +389,7 @@ def _check_tension(robot: CableRobot, tension, pretension: float | None) -> None
 def _check_outputs(args: argparse.Namespace) -> None:
     """Before any work: something keeps the map, --out names a store (not
     an image), and --workers is not given with --scheduler."""
-    import os
 
-    from cdpm.errors import InputError
     from cdpm.maps import store_path_problem
 
     if not args.out and not args.plot:
@@ -490,7 +485,6 @@ def _regions_line(labels, seams: bool) -> str:
 def run(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from cdpm.errors import InputError
     from cdpm.maps import STATUS_CODES, VERDICT_CODES, StoreSettingsError, workspace_map
 
     axes = parse_axes(args.axis, args.samples is not None)

@@ -7,9 +7,13 @@ import json
 import sys
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
+
 from cdpm.cli._play import add_play_arguments, check_play_arguments
 from cdpm.cli.plot import argument_type
 from cdpm.cli.verify import _image
+from cdpm.errors import InputError
+from cdpm.expressions import parse_number
 from cdpm.printing import json_text
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -120,7 +124,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from cdpm.errors import InputError
     from cdpm.maps import open_map
     from cdpm.maps.regions import REGION_VARIABLE, attach_regions
     from cdpm.regions.paths import NotConnectedError, poc_path
@@ -191,8 +194,6 @@ def _pose_argument(ds, robot: _RobotOfMap, tokens: list[str], option: str) -> An
     coordinates), or one pose name of the map's spec; checked against the
     map (a pose off the map or of the wrong length is an InputError naming
     the option)."""
-    from cdpm.errors import InputError
-    from cdpm.expressions import parse_number
     from cdpm.maps.regions import map_layout, named_pose, nearest_index, region_labels
 
     tokens = [t.strip() for t in tokens]
@@ -263,7 +264,6 @@ def _steer_legs(robot: CableRobot, ds, path, legs: int, out) -> list[dict]:
         One dict per leg: from, to (waypoint numbers), distance |y_to - y_from|
         [m], miss |y(T) - y_to| [m], reached, duration [s] of the last try.
     """
-    import numpy as np
 
     from cdpm.dynamics.linearisation import linearise
     from cdpm.steering.shooting import longest_duration, steer
@@ -353,7 +353,6 @@ def _path_trajectory(robot: CableRobot, ds, path):
     """The path as a :class:`cdpm.Trajectory` for the viewer: the waypoints'
     configurations at rest with their equilibrium tensions,
     VIEW_STEP_SECONDS per step."""
-    import numpy as np
 
     from cdpm.dynamics.equilibrium import equilibrium_tension
     from cdpm.dynamics.simulation import Trajectory, trajectory_labels

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 
+from cdpm.errors import CdpmError
+
 NAME = "plot"
 HELP = "draw a workspace map (zarr store) into an image"
 DESCRIPTION = """\
@@ -41,7 +43,6 @@ examples:
 def argument_type(check):
     """An argparse ``type`` from a cdpm check: the check's error message
     becomes argparse's (a usage error, exit code 2, before any work)."""
-    from cdpm.errors import CdpmError
 
     def convert(text: str):
         try:

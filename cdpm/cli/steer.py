@@ -3,12 +3,17 @@
 from __future__ import annotations
 
 import argparse
+import math
+import sys
+
+import numpy as np
 
 from cdpm.cli._play import add_play_arguments, check_play_arguments
 from cdpm.cli._pose import Q_HELP, add_pose_arguments, pose_from_args
 from cdpm.cli._tension import add_tension_arguments, cli_equilibrium, tension_from_args
 from cdpm.cli.plot import argument_type
 from cdpm.cli.verify import _image, add_duration_argument
+from cdpm.errors import InputError
 from cdpm.printing import json_text
 
 NAME = "steer"
@@ -32,9 +37,7 @@ examples:
 
 
 def _number(text: str) -> float:
-    import math
 
-    from cdpm.errors import InputError
     from cdpm.expressions import parse_number
 
     try:
@@ -76,9 +79,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    import numpy as np
 
-    from cdpm.errors import InputError
     from cdpm.model.robot import load_robot
     from cdpm.steering.shooting import STEER_MAX_INTERVALS, steer
     from cdpm.text.steering import steer_json, steer_text
@@ -133,7 +134,6 @@ def run(args: argparse.Namespace) -> int:
             print(f"plot written to {args.plot}")
     if args.view:
         import signal
-        import sys
 
         from cdpm.cli.view import _exit_on_sigterm
         from cdpm.viewer import Viewer

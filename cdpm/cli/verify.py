@@ -7,6 +7,8 @@ import argparse
 from cdpm.cli._pose import Q_HELP, add_pose_arguments, pose_from_args
 from cdpm.cli._tension import add_tension_arguments, cli_equilibrium, tension_from_args
 from cdpm.cli.plot import argument_type
+from cdpm.errors import InputError
+from cdpm.expressions import parse_number
 from cdpm.printing import json_text
 
 NAME = "verify"
@@ -38,8 +40,6 @@ def _positive(option: str, what: str):
     """An argparse type for OPTION: a positive finite number (arithmetic allowed)."""
 
     def check(text: str) -> float:
-        from cdpm.errors import InputError
-        from cdpm.expressions import parse_number
 
         value = parse_number(text)
         if not (value > 0 and value < float("inf")):
@@ -66,7 +66,6 @@ def add_duration_argument(parser: argparse.ArgumentParser) -> None:
 
 
 def _count(text: str) -> int:
-    from cdpm.errors import InputError
     from cdpm.steering.verify import MAX_RANDOM_DIRECTIONS
 
     try:

@@ -33,6 +33,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from cdpm.errors import InputError, float_array, is_integer, positive_number, short_repr
+from cdpm.model.coordinates import coordinate_units, joint_kind, velocity_names
 from cdpm.numerics import MAX_TENSION, MAX_TIME_SPAN
 from cdpm.printing import TextRepr
 
@@ -306,7 +307,6 @@ class _Dynamics:
         self.data = robot.model.createData()
         self.damping = robot.joint_damping
         self.w_ext = robot.external_wrench
-        from cdpm.model.coordinates import joint_kind
 
         # every joint a plain vector space: the chart is q = q_c + delta
         self.flat = robot.nq == robot.nv and all(
@@ -561,7 +561,6 @@ def trajectory_labels(robot: CableRobot) -> dict:
     """What a :class:`Trajectory` of ``robot`` records besides its samples:
     the cables' bounds [N], and the names and units of its cables, outputs,
     coordinates and velocities (keyword arguments of Trajectory)."""
-    from cdpm.model.coordinates import coordinate_units, velocity_names
 
     return {
         "tension_min": robot.tension_min.copy(),

@@ -25,9 +25,23 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from cdpm.dynamics.equilibrium import EQUILIBRIUM_METHODS, EquilibriumWarning, resolve_method
+from cdpm.dynamics.reach import reach_settings, reach_unit
 from cdpm.errors import InputError, is_integer
+from cdpm.expressions import parse_number
+from cdpm.model.coordinates import coordinate_limits, coordinate_units
+from cdpm.model.robot import CableRobot, load_robot
 from cdpm.numerics import SPAN_TOL
+from cdpm.pipeline.criteria import CRITERIA
+from cdpm.pipeline.evaluate import (
+    check_tol,
+    evaluate_batch,
+    resolve_tension,
+    single_threaded_blas,
+    zero_equilibrium,
+)
 from cdpm.printing import TextRepr
+from cdpm.regions.paths import suspect_edges
 from cdpm.verdicts import NOT_ANALYSED, STATUS_CODES, STATUS_LABELS, VERDICT_CODES, YES, verdict_key
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -197,7 +211,6 @@ def _describe(verdict: int, status: int) -> str:
 
 
 def _check_radius(radius: Any) -> float:
-    from cdpm.expressions import parse_number
 
     try:
         value = parse_number(radius)
@@ -264,8 +277,6 @@ def _check_scale(robot: CableRobot, scale: Any, columns: list[int]) -> np.ndarra
 
 def _resolve_setting(robot: CableRobot, tension: Any, pretension: Any):
     """(tension setting, pretension) validated as the map code does."""
-    from cdpm.dynamics.equilibrium import EQUILIBRIUM_METHODS, EquilibriumWarning, resolve_method
-    from cdpm.pipeline.evaluate import resolve_tension
 
     with warnings.catch_warnings():
         if isinstance(pretension, (int, float)) and pretension > 0:
@@ -334,8 +345,6 @@ def _edges(U: np.ndarray, steps: np.ndarray, refined: int) -> np.ndarray:
 def _evaluate(robot, natural, setting, pretension, tol, reach):
     """POC verdict and status codes (N,) and reach margins r_T (N,) [m] of
     the poses ``natural`` (N, nv), by the map pipeline in chunks."""
-    from cdpm.pipeline.criteria import CRITERIA
-    from cdpm.pipeline.evaluate import evaluate_batch
 
     n = natural.shape[0]
     poc = np.full(n, NOT_ANALYSED, dtype=np.int8)
@@ -420,12 +429,6 @@ def poc_neighbourhood(
             coordinates, a bad scale, tension, pretension, tol, horizon,
             tension budget or q.
     """
-    from cdpm.dynamics.equilibrium import EquilibriumWarning
-    from cdpm.dynamics.reach import reach_settings, reach_unit
-    from cdpm.model.coordinates import coordinate_limits, coordinate_units
-    from cdpm.model.robot import CableRobot, load_robot
-    from cdpm.pipeline.evaluate import check_tol, single_threaded_blas, zero_equilibrium
-    from cdpm.regions.paths import suspect_edges
 
     started = time.perf_counter()
     robot = robot if isinstance(robot, CableRobot) else load_robot(robot)

@@ -27,8 +27,14 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from cdpm.dynamics.reach import ReachSettings, reach_settings
 from cdpm.errors import InputError, is_integer
+from cdpm.expressions import parse_number
+from cdpm.model.coordinates import default_ranges
+from cdpm.model.robot import CableRobot, load_robot
+from cdpm.pipeline.evaluate import evaluate_poses, single_threaded_blas
 from cdpm.printing import TextRepr
+from cdpm.verdicts import STATUS_CODES, VERDICT_LABELS, YES
 
 if TYPE_CHECKING:  # pragma: no cover - for static type checkers only
     from cdpm.dynamics.reach import ReachSettings
@@ -136,8 +142,6 @@ def search_box(
             bad ``radius``, a ``near`` that is not a pose of the robot, or
             one more than ``radius`` outside a coordinate's limited range.
     """
-    from cdpm.expressions import parse_number
-    from cdpm.model.coordinates import default_ranges
 
     defaults = default_ranges(robot)
     names = defaults.names
@@ -354,9 +358,6 @@ def find_poses(
         InputError: a bad ``where``, ``count``, ``tries``, ``rank``,
             ``seed``, ``box``, ``reach`` or ``tension``.
     """
-    from cdpm.dynamics.reach import ReachSettings, reach_settings
-    from cdpm.model.robot import CableRobot, load_robot
-    from cdpm.verdicts import VERDICT_LABELS, YES
 
     robot = robot if isinstance(robot, CableRobot) else load_robot(robot)
     if where not in WHERE:
@@ -445,7 +446,6 @@ def find_poses(
 
 def _evaluate(robot: CableRobot, natural: np.ndarray, tension, margin: bool, reach) -> dict:
     """The map variables at ``natural`` (N, nv), in batches of BATCH."""
-    from cdpm.pipeline.evaluate import evaluate_poses, single_threaded_blas
 
     if natural.shape[0] == 0:
         return {}
@@ -459,7 +459,6 @@ def _evaluate(robot: CableRobot, natural: np.ndarray, tension, margin: bool, rea
 
 def _feasible(data: dict) -> np.ndarray:
     """Held by a tension within the bounds, by the equilibrium method in use."""
-    from cdpm.verdicts import STATUS_CODES, YES
 
     return (data["static_feasible"] == YES) & (data["status"] != STATUS_CODES["no_equilibrium"])
 

@@ -30,6 +30,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from cdpm.dynamics.linearisation import linearise
 from cdpm.dynamics.simulation import TensionProfile, Trajectory, checked_duration, simulate
 from cdpm.errors import (
     InputError,
@@ -309,7 +310,6 @@ def steer(
             intervals or tolerance.
         InfeasibleEquilibriumError: no equilibrium at q.
     """
-    from cdpm.dynamics.linearisation import linearise
 
     lin = linearise(robot, q, tension=tension, pretension=pretension)
     p = robot.n_outputs

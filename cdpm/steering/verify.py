@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from cdpm.dynamics.linearisation import linearise
 from cdpm.errors import InputError, checked_seed, is_integer, positive_number
 from cdpm.printing import TextRepr
 from cdpm.steering.shooting import SteerResult, steer
@@ -161,7 +162,6 @@ def verify_pose(
         :class:`VerifyReport`.
     """
     from cdpm.analysis import positive_output_controllability
-    from cdpm.dynamics.linearisation import linearise
 
     lin = linearise(robot, pose, tension=tension, pretension=pretension)
     poc = positive_output_controllability(

@@ -12,6 +12,7 @@ raising.
 
 from __future__ import annotations
 
+import textwrap
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -19,6 +20,7 @@ import numpy as np
 
 from cdpm.dynamics.equilibrium import InfeasibleEquilibriumError
 from cdpm.dynamics.linearisation import Linearisation, linearise
+from cdpm.dynamics.reach import reach_settings, reach_unit
 from cdpm.errors import InputError
 from cdpm.printing import (
     TextRepr,
@@ -116,7 +118,6 @@ class PoseReport(TextRepr):
     def reach_unit(self) -> str:
         """The unit of r_T: the outputs' common unit, or e.g. ``"m and rad,
         one to one"`` (:func:`cdpm.dynamics.reach.reach_unit`)."""
-        from cdpm.dynamics.reach import reach_unit
 
         return reach_unit(self.output_units)
 
@@ -485,7 +486,6 @@ def _named_closure(result, cable_names) -> dict:
 
 
 def _wrap(text: str, width: int = 88) -> str:
-    import textwrap
 
     return textwrap.fill(text, width)
 
@@ -542,7 +542,6 @@ def analyze_pose(
             pose (:class:`~cdpm.dynamics.equilibrium.NotAnEquilibriumError`).
     """
     from cdpm import analysis
-    from cdpm.dynamics.reach import reach_settings
     from cdpm.pipeline.criteria import CRITERIA
     from cdpm.pipeline.evaluate import evaluate_batch
 

@@ -8,6 +8,8 @@ which :meth:`cdpm.viewer.Viewer.show_map` sends to meshcat;
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
 from cdpm import verdicts
@@ -75,7 +77,6 @@ def check_map_spec(dataset, robot, *, override: str = "check_spec=False") -> Non
 def _new_store(store, spec) -> str:
     """A store path for a map of ``spec`` that is neither ``store`` nor an
     existing path: ``SPEC_STEM.zarr`` beside ``store`` (numbered if taken)."""
-    from pathlib import Path
 
     folder = Path(store).parent if store else Path(".")
     stem = Path(spec).stem

@@ -46,7 +46,7 @@ from cdpm.viewer.outputs import output_drawing
 from cdpm.viewer.panel import PosePanel, pose_panel, rgb_hex
 from cdpm.viewer.scene import Viewer
 from cdpm.viewer.server import LOOPBACK, check_port
-from cdpm.viewer.state import AXIS_RGB, COLORS, default_pose
+from cdpm.viewer.state import AXIS_RGB, COLORS, default_pose, tension_scale
 
 if TYPE_CHECKING:  # pragma: no cover - for static type checkers only
     from cdpm.model.robot import CableRobot
@@ -345,7 +345,6 @@ def _output_legend(robot: CableRobot) -> list[dict]:
 
 def _legend(robot: CableRobot) -> dict:
     """Verdict, cable and output colours (hex) with their labels."""
-    from cdpm.viewer.state import tension_scale
 
     upper = robot.tension_max[np.isfinite(robot.tension_max)]
     if upper.size == robot.n_cables and upper.size:

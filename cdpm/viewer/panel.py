@@ -23,9 +23,10 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from cdpm.dynamics.equilibrium import InfeasibleEquilibriumError
 from cdpm.errors import CdpmError
 from cdpm.numerics import RANK_RTOL
-from cdpm.verdicts import NOT_ANALYSED, VERDICT_COLORS, verdict_code
+from cdpm.verdicts import NOT_ANALYSED, VERDICT_COLORS, verdict_code, verdict_key
 from cdpm.viewer.state import (
     COLORS,
     PoseState,
@@ -299,7 +300,6 @@ def _value(verdict: Any) -> str:
 
 
 def _code_value(code: Any) -> str:
-    from cdpm.verdicts import verdict_key
 
     key = verdict_key(int(code))
     return "unavailable" if int(code) == NOT_ANALYSED else key
@@ -349,7 +349,6 @@ def _unavailable_rows(
     linearisation are unavailable; wrench closure needs only the cable
     Jacobian, static feasibility comes from the failed equilibrium."""
     from cdpm import analysis
-    from cdpm.dynamics.equilibrium import InfeasibleEquilibriumError
 
     rows = [
         VerdictRow(key, LABELS[key], "unavailable", _NEEDS_LINEARISATION)

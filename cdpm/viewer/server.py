@@ -9,6 +9,7 @@ only in that subprocess.
 from __future__ import annotations
 
 import contextlib
+import functools
 import os
 import subprocess
 import sys
@@ -37,7 +38,6 @@ def _serve(argv: list[str] | None = None) -> None:
     ``listen`` is pinned to the loopback address here.
     """
     import argparse
-    import functools
 
     import tornado.ioloop
     from meshcat.servers.zmqserver import ZMQWebSocketBridge

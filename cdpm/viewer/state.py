@@ -25,8 +25,10 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from cdpm.dynamics.equilibrium.statics import classify
 from cdpm.dynamics.linearisation import linearise
 from cdpm.errors import CdpmError, InputError
+from cdpm.model.spec import WORLD_FRAME_NAMES, package_share_directory
 from cdpm.verdicts import VERDICT_CODES, VERDICT_RGB, verdict_code
 from cdpm.viewer.outputs import OutputDrawing, output_drawing
 
@@ -329,7 +331,6 @@ class PoseGeometry:
         )
 
     def _frame_id(self, name: str) -> int:
-        from cdpm.model.spec import WORLD_FRAME_NAMES
 
         return -1 if name in WORLD_FRAME_NAMES else int(self.model.getFrameId(name))
 
@@ -410,7 +411,6 @@ def _carried_points(robot: CableRobot) -> list[tuple[int, np.ndarray]]:
     """(joint, point in the joint's frame [m]) of every cable route point
     and point of a position or orientation output term, in spec order (joint
     0: fixed to the world)."""
-    from cdpm.model.spec import WORLD_FRAME_NAMES
 
     model = robot.model
     named = [(p.frame, p.point_in_frame) for c in robot.spec.cables for p in c.route]
@@ -490,7 +490,6 @@ def mesh_package_dirs(urdf_path: str | Path) -> list[Path]:
     Returns:
         The folders, each once, the URDF's own first.
     """
-    from cdpm.model.spec import package_share_directory
 
     urdf = Path(urdf_path).resolve()
     dirs = [urdf.parent]
@@ -668,7 +667,6 @@ def tension_colors(
         scale: tension [N] drawn in the darkest taut colour.
         levels: shades from light blue to navy.
     """
-    from cdpm.dynamics.equilibrium.statics import classify
 
     f = np.asarray(tension, dtype=float)
     at_lower, _, _ = classify(f, np.asarray(tension_min), np.asarray(tension_max))

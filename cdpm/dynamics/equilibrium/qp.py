@@ -3,6 +3,8 @@ closest tensions in bounds when none holds the pose."""
 
 from __future__ import annotations
 
+from ctypes import c_int
+
 import numpy as np
 
 from cdpm.dynamics.equilibrium.statics import statics_tolerance
@@ -81,7 +83,6 @@ def min_norm_in_bounds(lt, load, lower, upper) -> tuple[np.ndarray | None, str]:
         raise MissingExtraError(
             "the equilibrium solver needs the 'daqp' package: pip install daqp"
         ) from exc
-    from ctypes import c_int
 
     m = lt.shape[1]
     # Equalities in an orthonormal basis of the row space of L^T, so the QP

@@ -15,11 +15,14 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from cdpm.dynamics.equilibrium import InfeasibleEquilibriumError, equilibrium_tension
+from cdpm.dynamics.linearisation import linearise
 from cdpm.dynamics.tension_choice.range import TensionRange
 from cdpm.dynamics.tension_choice.search import TensionSearch, best_tension_batch
+from cdpm.errors import CdpmError, ModelError
 from cdpm.numerics import SPAN_TOL
 from cdpm.printing import TextRepr, named_values
-from cdpm.verdicts import VERDICT_LABELS, YES
+from cdpm.verdicts import STATUS_CODES, VERDICT_LABELS, YES
 
 if TYPE_CHECKING:  # pragma: no cover
     from cdpm.analysis.poc_result import POCResult
@@ -181,10 +184,7 @@ def best_tension(
         ModelError: a cable of zero length or a singular mass matrix at q.
     """
     from cdpm import analysis
-    from cdpm.dynamics.equilibrium import InfeasibleEquilibriumError, equilibrium_tension
-    from cdpm.dynamics.linearisation import linearise
     from cdpm.dynamics.reach import reach_unit
-    from cdpm.errors import CdpmError, ModelError
 
     kin = robot.kinematics(q)  # validates q; raises on a zero-length cable
     natural = robot.to_natural(kin.q)
@@ -248,6 +248,5 @@ def best_tension(
 
 
 def _status_codes() -> dict[str, int]:
-    from cdpm.verdicts import STATUS_CODES
 
     return STATUS_CODES

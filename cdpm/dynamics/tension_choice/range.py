@@ -21,8 +21,10 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from cdpm.dynamics.equilibrium import statics
 from cdpm.dynamics.tension_choice._polytope import Polytope, polish, polytope, solve_lp
-from cdpm.numerics import TENSION_CAP_BUDGETS
+from cdpm.errors import positive_number
+from cdpm.numerics import MAX_TENSION, TENSION_CAP_BUDGETS
 from cdpm.printing import TextRepr
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -47,8 +49,6 @@ def default_tension_cap(robot: CableRobot, tension_budget: Any = None) -> float:
 
 def checked_cap(cap: Any) -> float:
     """A tension cap [N] as a float in (0, MAX_TENSION], or an InputError."""
-    from cdpm.errors import positive_number
-    from cdpm.numerics import MAX_TENSION
 
     return positive_number(
         cap,
@@ -308,7 +308,6 @@ class TensionRange(TextRepr):
 def pose_statics(robot: CableRobot, q: Any):
     """(q (nq,), L^T (nv, m), load (nv,)) at one pose (name, configuration
     or natural coordinates); raises ModelError on a zero-length cable."""
-    from cdpm.dynamics.equilibrium import statics
 
     q = robot.kinematics(q).q
     LT, load = statics(robot, robot.kinematics_batch(q[None], dynamics=True))

@@ -29,6 +29,14 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from cdpm.dynamics.equilibrium import (
+    equilibrium_tensions,
+    resolve_method,
+    solve_equilibria,
+    statics,
+)
+from cdpm.dynamics.equilibrium.statics import classify, input_signs
+from cdpm.dynamics.linearisation import linearise_batch, mass_inverse
 from cdpm.dynamics.tension_choice._polytope import LPFailure, polish, solve_lp
 from cdpm.dynamics.tension_choice.range import (
     TensionRange,
@@ -251,8 +259,6 @@ def search_tensions(
     """:func:`best_tension_batch` on batch kinematics with dynamics ``kin``
     of N poses (zero-length cables flagged, not raised), settings validated
     (a map's chunk calls this with the kinematics it already has)."""
-    from cdpm.dynamics.equilibrium import equilibrium_tensions, resolve_method, statics
-    from cdpm.dynamics.linearisation import mass_inverse
 
     n, m = len(kin), robot.n_cables
     out = _Result.empty(n, m)
@@ -325,7 +331,6 @@ def search_tensions(
 
 def _candidates(robot, X, default, settings: TensionSearch, pretension: float):
     """(label, tension) candidates of one pose, distinct, the default first."""
-    from cdpm.dynamics.equilibrium import solve_equilibria
 
     P, m = X.polytope, robot.n_cables
     rng = np.random.default_rng([settings.seed, 0])
@@ -438,8 +443,6 @@ def _evaluate_into(robot, kin, minv, cands, reach, tol, out: _Result, first_is_d
     """Evaluate the candidates (pose index, label, tension) in one batch
     through the map pipeline and keep, per pose, the best (in place)."""
     from cdpm.analysis.batch import analyse_systems
-    from cdpm.dynamics.equilibrium.statics import classify, input_signs
-    from cdpm.dynamics.linearisation import linearise_batch
     from cdpm.dynamics.reach import reach_margins_at
 
     if not cands:
