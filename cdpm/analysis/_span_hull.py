@@ -148,6 +148,7 @@ def _polar_lp(G: np.ndarray, lower: np.ndarray, i: int, sign: float):
     f = np.zeros(p)
     f[i] = -sign
     try:
+        # daqp: loaded on first use
         import daqp
     except ImportError:  # pragma: no cover - daqp is a core dependency
         daqp = None

@@ -39,6 +39,7 @@ def _build_urdf(name: str, links: list[_Link], op_spaces: list[_OpSpace]):
     link frame ``link<k>`` itself.
     """
     try:
+        # optional: cdpm[caspr]
         import yourdfpy
     except ImportError as exc:  # pragma: no cover - depends on the environment
         raise MissingExtraError(

@@ -71,6 +71,7 @@ def build_parser() -> argparse.ArgumentParser:
 def _protect_negative_numbers(argv: list[str]) -> list[str]:
     """Let values such as ``-pi/6`` follow an option without being taken for
     an option themselves (argparse only recognises plain negative numbers)."""
+    # loaded when the command runs (cdpm --help stays fast)
     from cdpm.model.spec import parse_number
 
     out = []
@@ -150,6 +151,7 @@ def _terminate_as_interrupt():
     command cleans up (stops its workers, keeps finished map chunks) as an
     interrupted one does; returns the previous handler (None when signals
     cannot be set here, e.g. outside the main thread)."""
+    # platform-specific, used here only; loaded when the command runs (cdpm --help stays fast)
     import signal
     import threading
 
@@ -163,6 +165,7 @@ def _terminate_as_interrupt():
 
 
 def _restore_terminate(previous) -> None:
+    # platform-specific, used here only
     import signal
 
     if previous is not None:

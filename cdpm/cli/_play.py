@@ -10,12 +10,14 @@ from cdpm.errors import InputError
 
 
 def _port(text: str) -> int:
+    # loaded when the command runs (cdpm --help stays fast)
     from cdpm.viewer import check_port
 
     return check_port(text)
 
 
 def _seconds(text: str) -> float:
+    # loaded when the command runs (cdpm --help stays fast)
     from cdpm.expressions import parse_number
 
     try:
@@ -29,6 +31,7 @@ def _seconds(text: str) -> float:
 
 def add_play_arguments(parser: argparse.ArgumentParser, what: str) -> None:
     """The options that play ``what`` (e.g. "the motion") in the 3-D viewer."""
+    # loaded when the command runs (cdpm --help stays fast)
     from cdpm.cli.plot import argument_type
 
     parser.add_argument(

@@ -45,6 +45,7 @@ def pose_from_args(robot: CableRobot, args: argparse.Namespace):
 
 def _configuration_from_q(robot: CableRobot, tokens: list[str]):
     """The configuration from the --q values, with errors that name --q."""
+    # loaded when the command runs (cdpm --help stays fast)
     from cdpm.model.spec import parse_number
 
     values = []

@@ -31,6 +31,7 @@ def add_reach_arguments(parser: argparse.ArgumentParser, margin_switch: bool = F
 
 def reach_from_args(robot, args: argparse.Namespace):
     """The :class:`cdpm.dynamics.reach.ReachSettings` of the parsed options."""
+    # loaded when the command runs (cdpm --help stays fast)
     from cdpm.dynamics.reach import reach_settings
 
     return reach_settings(robot, args.horizon, args.tension_budget)

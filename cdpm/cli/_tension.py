@@ -18,6 +18,7 @@ def add_tension_arguments(parser: argparse.ArgumentParser, best: bool = False) -
     """Add --tension METHOD|F... and --pretension N; with ``best`` also
     ``--tension best`` (the search over the feasible tensions) and
     ``--objective poc|margin``."""
+    # loaded when the command runs (cdpm --help stays fast)
     from cdpm.cli.plot import argument_type
 
     search = (
@@ -53,6 +54,7 @@ def add_tension_arguments(parser: argparse.ArgumentParser, best: bool = False) -
 def _pretension(text: str) -> float:
     """--pretension: a number or arithmetic (parse_number: ``10*pi``), in
     [0, MAX_TENSION] N."""
+    # loaded when the command runs (cdpm --help stays fast)
     from cdpm.dynamics.equilibrium import checked_pretension
     from cdpm.model.spec import parse_number
 
@@ -78,6 +80,7 @@ def cli_equilibrium(function, *args, command: str = "cdpm", **kwargs):
     instead of Python arguments. Equilibrium warnings print once each to
     stderr as ``<command>: warning: ...``; other warnings pass through."""
 
+    # loaded when the command runs (cdpm --help stays fast)
     from cdpm.dynamics.equilibrium import (
         EquilibriumWarning,
         InfeasibleEquilibriumError,
@@ -100,6 +103,7 @@ def _show_warnings(caught: list, command: str) -> None:
     """Print the equilibrium warnings (once each, in this command's
     words) and re-issue the others."""
 
+    # loaded when the command runs (cdpm --help stays fast)
     from cdpm.dynamics.equilibrium import EquilibriumWarning
 
     shown = set()
@@ -118,6 +122,7 @@ def _show_warnings(caught: list, command: str) -> None:
 def cli_infeasible_message(result) -> str:
     """The error message of an infeasible equilibrium ``result``, naming
     this command's options."""
+    # loaded when the command runs (cdpm --help stays fast)
     from cdpm.dynamics.equilibrium import InfeasibleEquilibriumError
 
     return str(InfeasibleEquilibriumError(result).spelled(**CLI_OPTIONS))
@@ -168,6 +173,7 @@ def check_pretension(robot: CableRobot, tension, pretension: float | None) -> No
 def tension_argument(values: list[str] | None, best: bool = False):
     """None, a method name, a list of tensions, or (with ``best``, for the
     commands that search the feasible tensions) ``"best"`` from ``--tension``."""
+    # loaded when the command runs (cdpm --help stays fast)
     from cdpm.dynamics.equilibrium import EQUILIBRIUM_METHODS
     from cdpm.model.spec import parse_number
 

@@ -123,6 +123,7 @@ def coordinate_ranges(robot: CableRobot) -> tuple[np.ndarray, np.ndarray, np.nda
     limited), each (nv,), writable copies. The rule is
     :func:`cdpm.model.coordinates.default_ranges`; this is its old form,
     kept for callers of this module."""
+    # loaded when the command runs (cdpm --help stays fast)
     from cdpm.model.coordinates import default_ranges
 
     ranges = default_ranges(robot)
@@ -132,6 +133,7 @@ def coordinate_ranges(robot: CableRobot) -> tuple[np.ndarray, np.ndarray, np.nda
 def _box_from_args(robot: CableRobot, args: argparse.Namespace) -> SearchBox:
     """The box poses are drawn from (:func:`cdpm.regions.search.search_box`)
     of --range, --near and --radius, each checked with a message naming it."""
+    # loaded when the command runs (cdpm --help stays fast)
     from cdpm.expressions import parse_number
     from cdpm.regions.search import search_box
 
@@ -165,6 +167,7 @@ def _box_from_args(robot: CableRobot, args: argparse.Namespace) -> SearchBox:
 
 def _near_pose(robot: CableRobot, tokens: list[str]) -> tuple[np.ndarray, str]:
     """(natural coordinates, label) of the --near pose."""
+    # loaded when the command runs (cdpm --help stays fast)
     from cdpm.expressions import parse_number
 
     if len(tokens) == 1:
@@ -193,6 +196,7 @@ def _near_pose(robot: CableRobot, tokens: list[str]) -> tuple[np.ndarray, str]:
 
 def _value_text(value: float) -> str:
     """A pose value as --q takes it: at most DECIMALS decimals, no -0."""
+    # loaded when the command runs (cdpm --help stays fast)
     from cdpm.regions.search import DECIMALS
 
     text = f"{value:.{DECIMALS}f}".rstrip("0").rstrip(".")
@@ -209,6 +213,7 @@ def _pose_argv(box: SearchBox, pose: FoundPose) -> list[str]:
 
 
 def _is_number(text: str) -> bool:
+    # loaded when the command runs (cdpm --help stays fast)
     from cdpm.expressions import parse_number
 
     try:
@@ -239,6 +244,7 @@ def _row(box: SearchBox, pose: FoundPose) -> dict:
 
 
 def run(args: argparse.Namespace) -> int:
+    # loaded when the command runs (cdpm --help stays fast)
     from cdpm.pipeline.compiled import load_kernels_for, notice_on_stderr
     from cdpm.regions.search import MAX_TRIES, find_poses
 
@@ -298,6 +304,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _print_rows(robot, args, search: PoseSearch, rows: list[dict], what: str) -> None:
+    # loaded when the command runs (cdpm --help stays fast)
     from cdpm.dynamics.reach import reach_unit
     from cdpm.regions.search import STRAIN_FACTOR
 
@@ -351,6 +358,7 @@ def _none_found(box: SearchBox, args, counts: dict, what: str) -> str:
 
 
 def _as_json(robot: CableRobot, spec_robot, args, search: PoseSearch, rows: list[dict]) -> dict:
+    # loaded when the command runs (cdpm --help stays fast)
     from cdpm.maps.plan import robot_overrides
 
     box, reach = search.box, search.reach

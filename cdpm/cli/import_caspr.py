@@ -62,6 +62,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
 
+    # loaded when the command runs (cdpm --help stays fast)
     from cdpm.caspr import CasprWarning, import_caspr
 
     with warnings.catch_warnings():

@@ -122,10 +122,13 @@ def parse_axis(text: str, sampled: bool):
     Every value must be a finite number and every item present: an empty
     item (``q1=0:1:5,`` or ``q1=0,,1``) is an error, not skipped.
     """
+    # loaded when the command runs (cdpm --help stays fast)
     import math
 
+    # loaded when the command runs (cdpm --help stays fast)
     import numpy as np
 
+    # loaded when the command runs (cdpm --help stays fast)
     from cdpm.model.spec import parse_number
 
     name, sep, rest = text.partition("=")
@@ -171,6 +174,7 @@ def parse_axis(text: str, sampled: bool):
                 f"--axis {text!r}: COUNT of axis {name!r} must be an integer, "
                 f"got {parts[2]!r} (e.g. {name}=0:1:11)"
             ) from exc
+        # loaded when the command runs (cdpm --help stays fast)
         from cdpm.maps import MAX_AXIS_POINTS
 
         if count < 1 or count > MAX_AXIS_POINTS:
@@ -208,6 +212,7 @@ def parse_base(tokens):
     if len(tokens) == 1 and "=" not in tokens[0]:
         token = tokens[0]
         try:
+            # loaded when the command runs (cdpm --help stays fast)
             from cdpm.model.spec import parse_number
 
             return [parse_number(token)]
@@ -227,6 +232,7 @@ def parse_base(tokens):
 def _check_plot_path(path: str) -> None:
     """Fail before any work when --plot cannot be written: matplotlib
     missing, or an image format it does not write."""
+    # loaded when the command runs (cdpm --help stays fast)
     from cdpm.plotting import check_image_path
 
     try:
@@ -263,8 +269,10 @@ def add_robot_arguments(parser: argparse.ArgumentParser) -> None:
 
 def parse_gravity(tokens: list[str] | None):
     """The gravity vector [m/s^2] from --gravity, or None."""
+    # loaded when the command runs (cdpm --help stays fast)
     import math
 
+    # loaded when the command runs (cdpm --help stays fast)
     from cdpm.model.spec import parse_number
 
     if tokens is None:
@@ -288,6 +296,7 @@ def parse_tension_bounds(texts: list[str] | None, robot: CableRobot):
     """{cable: (min, max)} [N] from every --tension-bounds (MIN:MAX for
     every cable, CABLE=MIN:MAX for one; one cable's over every cable's), or
     None."""
+    # loaded when the command runs (cdpm --help stays fast)
     from cdpm.model.spec import parse_number
 
     if not texts:
@@ -329,6 +338,7 @@ def robot_from_args(args: argparse.Namespace):
     """(robot, the spec's robot, tension setting) from SPEC, --gravity,
     --tension-bounds, --tension and --pretension, all checked before any
     work; the robot carries the overrides (:func:`cdpm.maps.override_robot`)."""
+    # loaded when the command runs (cdpm --help stays fast)
     from cdpm.maps import override_robot
     from cdpm.model.robot import load_robot
 
@@ -352,6 +362,7 @@ def robot_from_args(args: argparse.Namespace):
 
 def describe_robot(robot: CableRobot, spec_robot: CableRobot) -> str | None:
     """``overrides of SPEC: ...`` when the robot differs from its spec."""
+    # loaded when the command runs (cdpm --help stays fast)
     from cdpm.maps.plan import describe_overrides, robot_overrides
 
     overrides = robot_overrides(robot, spec_robot)
@@ -363,6 +374,7 @@ def describe_robot(robot: CableRobot, spec_robot: CableRobot) -> str | None:
 def _check_tension(robot: CableRobot, tension, pretension: float | None) -> None:
     """The pretension method needs a pretension > 0 N, from --pretension or
     the spec (with 0 N it is the min_norm method)."""
+    # loaded when the command runs (cdpm --help stays fast)
     import math
 
     if tension == "best":  # the spec's method, and the search
@@ -390,6 +402,7 @@ def _check_outputs(args: argparse.Namespace) -> None:
     """Before any work: something keeps the map, --out names a store (not
     an image), and --workers is not given with --scheduler."""
 
+    # loaded when the command runs (cdpm --help stays fast)
     from cdpm.maps import store_path_problem
 
     if not args.out and not args.plot:
@@ -420,6 +433,7 @@ def _check_outputs(args: argparse.Namespace) -> None:
         if value is not None and value < 1:
             raise InputError(f"{option} {value}: give a whole number >= 1")
     if args.scheduler:
+        # loaded when the command runs (cdpm --help stays fast)
         from cdpm.maps import check_scheduler_address
 
         check_scheduler_address(args.scheduler)  # before the model is loaded
@@ -454,8 +468,10 @@ def _interrupted(args: argparse.Namespace, store: str | None) -> int:
 def _some_tension_line(ds) -> str:
     """``POC for some feasible tension: yes 12 (60.0%), ...`` of a map
     made with --tension best."""
+    # loaded when the command runs (cdpm --help stays fast)
     import numpy as np
 
+    # loaded when the command runs (cdpm --help stays fast)
     from cdpm.maps import VERDICT_CODES
 
     some = np.asarray(ds["poc_some_tension"].values)
@@ -470,6 +486,7 @@ def _some_tension_line(ds) -> str:
 def _regions_line(labels, seams: bool) -> str:
     """``POC regions: 4 (sizes 1191, 1034, ...)`` from a map's poc_region;
     ``seams``: the map has full-turn seams, whose poses the sizes count once."""
+    # loaded when the command runs (cdpm --help stays fast)
     import json
 
     listed = json.loads(labels.attrs.get("regions", "[]"))
@@ -483,8 +500,10 @@ def _regions_line(labels, seams: bool) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
+    # loaded when the command runs (cdpm --help stays fast)
     import numpy as np
 
+    # loaded when the command runs (cdpm --help stays fast)
     from cdpm.maps import STATUS_CODES, VERDICT_CODES, StoreSettingsError, workspace_map
 
     axes = parse_axes(args.axis, args.samples is not None)
@@ -546,6 +565,7 @@ def run(args: argparse.Namespace) -> int:
     if tension == "best":
         print(_some_tension_line(ds))
     if "poc_region" in ds:
+        # loaded when the command runs (cdpm --help stays fast)
         from cdpm.maps.regions import map_layout
         from cdpm.regions.paths import suspect_region_steps
 
@@ -565,6 +585,7 @@ def run(args: argparse.Namespace) -> int:
         computed = not runs or runs[-1].todo_chunks > 0
         print(f"map written to {args.out}" if computed else f"map read from {args.out}")
     if args.plot:
+        # loaded when the command runs (cdpm --help stays fast)
         from cdpm.plotting import save_map_plot
 
         written = save_map_plot(ds, args.plot)

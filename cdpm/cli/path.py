@@ -124,6 +124,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    # loaded when the command runs (cdpm --help stays fast)
     from cdpm.maps import open_map
     from cdpm.maps.regions import REGION_VARIABLE, attach_regions
     from cdpm.regions.paths import NotConnectedError, poc_path
@@ -158,6 +159,7 @@ def run(args: argparse.Namespace) -> int:
     if args.steer:
         legs = _steer_legs(robot.get("--steer"), ds, path, args.legs or _default_legs(path), out)
     if args.plot:
+        # loaded when the command runs (cdpm --help stays fast)
         from cdpm.plotting import save_map_plot
 
         subtitle = None if legs is None else _legs_caption(legs, _miss_unit(robot.get("--steer")))
@@ -182,6 +184,7 @@ class _RobotOfMap:
         self.ds, self.robot = ds, None
 
     def get(self, why: str) -> CableRobot:
+        # loaded when the command runs (cdpm --help stays fast)
         from cdpm.maps.regions import map_robot
 
         if self.robot is None:
@@ -194,6 +197,7 @@ def _pose_argument(ds, robot: _RobotOfMap, tokens: list[str], option: str) -> An
     coordinates), or one pose name of the map's spec; checked against the
     map (a pose off the map or of the wrong length is an InputError naming
     the option)."""
+    # loaded when the command runs (cdpm --help stays fast)
     from cdpm.maps.regions import map_layout, named_pose, nearest_index, region_labels
 
     tokens = [t.strip() for t in tokens]
@@ -265,6 +269,7 @@ def _steer_legs(robot: CableRobot, ds, path, legs: int, out) -> list[dict]:
         [m], miss |y(T) - y_to| [m], reached, duration [s] of the last try.
     """
 
+    # loaded when the command runs (cdpm --help stays fast)
     from cdpm.dynamics.linearisation import linearise
     from cdpm.steering.shooting import longest_duration, steer
 
@@ -330,6 +335,7 @@ def _steer_legs(robot: CableRobot, ds, path, legs: int, out) -> list[dict]:
 def _miss_unit(robot: CableRobot) -> str:
     """The unit of the legs' distances and misses: the outputs' (``m``,
     ``rad``, or ``m, rad``)."""
+    # loaded when the command runs (cdpm --help stays fast)
     from cdpm.dynamics.reach import reach_unit
 
     return reach_unit(robot.output_units).replace(" and ", ", ").replace(", one to one", "")
@@ -354,6 +360,7 @@ def _path_trajectory(robot: CableRobot, ds, path):
     configurations at rest with their equilibrium tensions,
     VIEW_STEP_SECONDS per step."""
 
+    # loaded when the command runs (cdpm --help stays fast)
     from cdpm.dynamics.equilibrium import equilibrium_tension
     from cdpm.dynamics.simulation import Trajectory, trajectory_labels
 
@@ -376,8 +383,10 @@ def _path_trajectory(robot: CableRobot, ds, path):
 
 
 def _view(robot: CableRobot, ds, path, args, out) -> None:
+    # platform-specific, used here only
     import signal
 
+    # loaded when the command runs (cdpm --help stays fast)
     from cdpm.cli.view import _exit_on_sigterm
     from cdpm.viewer import Viewer
 

@@ -26,6 +26,7 @@ examples:
 
 
 def _picture_file(text: str):
+    # loaded when the command runs (cdpm --help stays fast)
     from cdpm.plotting.picture import check_picture_path
 
     return check_picture_path(text)
@@ -52,6 +53,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    # loaded when the command runs (cdpm --help stays fast)
     from cdpm.model.robot import load_robot
     from cdpm.plotting.picture import render_pose
     from cdpm.viewer import pose_state

@@ -55,12 +55,14 @@ def argument_type(check):
 
 
 def _dpi(text: str) -> float:
+    # loaded when the command runs (cdpm --help stays fast)
     from cdpm.plotting import check_dpi
 
     return check_dpi(text)
 
 
 def _image(text: str):
+    # loaded when the command runs (cdpm --help stays fast)
     from cdpm.plotting import check_image_path
 
     return check_image_path(text)
@@ -80,6 +82,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=argument_type(_image),
         help="image to write; the extension picks the format (.png, .pdf, .svg, ...)",
     )
+    # loaded when the command runs (cdpm --help stays fast)
     from cdpm.pipeline.criteria import verdict_criteria
 
     parser.add_argument(
@@ -105,6 +108,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    # loaded when the command runs (cdpm --help stays fast)
     from cdpm.maps import open_map
     from cdpm.plotting import save_map_plot
 

@@ -80,6 +80,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
 
+    # loaded when the command runs (cdpm --help stays fast)
     from cdpm.model.robot import load_robot
     from cdpm.steering.shooting import STEER_MAX_INTERVALS, steer
     from cdpm.text.steering import steer_json, steer_text
@@ -113,6 +114,7 @@ def run(args: argparse.Namespace) -> int:
     if args.plot:
         where = f"pose {pose!r}" if isinstance(pose, str) else "the given q"
         word = "reached" if result.reached else "NOT reached"
+        # loaded when the command runs (cdpm --help stays fast)
         from cdpm.dynamics.reach import reach_unit
         from cdpm.plotting.trajectories import display_unit, plot_trajectory
 
@@ -133,8 +135,10 @@ def run(args: argparse.Namespace) -> int:
         if args.plot:
             print(f"plot written to {args.plot}")
     if args.view:
+        # platform-specific, used here only
         import signal
 
+        # loaded when the command runs (cdpm --help stays fast)
         from cdpm.cli.view import _exit_on_sigterm
         from cdpm.viewer import Viewer
 

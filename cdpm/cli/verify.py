@@ -66,6 +66,7 @@ def add_duration_argument(parser: argparse.ArgumentParser) -> None:
 
 
 def _count(text: str) -> int:
+    # loaded when the command runs (cdpm --help stays fast)
     from cdpm.steering.verify import MAX_RANDOM_DIRECTIONS
 
     try:
@@ -78,6 +79,7 @@ def _count(text: str) -> int:
 
 
 def _image(text: str):
+    # loaded when the command runs (cdpm --help stays fast)
     from cdpm.plotting import check_image_path
 
     return check_image_path(text)
@@ -108,6 +110,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    # loaded when the command runs (cdpm --help stays fast)
     from cdpm.model.robot import load_robot
     from cdpm.steering.verify import verify_pose
     from cdpm.text.steering import verify_json, verify_text
@@ -126,6 +129,7 @@ def run(args: argparse.Namespace) -> int:
         pretension=pretension,
     )
     if args.plot:
+        # loaded when the command runs (cdpm --help stays fast)
         from cdpm.plotting.trajectories import plot_verify_report
 
         plot_verify_report(report, args.plot)

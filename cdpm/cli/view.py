@@ -64,6 +64,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         action="store_true",
         help="overlay a map made from another spec file (default: refuse it)",
     )
+    # loaded when the command runs (cdpm --help stays fast)
     from cdpm.viewer.overlay import color_choices
 
     parser.add_argument(
@@ -95,8 +96,10 @@ def map_settings_note(dataset, robot) -> str | None:
     """A sentence when the map was computed with other equilibrium settings
     (tension method, given tensions, pretension, gravity or tension-bound
     overrides) than the ones the page analyses with (the spec's), else None."""
+    # loaded when the command runs (cdpm --help stays fast)
     import json
 
+    # loaded when the command runs (cdpm --help stays fast)
     from cdpm.pipeline.evaluate import resolve_tension
 
     made = []
@@ -116,6 +119,7 @@ def map_settings_note(dataset, robot) -> str | None:
 
 
 def run(args: argparse.Namespace) -> int:
+    # loaded when the command runs (cdpm --help stays fast)
     from cdpm.model.robot import load_robot
     from cdpm.viewer import check_map_spec
     from cdpm.viewer.page import InspectionPage
@@ -128,6 +132,7 @@ def run(args: argparse.Namespace) -> int:
     _import_meshcat()  # a missing viz extra fails before anything is loaded
     dataset = None
     if args.map:
+        # loaded when the command runs (cdpm --help stays fast)
         from cdpm.maps import open_map
 
         # before the server starts

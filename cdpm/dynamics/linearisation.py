@@ -224,6 +224,7 @@ class Linearisation:
             with path.open("wb") as handle:
                 np.savez(handle, **arrays)
         else:
+            # scipy: loaded on first use
             from scipy.io import savemat
 
             for name in ("cable_names", "output_names", "state_names"):
@@ -248,6 +249,7 @@ class Linearisation:
                 (``pip install 'cdpm[control]'``).
         """
         try:
+            # optional: cdpm[control]
             import control
         except ImportError as exc:
             raise MissingExtraError(
@@ -392,6 +394,7 @@ def linearise_batch(
     Returns:
         :class:`LinearisationBatch`.
     """
+    # pinocchio: loaded on first use
     import pinocchio as pin
 
     nv, m, p, k = robot.nv, robot.n_cables, robot.n_outputs, len(kin)

@@ -226,6 +226,7 @@ def reach_margins_at(
         :func:`reach_unit`],
         error estimate, intervals), each (N,).
     """
+    # scipy: loaded on first use
     from cdpm.analysis.reach import ReachMargins, reach_margins
 
     settings = reach_settings(robot, settings)

@@ -214,6 +214,7 @@ class Trajectory(TextRepr):
         velocity (its components, ``velocity_labels``, each unit in the
         coordinate ``velocity_unit``) and q_index (Pinocchio's configuration
         vector); units in the attributes)."""
+        # xarray: loaded on first use
         import xarray as xr
 
         return xr.Dataset(
@@ -300,6 +301,7 @@ class _Dynamics:
     """q'' of the robot, and the chart ODE for (delta, v)."""
 
     def __init__(self, robot: CableRobot):
+        # pinocchio: loaded on first use
         import pinocchio as pin
 
         self.robot, self.pin = robot, pin
@@ -416,6 +418,7 @@ def simulate(
             samples, or the budget of evaluations is spent.
         ModelError: a cable reaches zero length on the way.
     """
+    # scipy: loaded on first use
     from scipy.integrate import solve_ivp
 
     q = robot.as_q(q0)

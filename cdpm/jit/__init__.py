@@ -26,6 +26,7 @@ def kernel(*args, **options):
     (``__pycache__/*.nbi`` and ``*.nbc`` beside the kernel modules), or
     the kernels compiled with the old options are loaded again.
     """
+    # scipy: loaded on first use
     import numba
 
     return numba.njit(*args, cache=True, nogil=True, **options)

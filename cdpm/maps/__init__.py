@@ -22,9 +22,12 @@ from numpy import bool_
 
 from cdpm._version import __version__
 from cdpm.dynamics.reach import reach_settings
+from cdpm.dynamics.tension_choice.search import tension_search
 from cdpm.errors import InputError, is_integer
 from cdpm.maps._dask import check_scheduler_address
+from cdpm.maps._lock import store_lock
 from cdpm.maps._progress import MapRunInfo, ProgressPrinter
+from cdpm.maps._runner import run_chunks
 from cdpm.maps._store import (
     RESULT_IN_MEMORY_MAX,
     MemorySink,
@@ -43,6 +46,7 @@ from cdpm.maps.plan import (
     override_robot,
     sample_axes,
 )
+from cdpm.maps.regions import attach_new_regions
 from cdpm.model.robot import CableRobot, load_robot
 from cdpm.numerics import SPAN_TOL
 from cdpm.pipeline.criteria import bytes_per_pose
@@ -214,9 +218,6 @@ def workspace_map(
         StoreSettingsError: ``store`` holds a map made with other settings
             (an InputError; the message names each difference).
     """
-    from cdpm.maps._lock import store_lock
-    from cdpm.maps._runner import run_chunks
-    from cdpm.maps.regions import attach_new_regions
 
     _refuse_in_worker_bootstrap()
     _check_executor(workers, scheduler)
@@ -254,8 +255,6 @@ def workspace_map(
         )
     search = None
     if isinstance(tension, str) and tension == "best":
-        from cdpm.dynamics.tension_choice.search import tension_search
-
         search = tension_search(tension_objective)
         tension = None
     elif tension_objective != "poc":

@@ -106,6 +106,7 @@ def _scheduler_lost_errors() -> tuple[type[BaseException], ...]:
     """The exceptions a future's result raises when its scheduler is gone
     (looked up when a map runs on Dask: importing dask.distributed costs a
     third of a second, which local maps and their workers do not pay)."""
+    # asyncio: loaded on first use
     import asyncio
     import concurrent.futures
 
@@ -116,6 +117,7 @@ def _scheduler_lost_errors() -> tuple[type[BaseException], ...]:
         TimeoutError,
     ]
     try:
+        # optional: cdpm[maps]
         from distributed.comm.core import CommClosedError
 
         errors.append(CommClosedError)
@@ -130,6 +132,7 @@ def run_dask(plan, job, todo, finished, scheduler, source, started) -> None:
     queued; ``finished`` gets each chunk's arrays, ``started`` what runs
     where."""
     try:
+        # optional: cdpm[maps]
         import distributed
     except ImportError as exc:
         raise MissingExtraError(

@@ -42,6 +42,7 @@ def store_lock(store):
             names its pid, host and start time).
     """
     try:
+        # platform-specific, used here only
         import fcntl
     except ImportError:  # pragma: no cover - not a POSIX system: no locking
         yield

@@ -198,6 +198,7 @@ class MemorySink:
         """Nothing to wait for (see :meth:`ZarrSink.close`)."""
 
     def dataset(self):
+        # xarray: loaded on first use
         import xarray as xr
 
         dims = self.plan.dims
@@ -309,6 +310,7 @@ class ZarrSink:
             self.path.unlink()
 
     def _check_settings(self) -> None:
+        # zarr: loaded on first use
         import zarr
 
         group = zarr.open_group(file_store(self.path, read_only=True), mode="r")
@@ -377,8 +379,10 @@ class ZarrSink:
         arrays just created, as ``zarr.consolidate_metadata`` makes it from
         the same metadata read back from the store (the same document,
         without parsing two dozen documents again: 3-5 ms)."""
+        # asyncio: loaded on first use
         import asyncio
 
+        # zarr: loaded on first use
         from zarr import AsyncArray, AsyncGroup
         from zarr.core.group import ConsolidatedMetadata
         from zarr.storage import MemoryStore, StorePath
@@ -422,8 +426,10 @@ class ZarrSink:
         Returns:
             (the group, every array {name: zarr AsyncArray}).
         """
+        # asyncio: loaded on first use
         import asyncio
 
+        # zarr: loaded on first use
         from zarr import AsyncArray
         from zarr.api.asynchronous import create_group
         from zarr.core.buffer import default_buffer_prototype
@@ -532,6 +538,7 @@ class ZarrSink:
 def _write_skeleton(path: Path, files: dict[str, bytes]) -> None:
     """Write a new store's files {key: bytes} at ``path``, then mark it
     created."""
+    # zarr: loaded on first use
     from cdpm.maps._filestore import write_new_files
 
     write_new_files(path, files)
@@ -616,9 +623,11 @@ class ChunkWriter:
     async def _write_regions(self, region: tuple[slice, ...], values: dict) -> None:
         """Write ``values`` (name -> array of the region's shape) into the
         region of each variable, all at once (opening the store first)."""
+        # asyncio: loaded on first use
         import asyncio
 
         if self._arrays is None:
+            # zarr: loaded on first use
             from zarr.api.asynchronous import open_group
 
             group = await open_group(file_store(Path(self.path)), mode="r+")
@@ -655,6 +664,7 @@ def _open_map(path, index_values: dict | None = None):
     which xarray then indexes without reading them from the store (it reads
     each coordinate array in a call of its own into zarr's event loop,
     about 0.7 ms each). The dataset is the same as without them."""
+    # xarray: loaded on first use
     import xarray as xr
 
     p = Path(path).expanduser()
@@ -718,6 +728,7 @@ def _in_map_order(ds):
     (:func:`_coords`: ``sample`` of a sampled map, the axes, then
     ``output``, ``xyz``, ``cable``), not by name as zarr lists a store's
     arrays; the same variables (lazily loaded), indexes and attributes."""
+    # xarray: loaded on first use
     import xarray as xr
 
     axes = ds.attrs.get("axes", [])

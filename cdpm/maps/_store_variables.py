@@ -29,6 +29,7 @@ def write_variable(path: Path, values, group=None) -> None:
 
 
 async def _write_variable(path: Path, values, group=None) -> None:
+    # zarr: loaded on first use
     from zarr.api.asynchronous import consolidate_metadata, open_group
 
     if group is not None:
@@ -75,6 +76,7 @@ async def _add_variable(group, values) -> None:
     zarr makes it (no look for an array to replace: 2 ms), its document
     and chunks written, then the group's document with the array added to
     its consolidated metadata."""
+    # zarr: loaded on first use
     from zarr import AsyncArray
     from zarr.api.asynchronous import create_array
     from zarr.core.buffer import default_buffer_prototype

@@ -272,6 +272,7 @@ def _start_fork_server(ctx) -> threading.Thread | None:
         return None
     thread = _FORK_SERVER.get("thread")
     if thread is None:
+        # multiprocessing: loaded on first use
         from multiprocessing import forkserver
 
         thread = threading.Thread(target=forkserver.ensure_running, daemon=True)
@@ -300,6 +301,7 @@ def _start_worker_processes(executor, n: int, ready: list) -> threading.Thread:
     computes chunks meanwhile instead of waiting in its first submit.
     ``ready`` gets a future per worker, done once it has started (or with
     the error that stopped it)."""
+    # concurrent: loaded on first use
     from concurrent.futures import Future
 
     def start() -> None:
@@ -336,6 +338,7 @@ def run_processes(
     useful work and small maps gain from workers too. ``kernels``: the
     map's poses need the compiled kernels (a map under load).
     """
+    # multiprocessing: loaded on first use
     from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
     from concurrent.futures.process import BrokenProcessPool
 

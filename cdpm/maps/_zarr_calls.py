@@ -33,6 +33,7 @@ def write_metadata(make):
     times slower (a map store's root document, with the consolidated
     metadata of every array, is 15-30 kB). zarr's warnings about them are
     silenced (:func:`zarr_warnings_silenced`)."""
+    # zarr: loaded on first use
     import zarr
 
     with zarr_warnings_silenced(), zarr.config.set({"json_indent": None}):
@@ -67,8 +68,10 @@ def sync(make):
     started (zarr's loop starting, an import), it never starts, and no
     "coroutine ... was never awaited" warning follows: hence ``make``, which
     makes the coroutine only once it runs."""
+    # asyncio: loaded on first use
     import asyncio
 
+    # zarr: loaded on first use
     from zarr.core import sync as zarr_sync
 
     # the loop's start of the work and the caller's giving up on it are
@@ -109,6 +112,7 @@ def sync(make):
 def file_store(path: Path, read_only: bool = False):
     """The zarr store of the map store at ``path``
     (:class:`cdpm.maps._filestore.MapFileStore`)."""
+    # zarr: loaded on first use
     from cdpm.maps._filestore import MapFileStore
 
     return MapFileStore(path, read_only=read_only)

@@ -24,6 +24,7 @@ import numpy as np
 
 from cdpm.errors import InputError, float_scalar
 from cdpm.maps._store import open_map
+from cdpm.maps._store_variables import write_variable
 from cdpm.model.robot import load_robot
 from cdpm.numerics import (
     REGION_BASE_ATOL,
@@ -99,6 +100,7 @@ def default_radius(layout: MapLayout) -> float:
     times the mean nearest-neighbour distance of the samples; over one axis,
     REGION_GAP_FACTOR times the largest gap between consecutive samples (the
     seam of an angle not counted)."""
+    # scipy: loaded on first use
     from scipy.spatial import cKDTree
 
     points, box = sample_points(layout)
@@ -126,6 +128,7 @@ def sample_edges(layout: MapLayout, yes: np.ndarray, radius: float) -> tuple:
     lengths. Over one axis only consecutive samples (no other sample
     between them; around the turn for an angle) are joined, so that a
     sample where ``yes`` fails always separates."""
+    # scipy: loaded on first use
     from scipy.spatial import cKDTree
 
     points, box = sample_points(layout)
@@ -321,6 +324,7 @@ def distinct(values: np.ndarray, layout: MapLayout, index: GridIndex) -> np.ndar
 def _grid_components(yes: np.ndarray, rings: tuple[bool, ...]) -> np.ndarray:
     """Component id (>= 1) of each YES pose of the distinct grid, 0 elsewhere:
     face-adjacent components, merged across the seam of each ring axis."""
+    # scipy: loaded on first use
     from scipy import ndimage
 
     structure = ndimage.generate_binary_structure(yes.ndim, 1)
@@ -334,6 +338,7 @@ def _grid_components(yes: np.ndarray, rings: tuple[bool, ...]) -> np.ndarray:
             pairs.append(np.stack([a[both], b[both]]))
     if not pairs or k == 0:
         return lab
+    # scipy: loaded on first use
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
@@ -376,6 +381,7 @@ def _circular_extent(positions: np.ndarray, period: float) -> tuple[float, float
 
 def _grid_regions(labels: np.ndarray, sizes, layout: MapLayout, index: GridIndex) -> list:
     """The ``regions`` entries of a grid map (labels on the distinct grid)."""
+    # scipy: loaded on first use
     from scipy import ndimage
 
     boxes = ndimage.find_objects(labels, max_label=min(len(sizes), REGIONS_LISTED))
@@ -419,6 +425,7 @@ def _label_grid(ds, layout: MapLayout) -> tuple[np.ndarray, list]:
 
 
 def _label_samples(ds, layout: MapLayout, radius: float) -> tuple[np.ndarray, list]:
+    # scipy: loaded on first use
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
@@ -481,6 +488,7 @@ def label_regions(ds, *, radius: float | None = None):
     Raises:
         InputError: not a map, a radius on a grid map, or a bad radius.
     """
+    # xarray: loaded on first use
     import xarray as xr
 
     layout = map_layout(ds)
@@ -575,8 +583,6 @@ def attach_new_regions(ds, store, group, read_from_store: bool = False):
             return ds
     out = ds.drop_vars(REGION_VARIABLE, errors="ignore").assign({REGION_VARIABLE: labels})
     if store is not None:
-        from cdpm.maps._store_variables import write_variable
-
         write_variable(Path(store).expanduser(), labels, group)
         out = out[sorted(out.data_vars)]  # as open_map lists them
     return out

@@ -16,6 +16,7 @@ import numpy as np
 
 from cdpm.errors import SpecError, short_repr
 from cdpm.model._spec_parts import WORLD_FRAME_NAMES, Problems, unknown_keys
+from cdpm.model.urdf_check import read_urdf
 
 #: pip distribution that installs a ROS-style package's files, where the
 #: names differ (used in the install hint when a package is missing).
@@ -132,9 +133,8 @@ def load_urdf(problems: Problems, spec_path: Path, urdf: Any):
 def build_model(problems: Problems, urdf_path: Path):
     """Build a Pinocchio model from a URDF, recording a problem on failure
     (the file is checked by :func:`cdpm.model.urdf_check.read_urdf` first)."""
+    # pinocchio: loaded on first use
     import pinocchio as pin
-
-    from cdpm.model.urdf_check import read_urdf
 
     _, urdf_problems = read_urdf(urdf_path)
     if urdf_problems:
@@ -218,7 +218,6 @@ def link_coms(urdf_path: Path) -> dict[str, np.ndarray]:
     Pinocchio merges link inertias into their joint's and keeps no per-link
     record, so the ``<inertial>`` origins are read from the URDF here.
     """
-    from cdpm.model.urdf_check import read_urdf
 
     coms: dict[str, np.ndarray] = {}
     root, _ = read_urdf(urdf_path)  # checked before the model was built

@@ -404,6 +404,7 @@ def _tangent_names(model, which: int, suffix: str) -> list[str]:
 
 
 def _rpy_to_quaternion(rpy: np.ndarray) -> np.ndarray:
+    # pinocchio: loaded on first use
     import pinocchio as pin
 
     rotation = pin.rpy.rpyToMatrix(*rpy)
@@ -411,6 +412,7 @@ def _rpy_to_quaternion(rpy: np.ndarray) -> np.ndarray:
 
 
 def _quaternion_to_rpy(quat: np.ndarray) -> np.ndarray:
+    # pinocchio: loaded on first use
     import pinocchio as pin
 
     x, y, z, w = quat

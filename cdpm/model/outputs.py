@@ -359,6 +359,7 @@ def _parse_term(
 
 
 def _fixed_joint_type():
+    # pinocchio: loaded on first use
     import pinocchio as pin
 
     return pin.FrameType.FIXED_JOINT
@@ -495,6 +496,7 @@ class OutputBasis:
     def _rotation(self, pl, jac, joint: int, r_local: np.ndarray):
         """Rotation vectors (N, 3) [rad] of a frame fixed to ``joint`` and its
         world angular Jacobian (3, nv, N)."""
+        # scipy: loaded on first use
         from scipy.spatial.transform import Rotation
 
         # pl rows hold the joint rotation column-major: reshape gives R^T

@@ -80,6 +80,7 @@ class CableRobot:
     """
 
     def __init__(self, spec: CableSpec) -> None:
+        # pinocchio: loaded on first use
         import pinocchio as pin
 
         self.spec = spec

@@ -237,6 +237,7 @@ def load_spec(path: str | os.PathLike) -> CableSpec:
         SpecError: the file is missing or unreadable, is not valid YAML, or
             does not describe a valid cable robot.
     """
+    # yaml: loaded on first use
     import yaml
 
     spec_path = usable_path(path)

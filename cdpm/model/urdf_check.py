@@ -43,6 +43,7 @@ def read_urdf(path: Path):
         not be parsed) and one line per problem found (empty when the file
         is fit for Pinocchio).
     """
+    # defusedxml: loaded on first use
     from defusedxml import DefusedXmlException
     from defusedxml.ElementTree import ParseError, fromstring
 

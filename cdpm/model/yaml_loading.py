@@ -47,6 +47,7 @@ _INFINITY = frozenset({".inf", "inf", "infinity"})
 def _safe_loader(fast: bool):
     """libyaml's safe loader when ``fast`` and PyYAML was built with it,
     else PyYAML's pure-Python one (the same constructors and resolvers)."""
+    # yaml: loaded on first use
     import yaml
 
     if fast and getattr(yaml, "__with_libyaml__", False):
@@ -65,6 +66,7 @@ def check_yaml_limits(text: str, fast: bool = True) -> None:
         YamlLimitError: naming the limit and the fix.
         yaml.YAMLError: the text is not valid YAML.
     """
+    # yaml: loaded on first use
     import yaml
 
     if len(text) > MAX_YAML_CHARS:
@@ -126,6 +128,7 @@ def load_yaml(text: str) -> tuple[Any, list[str]]:
         yaml.YAMLError: the text is not valid YAML (PyYAML's own parser's
             error, with the offending line shown).
     """
+    # yaml: loaded on first use
     import yaml
 
     try:
@@ -135,6 +138,7 @@ def load_yaml(text: str) -> tuple[Any, list[str]]:
 
 
 def _load_yaml(text: str, fast: bool) -> tuple[Any, list[str]]:
+    # yaml: loaded on first use
     import yaml
 
     check_yaml_limits(text, fast)

@@ -122,6 +122,7 @@ def _blas_controller():
     import scipy.linalg  # noqa: F401 - load SciPy's BLAS before limiting it
 
     try:
+        # optional: cdpm[maps]
         from threadpoolctl import ThreadpoolController
     except ImportError:  # pragma: no cover - optional (the maps extra has it)
         return None
@@ -285,6 +286,7 @@ def evaluate_batch(
 ) -> PoseBatch:
     """The pipeline's stages at N poses (module docstring), as a
     :class:`~cdpm.pipeline.criteria.PoseBatch` for the criteria to read."""
+    # scipy: loaded on first use
     from cdpm.analysis.batch import analyse_systems, positively_spanning
 
     natural = check_poses(robot, natural)

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from cdpm.dynamics.tension_choice.search import search_tensions
 from cdpm.pipeline.criteria import CRITERIA, Criterion, PoseBatch, register
 from cdpm.verdicts import NOT_ANALYSED, VERDICT_CODES
 
@@ -31,8 +32,6 @@ def search_result(batch: PoseBatch):
     if batch.tension_search is None:
         return None
     if batch.tension_search_cache is None:
-        from cdpm.dynamics.tension_choice.search import search_tensions
-
         settings, reach, tol = batch.tension_search
         batch.tension_search_cache = search_tensions(batch.robot, batch.kin, settings, reach, tol)
     return batch.tension_search_cache

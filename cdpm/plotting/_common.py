@@ -73,6 +73,7 @@ def matplotlib_parts(what: str = "plots", extra: str = "maps"):
     canvas only: no GUI backend). Raises MissingExtraError naming ``what``
     needs it and the ``extra`` that installs it."""
     try:
+        # optional: cdpm[viz/maps]
         import matplotlib
         from matplotlib.figure import Figure
     except ImportError as exc:
@@ -131,6 +132,7 @@ def cell_edges(x: np.ndarray) -> np.ndarray:
 
 def verdict_cmap():
     """Colour map and norm of verdict indices (:func:`verdict_index`)."""
+    # optional: cdpm[viz/maps]
     from matplotlib.colors import BoundaryNorm, ListedColormap
 
     cmap = ListedColormap([VERDICT_COLORS[c] for c in VERDICT_ORDER])
@@ -148,6 +150,7 @@ def verdict_index(codes: np.ndarray) -> np.ndarray:
 
 def verdict_handles(codes: np.ndarray) -> list:
     """Legend patches of the verdicts present in ``codes``."""
+    # optional: cdpm[viz/maps]
     from matplotlib.patches import Patch
 
     return [
@@ -162,6 +165,7 @@ def legend_below(ax, handles: list, *, ncol: int = 2, title: str | None = None):
     it never covers a pose. Returns the legend (None without handles)."""
     if not handles:
         return None
+    # optional: cdpm[viz/maps]
     from matplotlib.transforms import offset_copy
 
     below = offset_copy(ax.transAxes, fig=ax.figure, y=-BELOW_AXES_PT, units="points")
@@ -183,6 +187,7 @@ def legend_below(ax, handles: list, *, ncol: int = 2, title: str | None = None):
 
 def halo(width: float = 2.5):
     """Path effects drawing a white outline under lines and text."""
+    # optional: cdpm[viz/maps]
     from matplotlib import patheffects
 
     return [patheffects.withStroke(linewidth=width, foreground="white")]

@@ -179,6 +179,7 @@ def classify(values, status, verdict) -> tuple[np.ndarray, np.ndarray]:
 def category_handles(category: np.ndarray, scale: MarginScale) -> list:
     """Legend patches of the categories present, each with its count of
     poses (a few cells of a large map are easily missed)."""
+    # optional: cdpm[viz/maps]
     from matplotlib.patches import Patch
 
     handles = []
@@ -191,6 +192,7 @@ def category_handles(category: np.ndarray, scale: MarginScale) -> list:
 
 
 def _category_cmap():
+    # optional: cdpm[viz/maps]
     from matplotlib.colors import BoundaryNorm, ListedColormap
 
     colours = [c for _, c in _categories()]
@@ -226,6 +228,7 @@ class MarginRange:
 
     def norm(self):
         """``matplotlib.colors.LogNorm`` of the range."""
+        # optional: cdpm[viz/maps]
         from matplotlib.colors import LogNorm
 
         return LogNorm(self.low, self.high)
@@ -287,6 +290,7 @@ def plain_log_ticks(axis, low: float, high: float) -> None:
     label its ticks with plain numbers (1.42, 1.43) instead of 1.42x10^0."""
     if not (0 < low < high < 10 * low):
         return
+    # optional: cdpm[viz/maps]
     from matplotlib.ticker import FormatStrFormatter, MaxNLocator
 
     axis.set_major_locator(MaxNLocator(5))
@@ -396,6 +400,7 @@ def margin_line(ax, x, values, status, verdict, scale: MarginScale) -> list:
     the bottom, shaded spans where poses are not analysed (by reason). The
     axis spans :func:`margin_range`: stragglers are marked by triangles at
     the top (or bottom) edge. Returns the legend handles."""
+    # optional: cdpm[viz/maps]
     from matplotlib.lines import Line2D
     from matplotlib.transforms import blended_transform_factory
 

@@ -64,6 +64,7 @@ def _not_outlined(ids: np.ndarray, owners: np.ndarray | None = None) -> np.ndarr
     block of such cells anywhere (a line one cell thin). A piece with a
     block is outlined all round, its thin parts too (the outline broke off
     where a wide area narrowed to one cell). Shape of ``ids``, bool."""
+    # scipy: loaded on first use
     from scipy import ndimage
 
     outside = ids <= 0
@@ -115,6 +116,7 @@ def _label_cells(mask: np.ndarray, smallest: float) -> list[tuple[int, int]]:
     around a full turn shows as several): the cell deepest inside each
     piece of at least ``smallest`` cells, largest first (the largest piece
     always), at most MAX_NUMBERED_PIECES."""
+    # scipy: loaded on first use
     from scipy import ndimage
 
     pieces, n = ndimage.label(mask)
@@ -160,6 +162,7 @@ def _number(ax, x: float, y: float, k: int, fontsize: float = 9.0) -> None:
 
 
 def _outline(ax, ids: np.ndarray, x_edges, y_edges, owners: np.ndarray | None = None) -> None:
+    # optional: cdpm[viz/maps]
     from matplotlib.collections import LineCollection
 
     segments = _outline_segments(ids, x_edges, y_edges, owners)
@@ -214,6 +217,7 @@ def draw_regions_samples(ax, ids, x, y, outline: bool) -> tuple[int, bool]:
     a raster of the nearest sample (when ``outline``) and the numbers of the
     largest regions near their largest area. Returns what
     :func:`draw_regions_grid` returns."""
+    # scipy: loaded on first use
     from scipy.spatial import cKDTree
 
     ids = np.asarray(ids).reshape(-1)
@@ -258,6 +262,7 @@ def draw_regions_band(ax, ids: np.ndarray, edges: np.ndarray) -> tuple[int, bool
 
 def region_handle(count: int, all_numbered: bool = True):
     """Legend entry of the outlines: how many regions, which are numbered."""
+    # optional: cdpm[viz/maps]
     from matplotlib.lines import Line2D
 
     label = f"POC regions ({count}), numbered by size"
@@ -407,6 +412,7 @@ def draw_path(ax, x, y, near=None, periods=(None, None), suspect=()) -> None:
     # only where the path is drawn solid (in this slice); across a seam: the stubs above
     marked = [i for i in suspect if not crossing[i] and solid[i] and solid[i + 1]]
     if marked:
+        # optional: cdpm[viz/maps]
         from matplotlib.collections import LineCollection
 
         segments = [[(x[i], y[i]), (x[i + 1], y[i + 1])] for i in marked]
@@ -459,6 +465,7 @@ def draw_path(ax, x, y, near=None, periods=(None, None), suspect=()) -> None:
 def path_handles(path: PathCoordinates, sliced: bool = False, ends: bool = True) -> list:
     """Legend entries of a path (:func:`check_path`'s): its line, with
     ``ends`` its start and goal, and its suspect steps when it has any."""
+    # optional: cdpm[viz/maps]
     from matplotlib.lines import Line2D
 
     label = f"path ({next(iter(path.values())).size} poses)"

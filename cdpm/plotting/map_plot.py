@@ -96,6 +96,7 @@ __all__ = [
 
 def image_formats() -> list[str]:
     """File extensions (no dot) matplotlib can write, sorted."""
+    # optional: cdpm[viz/maps]
     from matplotlib.backend_bases import FigureCanvasBase
 
     return sorted(FigureCanvasBase.get_supported_filetypes())
@@ -134,6 +135,7 @@ def check_image_path(path: str | os.PathLike) -> Path:
             f"use one of {', '.join(formats)}"
         )
     if extension == "pgf":
+        # optional: cdpm[viz/maps]
         import matplotlib
 
         tex = matplotlib.rcParams["pgf.texsystem"]
@@ -526,6 +528,7 @@ def _plot_one_axis(ds, variable, name, scale, choice: OutputChoice | None, path,
     # (a path's entries) set the width of the strip's column and squeezed it
     room = 0.9 * fig.get_figwidth() * fig.dpi * widths[0] / sum(widths)
     if not hasattr(fig.canvas, "get_renderer"):  # a bare Figure: measure with Agg
+        # optional: cdpm[viz/maps]
         from matplotlib.backends.backend_agg import FigureCanvasAgg
 
         FigureCanvasAgg(fig)

@@ -102,6 +102,7 @@ def render_pose(
             not positive (checked before anything is computed).
     """
     _, Figure = matplotlib_parts("pictures", extra="viz")
+    # optional: cdpm[viz/maps]
     from matplotlib.backends.backend_agg import FigureCanvasAgg
 
     dpi = check_dpi(dpi)
@@ -351,6 +352,7 @@ def _draw_triad(ax, T: np.ndarray, length: float, h: int, v: int) -> list:
 def _marker_handles(coms: bool) -> list:
     """Legend entries of the picture's markers: joints, anchors on the
     base, attachment points on the links and (``coms``) centres of mass."""
+    # optional: cdpm[viz/maps]
     from matplotlib.lines import Line2D
 
     def point(label: str, **style) -> Line2D:
@@ -368,6 +370,7 @@ def _marker_handles(coms: bool) -> list:
 
 def _axis_handles() -> list:
     """Legend handles of a triad: three short lines in the axes' colours."""
+    # optional: cdpm[viz/maps]
     from matplotlib.lines import Line2D
 
     return [Line2D([], [], color=rgb, lw=2.0) for rgb in AXIS_RGB]
@@ -375,12 +378,14 @@ def _axis_handles() -> list:
 
 def _no_handle():
     """A legend handle that draws nothing (an entry that is only text)."""
+    # optional: cdpm[viz/maps]
     from matplotlib.lines import Line2D
 
     return Line2D([], [], linestyle="none")
 
 
 def _legend(ax, handles: list, labels: list[str], ncol: int):
+    # optional: cdpm[viz/maps]
     from matplotlib.legend_handler import HandlerTuple
 
     return ax.legend(

@@ -165,6 +165,7 @@ def suspect_edges(
 
 
 def _csgraph(n: int, edges: np.ndarray, weights: np.ndarray):
+    # scipy: loaded on first use
     from scipy.sparse import csr_matrix
 
     # csgraph drops zero weights: duplicate samples keep a tiny positive one
@@ -173,6 +174,7 @@ def _csgraph(n: int, edges: np.ndarray, weights: np.ndarray):
 
 
 def connected(n: int, edges: np.ndarray, s: int, g: int) -> bool:
+    # scipy: loaded on first use
     from scipy.sparse.csgraph import connected_components
 
     if s == g:
@@ -203,6 +205,7 @@ def shortest_route(
     n: int, edges: np.ndarray, lengths: np.ndarray, s: int, g: int, unweighted: bool
 ):
     """Node ids of a shortest path s -> g, or None."""
+    # scipy: loaded on first use
     from scipy.sparse.csgraph import dijkstra
 
     if s == g:

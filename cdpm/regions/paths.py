@@ -275,6 +275,7 @@ def poc_path(map: Any, start: Any, goal: Any, *, maximise_margin: bool = False) 
 
 def _suspect_steps(n: int, edges: np.ndarray, suspect: np.ndarray, route) -> tuple[int, ...]:
     """Steps k (route[k] -> route[k + 1]) along suspect edges."""
+    # scipy: loaded on first use
     from scipy.sparse import csr_matrix
 
     if len(route) < 2:

@@ -154,6 +154,7 @@ def _duration_bounds(lin: Linearisation) -> tuple[float, float, float]:
     with steering's growth, STEER_MAX_GROWTH: (HORIZON_GIVEN_MAX_UNITS of
     its time units [s]; the time [s] in which it grows by STEER_MAX_GROWTH;
     the rate Re lambda [1/s] of its fastest-growing mode)."""
+    # scipy: loaded on first use
     from cdpm.analysis.margin import longest_horizon
 
     return longest_horizon(lin.A, lin.C.shape[0], math.log(STEER_MAX_GROWTH))
@@ -200,6 +201,7 @@ def default_duration(lin: Linearisation) -> float:
 
 def _transition(A: np.ndarray, B: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
     """(Phi, Gamma) = (e^{A h}, int_0^h e^{A s} ds B) from one exponential."""
+    # scipy: loaded on first use
     from scipy.linalg import expm
 
     n, m = B.shape
@@ -234,6 +236,7 @@ def plan_profile(
         (du (K, m) [N] or None when the exact target is out of reach,
         best-effort du (K, m) [N]).
     """
+    # scipy: loaded on first use
     from scipy.optimize import linprog
 
     f0 = lin.tension
@@ -435,6 +438,7 @@ def _probe_blocked(robot, lin, v, goal, time, fmin, fmax):
 def _blocked_direction(lin: Linearisation, dy: np.ndarray) -> np.ndarray | None:
     """The POC certificate's separator v when the pose is NO and the target
     change dy has a component along it (v.dy > 0), else None."""
+    # scipy: loaded on first use
     from cdpm.analysis import Verdict, positive_output_controllability
 
     res = positive_output_controllability(

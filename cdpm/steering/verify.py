@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from cdpm.dynamics.linearisation import linearise
+from cdpm.dynamics.reach import reach_unit
 from cdpm.errors import InputError, checked_seed, is_integer, positive_number
 from cdpm.printing import TextRepr
 from cdpm.steering.shooting import SteerResult, steer
@@ -97,7 +98,6 @@ class VerifyReport(TextRepr):
     def unit(self) -> str:
         """The unit of R and the misses: the outputs' (``m``, ``rad`` or
         ``m and rad, one to one``, :func:`cdpm.dynamics.reach.reach_unit`)."""
-        from cdpm.dynamics.reach import reach_unit
 
         return reach_unit(self.runs[0].trajectory.units) if self.runs else "m"
 
@@ -161,6 +161,7 @@ def verify_pose(
     Returns:
         :class:`VerifyReport`.
     """
+    # scipy: loaded on first use
     from cdpm.analysis import positive_output_controllability
 
     lin = linearise(robot, pose, tension=tension, pretension=pretension)

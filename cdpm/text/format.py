@@ -10,6 +10,7 @@ from typing import Any
 
 import numpy as np
 
+from cdpm.pipeline.criteria import CRITERIA
 from cdpm.printing import largest_magnitude, named_values, round_to_scale
 
 # ---------------------------------------------------------------- printing
@@ -74,7 +75,6 @@ def criteria_lines(
     registry's; per-output values with the outputs' names and units;
     arrays rounded to their scale, lengths [m] to at least
     ``length_scale``)."""
-    from cdpm.pipeline.criteria import CRITERIA
 
     lines = []
     for name, value in criteria.items():
@@ -155,6 +155,7 @@ def impulse_scale(poc: Any) -> float:
     """The size of the POC result's output curves ``|W C e^{At} b_j s_j|``
     on its margin horizon (the scale of its impulse index); NaN when it
     cannot be evaluated."""
+    # scipy: loaded on first use
     from scipy.linalg import expm
 
     try:

@@ -22,6 +22,8 @@ from cdpm.dynamics.equilibrium import InfeasibleEquilibriumError
 from cdpm.dynamics.linearisation import Linearisation, linearise
 from cdpm.dynamics.reach import reach_settings, reach_unit
 from cdpm.errors import InputError
+from cdpm.pipeline.criteria import CRITERIA
+from cdpm.pipeline.evaluate import evaluate_batch
 from cdpm.printing import (
     TextRepr,
     largest_magnitude,
@@ -541,9 +543,8 @@ def analyze_pose(
         InputError: a bad argument, or given tensions that do not hold the
             pose (:class:`~cdpm.dynamics.equilibrium.NotAnEquilibriumError`).
     """
+    # scipy: loaded on first use
     from cdpm import analysis
-    from cdpm.pipeline.criteria import CRITERIA
-    from cdpm.pipeline.evaluate import evaluate_batch
 
     if infeasible not in ("raise", "report"):
         raise InputError(f"infeasible must be 'raise' or 'report', got {infeasible!r}")
@@ -568,6 +569,7 @@ def analyze_pose(
     criteria = {name: c.compute(batch)[0] for name, c in CRITERIA.items()}
     ball = None
     if neighbourhood is not None:
+        # multiprocessing: loaded on first use
         from cdpm.regions.neighbourhood import poc_neighbourhood
 
         ball = poc_neighbourhood(
@@ -610,8 +612,6 @@ def _infeasible_report(
     robot: CableRobot, eq: EquilibriumResult, pose_name, pretension, reach, neighbourhood
 ) -> InfeasiblePoseReport:
     """The report at a pose without an equilibrium (``eq`` infeasible)."""
-    from cdpm.pipeline.criteria import CRITERIA
-    from cdpm.pipeline.evaluate import evaluate_batch
 
     kin = robot.kinematics(eq.q)
     natural = robot.to_natural(eq.q)

@@ -108,6 +108,7 @@ class PoseInspector:
             MissingExtraError: ipywidgets is not installed.
         """
         try:
+            # optional: cdpm[viz]
             import ipywidgets as widgets
         except ImportError as exc:
             raise MissingExtraError(

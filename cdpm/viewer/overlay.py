@@ -14,6 +14,7 @@ import numpy as np
 
 from cdpm import verdicts
 from cdpm.errors import InputError
+from cdpm.pipeline.criteria import CRITERIA
 from cdpm.verdicts import NO, NOT_ANALYSED, VERDICT_RGB, YES
 from cdpm.viewer.state import COLORS
 
@@ -26,7 +27,6 @@ _ALIASES = {"verdict": "poc", "margin": "reach_margin"}
 def color_choices() -> tuple[str, ...]:
     """Values ``color_by`` accepts: ``verdict``, ``margin`` and every map
     criterion with a plot hint (:data:`cdpm.pipeline.criteria.CRITERIA`)."""
-    from cdpm.pipeline.criteria import CRITERIA
 
     return (*_ALIASES, *(name for name, c in CRITERIA.items() if c.plot is not None))
 
@@ -93,7 +93,6 @@ def map_points(dataset, *, color_by: str = "verdict", position: str = "output_fr
     See :meth:`cdpm.viewer.Viewer.show_map` for the dataset contract. Poses whose
     position is not finite are left out.
     """
-    from cdpm.pipeline.criteria import CRITERIA
 
     choices = color_choices()
     if color_by not in choices:

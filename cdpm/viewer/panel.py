@@ -26,6 +26,7 @@ import numpy as np
 from cdpm.dynamics.equilibrium import InfeasibleEquilibriumError
 from cdpm.errors import CdpmError
 from cdpm.numerics import RANK_RTOL
+from cdpm.text.report import analyze_pose
 from cdpm.verdicts import NOT_ANALYSED, VERDICT_COLORS, verdict_code, verdict_key
 from cdpm.viewer.state import (
     COLORS,
@@ -260,7 +261,6 @@ def pose_panel(robot: CableRobot, q: Any, *, viewer: Viewer | None = None) -> Po
     Raises:
         InputError: q is not a pose of the robot.
     """
-    from cdpm.text.report import analyze_pose
 
     q = robot.as_q(q)  # a bad q is the caller's error, not the pose's
     t0 = time.perf_counter()
@@ -348,6 +348,7 @@ def _unavailable_rows(
     """Rows of a pose that could not be analysed: the verdicts that need a
     linearisation are unavailable; wrench closure needs only the cable
     Jacobian, static feasibility comes from the failed equilibrium."""
+    # scipy: loaded on first use
     from cdpm import analysis
 
     rows = [

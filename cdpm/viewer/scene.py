@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from cdpm.dynamics.simulation import Trajectory
 from cdpm.errors import CdpmError, InputError, MissingExtraError, ModelError
 from cdpm.viewer.output_marks import OutputMarks
 from cdpm.viewer.output_marks import rgb_int as _rgb_int
@@ -55,6 +56,7 @@ _LOOP_PAUSE = 0.5
 
 def _import_meshcat():
     try:
+        # optional: cdpm[viz]
         import meshcat
         import meshcat.geometry
         import meshcat.servers.zmqserver  # noqa: F401
@@ -86,7 +88,6 @@ def _positive(value: Any, name: str, hint: str, allow_zero: bool = False) -> flo
 def _as_trajectory(trajectory: Any, robot):
     """The :class:`cdpm.Trajectory` of a trajectory or a steering result,
     checked against the robot."""
-    from cdpm.dynamics.simulation import Trajectory
 
     traj = getattr(trajectory, "trajectory", trajectory)
     if not isinstance(traj, Trajectory):
@@ -183,6 +184,7 @@ class Viewer:
         try:
             with contextlib.redirect_stdout(io.StringIO()):  # meshcat prints the URL
                 window = meshcat.visualizer.ViewerWindow(url, False, None)
+            # optional: cdpm[viz]
             import zmq
 
             window.zmq_socket.setsockopt(zmq.RCVTIMEO, int(SERVER_TIMEOUT * 1000))
@@ -297,6 +299,7 @@ class Viewer:
         if mode in ("auto", "urdf"):
             visual = self._visual_model(required=mode == "urdf")
             if visual is not None and visual.ngeoms > 0:
+                # scipy: loaded on first use
                 from pinocchio.visualize import MeshcatVisualizer
 
                 viz = MeshcatVisualizer(self.robot.model, None, visual)
@@ -351,6 +354,7 @@ class Viewer:
         :func:`~cdpm.viewer.state.mesh_package_dirs`; None (after one
         warning naming the missing file) when it cannot be loaded and not
         ``required``."""
+        # pinocchio: loaded on first use
         import pinocchio as pin
 
         urdf = self.robot.spec.urdf_path
@@ -591,6 +595,7 @@ class Viewer:
 
     def _frames(self, traj, speed: float, fps: float):
         """One pass: wall times (n,) [s], configurations (n, nq) and cable colours."""
+        # pinocchio: loaded on first use
         import pinocchio as pin
 
         t = traj.t

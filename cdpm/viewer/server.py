@@ -39,6 +39,7 @@ def _serve(argv: list[str] | None = None) -> None:
     """
     import argparse
 
+    # optional: cdpm[viz]
     import tornado.ioloop
     from meshcat.servers.zmqserver import ZMQWebSocketBridge
 

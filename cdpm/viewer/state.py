@@ -27,6 +27,7 @@ import numpy as np
 
 from cdpm.dynamics.equilibrium.statics import classify
 from cdpm.dynamics.linearisation import linearise
+from cdpm.dynamics.reach import reach_margins_at, reach_unit
 from cdpm.errors import CdpmError, InputError
 from cdpm.model.spec import WORLD_FRAME_NAMES, package_share_directory
 from cdpm.verdicts import VERDICT_CODES, VERDICT_RGB, verdict_code
@@ -144,7 +145,6 @@ class PoseState:
         """The unit of the reach margin: the outputs' common unit (``"m"``,
         ``"rad"``), else e.g. ``"m and rad, one to one"``
         (:func:`cdpm.dynamics.reach.reach_unit`)."""
-        from cdpm.dynamics.reach import reach_unit
 
         return reach_unit(self.output_units)
 
@@ -298,6 +298,7 @@ class PoseGeometry:
     """
 
     def __init__(self, robot: CableRobot) -> None:
+        # pinocchio: loaded on first use
         import pinocchio as pin
 
         self._pin = pin
@@ -521,6 +522,7 @@ def _analyse(robot: CableRobot, q: np.ndarray):
     # slack: at the lower bound, the tension can only grow (a cable at its
     # upper bound is sign-constrained too, but taut)
     slack = np.asarray(lin.input_sign > 0, dtype=bool)
+    # scipy: loaded on first use
     from cdpm.analysis import positive_output_controllability
 
     try:
@@ -529,8 +531,8 @@ def _analyse(robot: CableRobot, q: np.ndarray):
         )
     except CdpmError as exc:
         return lin.tension, slack, None, None, str(exc)
+    # scipy: loaded on first use
     from cdpm.analysis import Verdict
-    from cdpm.dynamics.reach import reach_margins_at
 
     margin = reach_margins_at(robot, lin, None, [poc.verdict is Verdict.NO]).value[0]
     return lin.tension, slack, poc.verdict, float(margin), None

@@ -50,6 +50,7 @@ def min_norm_tensions(
         least-norm tension with a statics residual below BATCH_STATICS_RTOL of the
         statics' scale (max(1, |load|, |L| |f|)); ``infeasible`` ones provably have none.
     """
+    # scipy: loaded on first use
     from cdpm.dynamics.equilibrium._newton_kernel import solve_poses
 
     # C-contiguous, writeable float arrays: the kernel's one compiled signature

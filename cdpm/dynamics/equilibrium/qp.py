@@ -16,6 +16,7 @@ __all__ = ["closest_in_bounds", "min_norm_in_bounds"]
 
 def closest_in_bounds(lt, load, lower, upper) -> np.ndarray:
     """Tensions within [lower, upper] minimising |L^T f - load| (BVLS)."""
+    # scipy: loaded on first use
     from scipy.optimize import lsq_linear
 
     pinned = lower >= upper
@@ -78,6 +79,7 @@ def _solver_failure(exitflag: int) -> str:
 def min_norm_in_bounds(lt, load, lower, upper) -> tuple[np.ndarray | None, str]:
     """Least-norm f with L^T f = load and lower <= f <= upper, or None."""
     try:
+        # daqp: loaded on first use
         import daqp
     except ImportError as exc:  # pragma: no cover - daqp is a core dependency
         raise MissingExtraError(

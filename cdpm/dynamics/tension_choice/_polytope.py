@@ -122,6 +122,7 @@ def solve_lp(
     Raises:
         LPFailure: HiGHS stopped for another reason.
     """
+    # scipy: loaded on first use
     from scipy.optimize import linprog
 
     upper = P.upper if upper is None else upper

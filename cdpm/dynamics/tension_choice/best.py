@@ -17,6 +17,7 @@ import numpy as np
 
 from cdpm.dynamics.equilibrium import InfeasibleEquilibriumError, equilibrium_tension
 from cdpm.dynamics.linearisation import linearise
+from cdpm.dynamics.reach import reach_unit
 from cdpm.dynamics.tension_choice.range import TensionRange
 from cdpm.dynamics.tension_choice.search import TensionSearch, best_tension_batch
 from cdpm.errors import CdpmError, ModelError
@@ -183,8 +184,8 @@ def best_tension(
         InputError: bad q or settings (an unknown objective, ...).
         ModelError: a cable of zero length or a singular mass matrix at q.
     """
+    # scipy: loaded on first use
     from cdpm import analysis
-    from cdpm.dynamics.reach import reach_unit
 
     kin = robot.kinematics(q)  # validates q; raises on a zero-length cable
     natural = robot.to_natural(kin.q)

@@ -22,6 +22,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from cdpm.dynamics.equilibrium import statics
+from cdpm.dynamics.reach import reach_settings
 from cdpm.dynamics.tension_choice._polytope import Polytope, polish, polytope, solve_lp
 from cdpm.errors import positive_number
 from cdpm.numerics import MAX_TENSION, TENSION_CAP_BUDGETS
@@ -40,7 +41,6 @@ def default_tension_cap(robot: CableRobot, tension_budget: Any = None) -> float:
     times 1 m/s^2), or the largest finite maximum tension of a cable if that
     is larger. A pose whose every equilibrium needs more raises it to twice
     what it needs (:class:`TensionRange` states the cap used)."""
-    from cdpm.dynamics.reach import reach_settings
 
     budget = reach_settings(robot, None, tension_budget).tension_budget
     finite = robot.tension_max[np.isfinite(robot.tension_max)]

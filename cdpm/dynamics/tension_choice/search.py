@@ -37,6 +37,7 @@ from cdpm.dynamics.equilibrium import (
 )
 from cdpm.dynamics.equilibrium.statics import classify, input_signs
 from cdpm.dynamics.linearisation import linearise_batch, mass_inverse
+from cdpm.dynamics.reach import reach_margins_at, reach_settings
 from cdpm.dynamics.tension_choice._polytope import LPFailure, polish, solve_lp
 from cdpm.dynamics.tension_choice.range import (
     TensionRange,
@@ -45,6 +46,7 @@ from cdpm.dynamics.tension_choice.range import (
     explore,
 )
 from cdpm.errors import InputError, checked_seed, is_integer
+from cdpm.model.poses import check_poses, configurations
 from cdpm.numerics import MIN_SEGMENT_LENGTH, SPAN_TOL
 from cdpm.verdicts import MARGINAL, NO, NOT_ANALYSED, STATUS_CODES, YES
 
@@ -231,8 +233,6 @@ def best_tension_batch(
     Raises:
         InputError: bad poses or settings.
     """
-    from cdpm.dynamics.reach import reach_settings
-    from cdpm.model.poses import check_poses, configurations
 
     settings = tension_search(
         objective,
@@ -442,8 +442,8 @@ def _key(code: int, margin: float) -> tuple[int, float]:
 def _evaluate_into(robot, kin, minv, cands, reach, tol, out: _Result, first_is_default: bool):
     """Evaluate the candidates (pose index, label, tension) in one batch
     through the map pipeline and keep, per pose, the best (in place)."""
+    # scipy: loaded on first use
     from cdpm.analysis.batch import analyse_systems
-    from cdpm.dynamics.reach import reach_margins_at
 
     if not cands:
         return
