@@ -8,6 +8,11 @@ keep working.
 
 from __future__ import annotations
 
+import math
+import reprlib
+
+from cdpm.numerics import SPAN_TOL
+
 __all__ = [
     "CdpmError",
     "SpecError",
@@ -36,7 +41,6 @@ MAX_PROBLEM_CHARS = 400
 def short_repr(value, limit: int = 80) -> str:
     """``repr(value)`` cut to about ``limit`` characters (containers
     abbreviated), for messages that quote what a user gave."""
-    import reprlib
 
     r = reprlib.Repr()
     r.maxstring = r.maxother = limit
@@ -73,6 +77,7 @@ def float_array(value, copy: bool = False):
             or other non-numbers as numpy raises for them.
         ValueError: strings that are not numbers, and ragged lists.
     """
+    # numpy: loaded on first use (the command line's parser imports this module)
     import numpy as np
 
     if isinstance(value, _BYTES):  # numpy reads their byte codes as numbers
@@ -105,6 +110,7 @@ def float_array(value, copy: bool = False):
     if kind == "O" and any(x is None for x in arr.reshape(-1)):
         raise TypeError(f"None is not a number (got {short_repr(value, 60)})")
     if kind == "U" or (kind == "O" and any(isinstance(x, str) for x in arr.reshape(-1))):
+        # loaded on first use: decimal and ast (the command line's parser imports this module)
         from cdpm.expressions import parse_number
 
         # numbers beside strings became their repr (exact for floats)
@@ -126,6 +132,7 @@ def _hidden_non_number(value: list | tuple) -> str | None:
     """What the nested lists and tuples ``value`` hold that numpy reads
     as numbers but is none (``"booleans"``, also in boolean or object
     arrays, or ``"bytes"``), or None."""
+    # numpy: loaded on first use (the command line's parser imports this module)
     import numpy as np
 
     stack = [value]
@@ -170,6 +177,7 @@ def float_scalar(value) -> float:
 def is_integer(value) -> bool:
     """Whether ``value`` is an integer (Python's or numpy's), not a bool
     (True is no count) nor a float with an integral value."""
+    # numpy: loaded on first use (the command line's parser imports this module)
     import numpy as np
 
     return isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_))
@@ -179,7 +187,6 @@ def round_down(x: float, digits: int = 6) -> float:
     """``x`` > 0 rounded down to ``digits`` significant digits: a bound a
     message names, which the bound's own check then accepts (``:.6g``
     may round it up, past the bound)."""
-    import math
 
     if not (math.isfinite(x) and x > 0):
         return x
@@ -206,6 +213,7 @@ def positive_number(
     ``smallest``, or an InputError with ``message`` (which names the
     argument, its unit and its range) when it is not one real number in
     that range."""
+    # loaded on first use: decimal and ast (the command line's parser imports this module)
     from cdpm.expressions import parse_number
 
     try:
@@ -224,9 +232,6 @@ def check_tol(
     span tolerance [rad] (default SPAN_TOL). (Here, not beside the
     analysis, so that a map's worker processes need not import SciPy to
     check it.)"""
-    import math
-
-    from cdpm.numerics import SPAN_TOL
 
     default = SPAN_TOL if default is None else default
     message = f"tol must be {kind} in (0, 1){unit}, got {tol!r} (default {default:g})"

@@ -412,7 +412,8 @@ def test_an_interrupted_map_logs_where_it_stopped(tty, monkeypatch):
     PROGRESS_LOG_INTERVAL seconds before), ended by a newline."""
     import io
 
-    from cdpm.maps import _progress, _runner
+    import cdpm.maps
+    from cdpm.maps import _progress
 
     log = io.StringIO()
     log.isatty = lambda: tty
@@ -425,7 +426,7 @@ def test_an_interrupted_map_logs_where_it_stopped(tty, monkeypatch):
             real_finished.append(done)
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(_runner, "run_chunks", run_chunks)
+    monkeypatch.setattr(cdpm.maps, "run_chunks", run_chunks)
     with pytest.raises(KeyboardInterrupt):
         cdpm.workspace_map(PAPER_SPEC, {"q1": np.linspace(0, 1, 36)}, workers=1, progress=True)
     lines = log.getvalue().replace("\r", "\n").splitlines()

@@ -738,9 +738,9 @@ def test_new_store_consolidated_metadata_is_zarrs_own(paper_robot, tmp_path, mon
     rewrites the document)."""
     import zarr
 
-    import cdpm.maps.regions
+    import cdpm.maps
 
-    monkeypatch.setattr(cdpm.maps.regions, "attach_new_regions", lambda ds, *args, **kw: ds)
+    monkeypatch.setattr(cdpm.maps, "attach_new_regions", lambda ds, *args, **kw: ds)
     axes = {"q1": np.linspace(-3, 3, 9), "q2": np.linspace(0, 1, 7)}
     workspace_map(paper_robot, axes, workers=1, store=tmp_path / "m.zarr")
     root = tmp_path / "m.zarr" / "zarr.json"

@@ -152,6 +152,7 @@ def _terminate_as_interrupt():
     interrupted one does; returns the previous handler (None when signals
     cannot be set here, e.g. outside the main thread)."""
     # platform-specific, used here only; loaded when the command runs (cdpm --help stays fast)
+    # loaded when the command runs (cdpm --help stays fast)
     import signal
     import threading
 

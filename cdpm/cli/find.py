@@ -134,6 +134,7 @@ def _box_from_args(robot: CableRobot, args: argparse.Namespace) -> SearchBox:
     """The box poses are drawn from (:func:`cdpm.regions.search.search_box`)
     of --range, --near and --radius, each checked with a message naming it."""
     # loaded when the command runs (cdpm --help stays fast)
+    # loaded when the command runs (cdpm --help stays fast)
     from cdpm.expressions import parse_number
     from cdpm.regions.search import search_box
 
@@ -245,6 +246,7 @@ def _row(box: SearchBox, pose: FoundPose) -> dict:
 
 def run(args: argparse.Namespace) -> int:
     # loaded when the command runs (cdpm --help stays fast)
+    # loaded when the command runs (cdpm --help stays fast)
     from cdpm.pipeline.compiled import load_kernels_for, notice_on_stderr
     from cdpm.regions.search import MAX_TRIES, find_poses
 
@@ -304,6 +306,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _print_rows(robot, args, search: PoseSearch, rows: list[dict], what: str) -> None:
+    # loaded when the command runs (cdpm --help stays fast)
     # loaded when the command runs (cdpm --help stays fast)
     from cdpm.dynamics.reach import reach_unit
     from cdpm.regions.search import STRAIN_FACTOR

@@ -61,7 +61,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-
     # loaded when the command runs (cdpm --help stays fast)
     from cdpm.caspr import CasprWarning, import_caspr
 

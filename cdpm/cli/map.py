@@ -339,6 +339,7 @@ def robot_from_args(args: argparse.Namespace):
     --tension-bounds, --tension and --pretension, all checked before any
     work; the robot carries the overrides (:func:`cdpm.maps.override_robot`)."""
     # loaded when the command runs (cdpm --help stays fast)
+    # loaded when the command runs (cdpm --help stays fast)
     from cdpm.maps import override_robot
     from cdpm.model.robot import load_robot
 
@@ -565,6 +566,7 @@ def run(args: argparse.Namespace) -> int:
     if tension == "best":
         print(_some_tension_line(ds))
     if "poc_region" in ds:
+        # loaded when the command runs (cdpm --help stays fast)
         # loaded when the command runs (cdpm --help stays fast)
         from cdpm.maps.regions import map_layout
         from cdpm.regions.paths import suspect_region_steps

@@ -14,6 +14,7 @@ from cdpm.cli._tension import add_tension_arguments, cli_equilibrium, tension_fr
 from cdpm.cli.plot import argument_type
 from cdpm.cli.verify import _image, add_duration_argument
 from cdpm.errors import InputError
+from cdpm.expressions import parse_number
 from cdpm.printing import json_text
 
 NAME = "steer"
@@ -37,9 +38,7 @@ examples:
 
 
 def _number(text: str) -> float:
-
-    from cdpm.expressions import parse_number
-
+    """An argparse type: a finite number (arithmetic allowed)."""
     try:
         value = parse_number(text)
     except (TypeError, ValueError) as exc:
@@ -79,7 +78,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-
+    # loaded when the command runs (cdpm --help stays fast)
     # loaded when the command runs (cdpm --help stays fast)
     from cdpm.model.robot import load_robot
     from cdpm.steering.shooting import STEER_MAX_INTERVALS, steer
@@ -115,6 +114,7 @@ def run(args: argparse.Namespace) -> int:
         where = f"pose {pose!r}" if isinstance(pose, str) else "the given q"
         word = "reached" if result.reached else "NOT reached"
         # loaded when the command runs (cdpm --help stays fast)
+        # loaded when the command runs (cdpm --help stays fast)
         from cdpm.dynamics.reach import reach_unit
         from cdpm.plotting.trajectories import display_unit, plot_trajectory
 
@@ -138,6 +138,7 @@ def run(args: argparse.Namespace) -> int:
         # platform-specific, used here only
         import signal
 
+        # loaded when the command runs (cdpm --help stays fast)
         # loaded when the command runs (cdpm --help stays fast)
         from cdpm.cli.view import _exit_on_sigterm
         from cdpm.viewer import Viewer

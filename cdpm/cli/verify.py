@@ -40,7 +40,6 @@ def _positive(option: str, what: str):
     """An argparse type for OPTION: a positive finite number (arithmetic allowed)."""
 
     def check(text: str) -> float:
-
         value = parse_number(text)
         if not (value > 0 and value < float("inf")):
             raise InputError(f"{option} must be a positive {what}, got {text!r}")
@@ -110,6 +109,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    # loaded when the command runs (cdpm --help stays fast)
     # loaded when the command runs (cdpm --help stays fast)
     from cdpm.model.robot import load_robot
     from cdpm.steering.verify import verify_pose

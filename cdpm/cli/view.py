@@ -120,6 +120,7 @@ def map_settings_note(dataset, robot) -> str | None:
 
 def run(args: argparse.Namespace) -> int:
     # loaded when the command runs (cdpm --help stays fast)
+    # loaded when the command runs (cdpm --help stays fast)
     from cdpm.model.robot import load_robot
     from cdpm.viewer import check_map_spec
     from cdpm.viewer.page import InspectionPage

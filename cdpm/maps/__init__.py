@@ -341,7 +341,6 @@ def workspace_map(
 
 
 def _print_to_stderr(info: MapRunInfo) -> None:
-
     for line in info.lines():
         print(line, file=sys.stderr)
 

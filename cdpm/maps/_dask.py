@@ -107,6 +107,7 @@ def _scheduler_lost_errors() -> tuple[type[BaseException], ...]:
     (looked up when a map runs on Dask: importing dask.distributed costs a
     third of a second, which local maps and their workers do not pay)."""
     # asyncio: loaded on first use
+    # concurrent: loaded on first use
     import asyncio
     import concurrent.futures
 

@@ -383,6 +383,7 @@ class ZarrSink:
         import asyncio
 
         # zarr: loaded on first use
+        # zarr: loaded on first use
         from zarr import AsyncArray, AsyncGroup
         from zarr.core.group import ConsolidatedMetadata
         from zarr.storage import MemoryStore, StorePath
@@ -429,6 +430,7 @@ class ZarrSink:
         # asyncio: loaded on first use
         import asyncio
 
+        # zarr: loaded on first use
         # zarr: loaded on first use
         from zarr import AsyncArray
         from zarr.api.asynchronous import create_group

@@ -70,7 +70,6 @@ class RobotSource:
 
     @classmethod
     def from_robot(cls, robot) -> RobotSource:
-
         spec = Path(robot.spec.path).resolve()
         urdf = Path(robot.spec.urdf_path).resolve()
         root = Path(os.path.commonpath([spec.parent, urdf.parent]))
@@ -338,6 +337,7 @@ def run_processes(
     useful work and small maps gain from workers too. ``kernels``: the
     map's poses need the compiled kernels (a map under load).
     """
+    # multiprocessing: loaded on first use
     # multiprocessing: loaded on first use
     from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
     from concurrent.futures.process import BrokenProcessPool

@@ -50,6 +50,7 @@ def package_share_directory(package: str) -> Path | None:
     example-robot-data``), then in ``$ROS_PACKAGE_PATH`` and
     ``$AMENT_PREFIX_PATH``.
     """
+    # importlib.metadata (43 modules): only package:// URIs need it
     from importlib import metadata
 
     try:

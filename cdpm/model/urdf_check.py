@@ -44,6 +44,7 @@ def read_urdf(path: Path):
         is fit for Pinocchio).
     """
     # defusedxml: loaded on first use
+    # defusedxml: loaded on first use
     from defusedxml import DefusedXmlException
     from defusedxml.ElementTree import ParseError, fromstring
 

@@ -74,6 +74,7 @@ def matplotlib_parts(what: str = "plots", extra: str = "maps"):
     needs it and the ``extra`` that installs it."""
     try:
         # optional: cdpm[viz/maps]
+        # optional: cdpm[viz/maps]
         import matplotlib
         from matplotlib.figure import Figure
     except ImportError as exc:

@@ -211,7 +211,6 @@ def _describe(verdict: int, status: int) -> str:
 
 
 def _check_radius(radius: Any) -> float:
-
     try:
         value = parse_number(radius)
     except ValueError as exc:

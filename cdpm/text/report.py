@@ -488,7 +488,6 @@ def _named_closure(result, cable_names) -> dict:
 
 
 def _wrap(text: str, width: int = 88) -> str:
-
     return textwrap.fill(text, width)
 
 

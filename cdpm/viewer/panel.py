@@ -300,7 +300,6 @@ def _value(verdict: Any) -> str:
 
 
 def _code_value(code: Any) -> str:
-
     key = verdict_key(int(code))
     return "unavailable" if int(code) == NOT_ANALYSED else key
 

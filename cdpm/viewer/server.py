@@ -37,8 +37,10 @@ def _serve(argv: list[str] | None = None) -> None:
     without an address, which listens on every interface; the web app's
     ``listen`` is pinned to the loopback address here.
     """
+    # only `python -m cdpm.viewer` parses arguments
     import argparse
 
+    # optional: cdpm[viz]
     # optional: cdpm[viz]
     import tornado.ioloop
     from meshcat.servers.zmqserver import ZMQWebSocketBridge

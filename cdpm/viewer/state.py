@@ -332,7 +332,6 @@ class PoseGeometry:
         )
 
     def _frame_id(self, name: str) -> int:
-
         return -1 if name in WORLD_FRAME_NAMES else int(self.model.getFrameId(name))
 
     def update(self, q: np.ndarray) -> None:

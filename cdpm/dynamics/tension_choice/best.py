@@ -249,5 +249,4 @@ def best_tension(
 
 
 def _status_codes() -> dict[str, int]:
-
     return STATUS_CODES
