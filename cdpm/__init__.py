@@ -66,9 +66,9 @@ _EXPORTS: dict[str, str] = {
     "SampledAxes": "cdpm.maps",
     "open_map": "cdpm.maps",
     "StoreSettingsError": "cdpm.maps",
-    "evaluate_poses": "cdpm.maps",
-    "VERDICT_CODES": "cdpm.maps",
-    "STATUS_CODES": "cdpm.maps",
+    "evaluate_poses": "cdpm.pipeline",
+    "VERDICT_CODES": "cdpm.pipeline",
+    "STATUS_CODES": "cdpm.pipeline",
     "label_regions": "cdpm.maps.regions",
     "region_of": "cdpm.maps.regions",
     "poc_path": "cdpm.regions.paths",
@@ -198,11 +198,8 @@ if TYPE_CHECKING:  # pragma: no cover - for static type checkers only
     )
     from cdpm.expressions import parse_number  # noqa: F401
     from cdpm.maps import (  # noqa: F401
-        STATUS_CODES,
-        VERDICT_CODES,
         SampledAxes,
         StoreSettingsError,
-        evaluate_poses,
         open_map,
         sample_axes,
         workspace_map,
@@ -210,6 +207,7 @@ if TYPE_CHECKING:  # pragma: no cover - for static type checkers only
     from cdpm.maps.regions import label_regions, region_of  # noqa: F401
     from cdpm.model.robot import CableRobot, load_robot  # noqa: F401
     from cdpm.model.spec import CableSpec, load_spec  # noqa: F401
+    from cdpm.pipeline import STATUS_CODES, VERDICT_CODES, evaluate_poses  # noqa: F401
     from cdpm.plotting import plot_map, save_map_plot  # noqa: F401
     from cdpm.plotting.picture import render_pose  # noqa: F401
     from cdpm.regions.neighbourhood import Neighbourhood, poc_neighbourhood  # noqa: F401

@@ -131,7 +131,7 @@ def test_find_none_found_says_how_many_were_tried_and_how_to_widen(capsys):
         (["--near", "upright"], r"--near upright: pose 'upright' not in spec; poses: nominal"),
         (["--near", "1", "2", "3"], r"--near 1 2 3: .*3 entries"),
         (["--range", "q9=0:1"], r"--range 'q9=0:1': no coordinate 'q9'; coordinates: q1, q2"),
-        (["--range", "q1=0:1:3"], r"with --samples give a range NAME=LOW:HIGH"),
+        (["--range", "q1=0:1:3"], r"--range .q1=0:1:3.: give a range NAME=LOW:HIGH"),
         (["--count", "9", "--rank", "5"], r"--rank 5 is less than --count 9"),
         (["--near", "nominal", "--radius", "-1"], r"--radius -1: give a finite half-width >= 0"),
         (["--tries", "0"], r"--tries 0: give a whole number >= 1"),

@@ -12,7 +12,9 @@ import argparse
 import errno
 import importlib
 import os
+import signal
 import sys
+import threading
 
 from cdpm import __version__
 from cdpm.errors import CdpmError
@@ -151,11 +153,6 @@ def _terminate_as_interrupt():
     command cleans up (stops its workers, keeps finished map chunks) as an
     interrupted one does; returns the previous handler (None when signals
     cannot be set here, e.g. outside the main thread)."""
-    # platform-specific, used here only; loaded when the command runs (cdpm --help stays fast)
-    # loaded when the command runs (cdpm --help stays fast)
-    import signal
-    import threading
-
     if threading.current_thread() is not threading.main_thread():
         return None
 
@@ -166,9 +163,6 @@ def _terminate_as_interrupt():
 
 
 def _restore_terminate(previous) -> None:
-    # platform-specific, used here only
-    import signal
-
     if previous is not None:
         signal.signal(signal.SIGTERM, previous)
 

@@ -55,7 +55,6 @@ def _pretension(text: str) -> float:
     """--pretension: a number or arithmetic (parse_number: ``10*pi``), in
     [0, MAX_TENSION] N."""
     # loaded when the command runs (cdpm --help stays fast)
-    # loaded when the command runs (cdpm --help stays fast)
     from cdpm.dynamics.equilibrium import checked_pretension
     from cdpm.model.spec import parse_number
 
@@ -174,7 +173,6 @@ def check_pretension(robot: CableRobot, tension, pretension: float | None) -> No
 def tension_argument(values: list[str] | None, best: bool = False):
     """None, a method name, a list of tensions, or (with ``best``, for the
     commands that search the feasible tensions) ``"best"`` from ``--tension``."""
-    # loaded when the command runs (cdpm --help stays fast)
     # loaded when the command runs (cdpm --help stays fast)
     from cdpm.dynamics.equilibrium import EQUILIBRIUM_METHODS
     from cdpm.model.spec import parse_number

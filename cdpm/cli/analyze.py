@@ -144,7 +144,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     # loaded when the command runs (cdpm --help stays fast)
-    # loaded when the command runs (cdpm --help stays fast)
     from cdpm.model.robot import load_robot
     from cdpm.pipeline.compiled import load_kernels_for, notice_on_stderr
     from cdpm.text.report import analyze_pose
@@ -203,7 +202,6 @@ def run(args: argparse.Namespace) -> int:
 def _best_tension(robot: CableRobot, q, args: argparse.Namespace):
     """The tension search at q (:func:`cdpm.best_tension`), or None when
     no tension within the cable bounds holds the pose."""
-    # loaded when the command runs (cdpm --help stays fast)
     # loaded when the command runs (cdpm --help stays fast)
     from cdpm.dynamics.equilibrium import InfeasibleEquilibriumError
     from cdpm.dynamics.tension_choice import best_tension
@@ -283,7 +281,6 @@ def output_from_args(args: argparse.Namespace) -> tuple[str, Path | None]:
 def neighbourhood_from_args(robot: CableRobot, args: argparse.Namespace):
     """(R, points) from --neighbourhood and --points, checked: points are an
     odd integer >= 1 and only mean something with --neighbourhood."""
-    # loaded when the command runs (cdpm --help stays fast)
     # loaded when the command runs (cdpm --help stays fast)
     from cdpm.expressions import parse_number
     from cdpm.regions.neighbourhood import MAX_POSES

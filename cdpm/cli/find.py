@@ -134,14 +134,13 @@ def _box_from_args(robot: CableRobot, args: argparse.Namespace) -> SearchBox:
     """The box poses are drawn from (:func:`cdpm.regions.search.search_box`)
     of --range, --near and --radius, each checked with a message naming it."""
     # loaded when the command runs (cdpm --help stays fast)
-    # loaded when the command runs (cdpm --help stays fast)
     from cdpm.expressions import parse_number
     from cdpm.regions.search import search_box
 
     names = tuple(robot.coordinate_names)
     ranges: dict[str, tuple[float, float]] = {}
     for text in args.range or []:
-        name, bounds = parse_axis(text, sampled=True)
+        name, bounds = parse_axis(text, sampled=True, option="--range")
         message = f"--range {text!r}"
         if name not in names:
             raise InputError(f"{message}: no coordinate {name!r}; coordinates: {', '.join(names)}")
@@ -246,7 +245,6 @@ def _row(box: SearchBox, pose: FoundPose) -> dict:
 
 def run(args: argparse.Namespace) -> int:
     # loaded when the command runs (cdpm --help stays fast)
-    # loaded when the command runs (cdpm --help stays fast)
     from cdpm.pipeline.compiled import load_kernels_for, notice_on_stderr
     from cdpm.regions.search import MAX_TRIES, find_poses
 
@@ -306,7 +304,6 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _print_rows(robot, args, search: PoseSearch, rows: list[dict], what: str) -> None:
-    # loaded when the command runs (cdpm --help stays fast)
     # loaded when the command runs (cdpm --help stays fast)
     from cdpm.dynamics.reach import reach_unit
     from cdpm.regions.search import STRAIN_FACTOR

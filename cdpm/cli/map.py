@@ -3,10 +3,14 @@
 from __future__ import annotations
 
 import argparse
+import json
+import math
 import os
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
+
+import numpy as np
 
 from cdpm.cli._reach import add_reach_arguments, reach_from_args
 from cdpm.cli._tension import (
@@ -116,17 +120,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_reach_arguments(parser)
 
 
-def parse_axis(text: str, sampled: bool):
+def parse_axis(text: str, sampled: bool, option: str = "--axis"):
     """(name, values or (low, high)) from NAME=LOW:HIGH:COUNT, NAME=V1,V2 or NAME=LOW:HIGH.
 
     Every value must be a finite number and every item present: an empty
-    item (``q1=0:1:5,`` or ``q1=0,,1``) is an error, not skipped.
+    item (``q1=0:1:5,`` or ``q1=0,,1``) is an error, not skipped. Errors
+    name ``option``, the option the text was given with.
     """
-    # loaded when the command runs (cdpm --help stays fast)
-    import math
-
-    # loaded when the command runs (cdpm --help stays fast)
-    import numpy as np
 
     # loaded when the command runs (cdpm --help stays fast)
     from cdpm.model.spec import parse_number
@@ -134,44 +134,45 @@ def parse_axis(text: str, sampled: bool):
     name, sep, rest = text.partition("=")
     name = name.strip()
     if not sep or not name or not rest.strip():
-        raise InputError(f"--axis {text!r}: expected NAME=LOW:HIGH:COUNT or NAME=V1,V2,...")
+        raise InputError(f"{option} {text!r}: expected NAME=LOW:HIGH:COUNT or NAME=V1,V2,...")
 
     def number(token: str, what: str) -> float:
         if not token.strip():
             raise InputError(
-                f"--axis {text!r}: {what} of axis {name!r} is empty; "
+                f"{option} {text!r}: {what} of axis {name!r} is empty; "
                 "remove the stray ',' or ':' or fill in the value"
             )
         try:
             value = parse_number(token.strip())
         except ValueError as exc:
-            raise InputError(f"--axis {text!r}: {what} of axis {name!r}: {exc}") from exc
+            raise InputError(f"{option} {text!r}: {what} of axis {name!r}: {exc}") from exc
         if not math.isfinite(value):
             raise InputError(
-                f"--axis {text!r}: {what} of axis {name!r} is {value}; axis values must be "
+                f"{option} {text!r}: {what} of axis {name!r} is {value}; axis values must be "
                 "finite numbers (e.g. -pi:pi:181)"
             )
         return value
 
     if ":" in rest and "," in rest:
         raise InputError(
-            f"--axis {text!r}: axis {name!r} mixes a range (':') and a list (','); give "
+            f"{option} {text!r}: axis {name!r} mixes a range (':') and a list (','); give "
             f"either {name}=LOW:HIGH:COUNT or {name}=V1,V2,..."
         )
     if ":" in rest:
         parts = rest.split(":")
         if sampled:
             if len(parts) != 2:
-                raise InputError(f"--axis {text!r}: with --samples give a range NAME=LOW:HIGH")
+                with_samples = "with --samples " if option == "--axis" else ""
+                raise InputError(f"{option} {text!r}: {with_samples}give a range NAME=LOW:HIGH")
             return name, (number(parts[0], "LOW"), number(parts[1], "HIGH"))
         if len(parts) != 3:
-            raise InputError(f"--axis {text!r}: expected NAME=LOW:HIGH:COUNT")
+            raise InputError(f"{option} {text!r}: expected NAME=LOW:HIGH:COUNT")
         low, high = number(parts[0], "LOW"), number(parts[1], "HIGH")
         try:
             count = int(parts[2])
         except ValueError as exc:
             raise InputError(
-                f"--axis {text!r}: COUNT of axis {name!r} must be an integer, "
+                f"{option} {text!r}: COUNT of axis {name!r} must be an integer, "
                 f"got {parts[2]!r} (e.g. {name}=0:1:11)"
             ) from exc
         # loaded when the command runs (cdpm --help stays fast)
@@ -179,11 +180,12 @@ def parse_axis(text: str, sampled: bool):
 
         if count < 1 or count > MAX_AXIS_POINTS:
             raise InputError(
-                f"--axis {text!r}: COUNT must be from 1 to {MAX_AXIS_POINTS:,}, got {count:,}"
+                f"{option} {text!r}: COUNT must be from 1 to {MAX_AXIS_POINTS:,}, got {count:,}"
             )
         return name, np.linspace(low, high, count)
     if sampled:
-        raise InputError(f"--axis {text!r}: with --samples give a range NAME=LOW:HIGH")
+        with_samples = "with --samples " if option == "--axis" else ""
+        raise InputError(f"{option} {text!r}: {with_samples}give a range NAME=LOW:HIGH")
     items = rest.split(",")
     return name, np.array([number(t, f"value {k + 1}") for k, t in enumerate(items)])
 
@@ -269,8 +271,6 @@ def add_robot_arguments(parser: argparse.ArgumentParser) -> None:
 
 def parse_gravity(tokens: list[str] | None):
     """The gravity vector [m/s^2] from --gravity, or None."""
-    # loaded when the command runs (cdpm --help stays fast)
-    import math
 
     # loaded when the command runs (cdpm --help stays fast)
     from cdpm.model.spec import parse_number
@@ -339,7 +339,6 @@ def robot_from_args(args: argparse.Namespace):
     --tension-bounds, --tension and --pretension, all checked before any
     work; the robot carries the overrides (:func:`cdpm.maps.override_robot`)."""
     # loaded when the command runs (cdpm --help stays fast)
-    # loaded when the command runs (cdpm --help stays fast)
     from cdpm.maps import override_robot
     from cdpm.model.robot import load_robot
 
@@ -375,8 +374,6 @@ def describe_robot(robot: CableRobot, spec_robot: CableRobot) -> str | None:
 def _check_tension(robot: CableRobot, tension, pretension: float | None) -> None:
     """The pretension method needs a pretension > 0 N, from --pretension or
     the spec (with 0 N it is the min_norm method)."""
-    # loaded when the command runs (cdpm --help stays fast)
-    import math
 
     if tension == "best":  # the spec's method, and the search
         tension = None
@@ -469,8 +466,6 @@ def _interrupted(args: argparse.Namespace, store: str | None) -> int:
 def _some_tension_line(ds) -> str:
     """``POC for some feasible tension: yes 12 (60.0%), ...`` of a map
     made with --tension best."""
-    # loaded when the command runs (cdpm --help stays fast)
-    import numpy as np
 
     # loaded when the command runs (cdpm --help stays fast)
     from cdpm.maps import VERDICT_CODES
@@ -487,8 +482,6 @@ def _some_tension_line(ds) -> str:
 def _regions_line(labels, seams: bool) -> str:
     """``POC regions: 4 (sizes 1191, 1034, ...)`` from a map's poc_region;
     ``seams``: the map has full-turn seams, whose poses the sizes count once."""
-    # loaded when the command runs (cdpm --help stays fast)
-    import json
 
     listed = json.loads(labels.attrs.get("regions", "[]"))
     n = int(labels.attrs.get("n_regions", len(listed)))
@@ -501,9 +494,6 @@ def _regions_line(labels, seams: bool) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    # loaded when the command runs (cdpm --help stays fast)
-    import numpy as np
-
     # loaded when the command runs (cdpm --help stays fast)
     from cdpm.maps import STATUS_CODES, VERDICT_CODES, StoreSettingsError, workspace_map
 
@@ -566,7 +556,6 @@ def run(args: argparse.Namespace) -> int:
     if tension == "best":
         print(_some_tension_line(ds))
     if "poc_region" in ds:
-        # loaded when the command runs (cdpm --help stays fast)
         # loaded when the command runs (cdpm --help stays fast)
         from cdpm.maps.regions import map_layout
         from cdpm.regions.paths import suspect_region_steps

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import signal
 import sys
 from typing import TYPE_CHECKING, Any
 
@@ -124,7 +125,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    # loaded when the command runs (cdpm --help stays fast)
     # loaded when the command runs (cdpm --help stays fast)
     from cdpm.maps import open_map
     from cdpm.maps.regions import REGION_VARIABLE, attach_regions
@@ -271,7 +271,6 @@ def _steer_legs(robot: CableRobot, ds, path, legs: int, out) -> list[dict]:
     """
 
     # loaded when the command runs (cdpm --help stays fast)
-    # loaded when the command runs (cdpm --help stays fast)
     from cdpm.dynamics.linearisation import linearise
     from cdpm.steering.shooting import longest_duration, steer
 
@@ -363,7 +362,6 @@ def _path_trajectory(robot: CableRobot, ds, path):
     VIEW_STEP_SECONDS per step."""
 
     # loaded when the command runs (cdpm --help stays fast)
-    # loaded when the command runs (cdpm --help stays fast)
     from cdpm.dynamics.equilibrium import equilibrium_tension
     from cdpm.dynamics.simulation import Trajectory, trajectory_labels
 
@@ -386,10 +384,6 @@ def _path_trajectory(robot: CableRobot, ds, path):
 
 
 def _view(robot: CableRobot, ds, path, args, out) -> None:
-    # platform-specific, used here only
-    import signal
-
-    # loaded when the command runs (cdpm --help stays fast)
     # loaded when the command runs (cdpm --help stays fast)
     from cdpm.cli.view import _exit_on_sigterm
     from cdpm.viewer import Viewer

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import signal
 import sys
 
 import numpy as np
@@ -79,10 +80,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     # loaded when the command runs (cdpm --help stays fast)
-    # loaded when the command runs (cdpm --help stays fast)
     from cdpm.model.robot import load_robot
     from cdpm.steering.shooting import STEER_MAX_INTERVALS, steer
-    from cdpm.text.steering import steer_json, steer_text
+    from cdpm.text.steering import steer_json, steer_text, tension_profile_text
 
     robot = load_robot(args.spec)
     pose = pose_from_args(robot, args)
@@ -114,7 +114,6 @@ def run(args: argparse.Namespace) -> int:
         where = f"pose {pose!r}" if isinstance(pose, str) else "the given q"
         word = "reached" if result.reached else "NOT reached"
         # loaded when the command runs (cdpm --help stays fast)
-        # loaded when the command runs (cdpm --help stays fast)
         from cdpm.dynamics.reach import reach_unit
         from cdpm.plotting.trajectories import display_unit, plot_trajectory
 
@@ -131,14 +130,10 @@ def run(args: argparse.Namespace) -> int:
         print(json_text(steer_json(result)))
     else:
         print(steer_text(result))
-        _print_profile(result)
+        print(tension_profile_text(result))
         if args.plot:
             print(f"plot written to {args.plot}")
     if args.view:
-        # platform-specific, used here only
-        import signal
-
-        # loaded when the command runs (cdpm --help stays fast)
         # loaded when the command runs (cdpm --help stays fast)
         from cdpm.cli.view import _exit_on_sigterm
         from cdpm.viewer import Viewer
@@ -153,11 +148,3 @@ def run(args: argparse.Namespace) -> int:
             frames = viewer.play(result, loop=True, seconds=args.seconds)  # Ctrl-C ends it
         print(f"viewer stopped after {frames} frames", file=sys.stderr)
     return 0 if result.reached else 1
-
-
-def _print_profile(result) -> None:
-    names = result.trajectory.cable_names
-    print("  tension profile [N] (interval start [s], then one column per cable)")
-    print("  " + f"{'t':>8} " + " ".join(f"{n:>10}" for n in names))
-    for t, row in zip(result.time[:-1], result.tension, strict=True):
-        print("  " + f"{t:>8.4g} " + " ".join(f"{x:>10.4g}" for x in row))

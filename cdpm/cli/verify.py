@@ -110,7 +110,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     # loaded when the command runs (cdpm --help stays fast)
-    # loaded when the command runs (cdpm --help stays fast)
     from cdpm.model.robot import load_robot
     from cdpm.steering.verify import verify_pose
     from cdpm.text.steering import verify_json, verify_text

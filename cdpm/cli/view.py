@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import json
 import signal
 import sys
 import time
@@ -96,8 +97,6 @@ def map_settings_note(dataset, robot) -> str | None:
     """A sentence when the map was computed with other equilibrium settings
     (tension method, given tensions, pretension, gravity or tension-bound
     overrides) than the ones the page analyses with (the spec's), else None."""
-    # loaded when the command runs (cdpm --help stays fast)
-    import json
 
     # loaded when the command runs (cdpm --help stays fast)
     from cdpm.pipeline.evaluate import resolve_tension
@@ -119,7 +118,6 @@ def map_settings_note(dataset, robot) -> str | None:
 
 
 def run(args: argparse.Namespace) -> int:
-    # loaded when the command runs (cdpm --help stays fast)
     # loaded when the command runs (cdpm --help stays fast)
     from cdpm.model.robot import load_robot
     from cdpm.viewer import check_map_spec

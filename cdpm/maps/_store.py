@@ -383,7 +383,6 @@ class ZarrSink:
         import asyncio
 
         # zarr: loaded on first use
-        # zarr: loaded on first use
         from zarr import AsyncArray, AsyncGroup
         from zarr.core.group import ConsolidatedMetadata
         from zarr.storage import MemoryStore, StorePath
@@ -430,7 +429,6 @@ class ZarrSink:
         # asyncio: loaded on first use
         import asyncio
 
-        # zarr: loaded on first use
         # zarr: loaded on first use
         from zarr import AsyncArray
         from zarr.api.asynchronous import create_group

@@ -77,7 +77,6 @@ async def _add_variable(group, values) -> None:
     and chunks written, then the group's document with the array added to
     its consolidated metadata."""
     # zarr: loaded on first use
-    # zarr: loaded on first use
     from zarr import AsyncArray
     from zarr.api.asynchronous import create_array
     from zarr.core.buffer import default_buffer_prototype

@@ -338,7 +338,6 @@ def run_processes(
     map's poses need the compiled kernels (a map under load).
     """
     # multiprocessing: loaded on first use
-    # multiprocessing: loaded on first use
     from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
     from concurrent.futures.process import BrokenProcessPool
 

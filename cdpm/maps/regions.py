@@ -339,7 +339,6 @@ def _grid_components(yes: np.ndarray, rings: tuple[bool, ...]) -> np.ndarray:
     if not pairs or k == 0:
         return lab
     # scipy: loaded on first use
-    # scipy: loaded on first use
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
@@ -426,7 +425,6 @@ def _label_grid(ds, layout: MapLayout) -> tuple[np.ndarray, list]:
 
 
 def _label_samples(ds, layout: MapLayout, radius: float) -> tuple[np.ndarray, list]:
-    # scipy: loaded on first use
     # scipy: loaded on first use
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components

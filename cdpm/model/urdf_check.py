@@ -44,7 +44,6 @@ def read_urdf(path: Path):
         is fit for Pinocchio).
     """
     # defusedxml: loaded on first use
-    # defusedxml: loaded on first use
     from defusedxml import DefusedXmlException
     from defusedxml.ElementTree import ParseError, fromstring
 

@@ -88,7 +88,6 @@ def load_kernels(notice: Callable[[str], None] | None = None) -> None:
 
 def _load_kernels() -> None:
     # scipy: loaded on first use
-    # scipy: loaded on first use
     from cdpm.analysis.batch import positively_spanning
     from cdpm.analysis.exits import free_controllable, output_controllable
     from cdpm.analysis.rank_kernel import krylov_matrices

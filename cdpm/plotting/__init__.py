@@ -1,6 +1,6 @@
 """Pictures: workspace maps (:mod:`~cdpm.plotting.map_plot`: :func:`plot_map`,
-:func:`save_map_plot`), a pose of the robot (:mod:`~cdpm.plotting.picture`:
-:func:`render_pose`) and motions (:mod:`~cdpm.plotting.trajectories`:
+:func:`save_map_plot`), a pose of the robot (:func:`cdpm.plotting.picture.render_pose`,
+also ``cdpm.render_pose``) and motions (:mod:`~cdpm.plotting.trajectories`:
 :func:`plot_trajectory`, :func:`plot_verify_report`).
 
 matplotlib is imported on first use (:func:`cdpm.plotting._common.matplotlib_parts`,

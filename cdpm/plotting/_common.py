@@ -1,7 +1,7 @@
 """Shared pieces of the map pictures: matplotlib import, labels, colours,
 cell edges and legends placed outside the data.
 
-Private to :mod:`cdpm.plotting` and its ``cdpm._plot_*`` helpers.
+Private to :mod:`cdpm.plotting`.
 """
 
 from __future__ import annotations
@@ -73,7 +73,6 @@ def matplotlib_parts(what: str = "plots", extra: str = "maps"):
     canvas only: no GUI backend). Raises MissingExtraError naming ``what``
     needs it and the ``extra`` that installs it."""
     try:
-        # optional: cdpm[viz/maps]
         # optional: cdpm[viz/maps]
         import matplotlib
         from matplotlib.figure import Figure

@@ -401,7 +401,6 @@ def margin_line(ax, x, values, status, verdict, scale: MarginScale) -> list:
     axis spans :func:`margin_range`: stragglers are marked by triangles at
     the top (or bottom) edge. Returns the legend handles."""
     # optional: cdpm[viz/maps]
-    # optional: cdpm[viz/maps]
     from matplotlib.lines import Line2D
     from matplotlib.transforms import blended_transform_factory
 

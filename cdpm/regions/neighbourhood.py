@@ -101,6 +101,10 @@ class Neighbourhood(TextRepr):
     """The POC neighbourhood of a pose, measured on a local refined map;
     distances in scaled natural coordinates ``s = dq / scale``, in :attr:`unit`.
 
+    Printing it gives a short summary; :func:`cdpm.text.neighbourhood_text`
+    prints it in full, :func:`cdpm.text.neighbourhood_json` gives its JSON
+    data.
+
     Attributes:
         model_name: name of the spec file.
         pose_name: name of the pose, or None for an explicit q.

@@ -96,6 +96,10 @@ class NotConnectedError(InputError):
 class POCPath(TextRepr):
     """A path of POC map poses inside one region.
 
+    Printing it gives a short summary; :func:`cdpm.text.path_text` prints it
+    in full (the waypoints), :func:`cdpm.text.path_json` gives its JSON
+    data.
+
     Attributes:
         dims: the map's pose dimensions (axis names, or ``("sample",)``).
         axes: the map's axes (coordinate names), the keys of ``coordinates``.

@@ -70,6 +70,11 @@ STEER_MAX_GROWTH = 1e16
 class SteerResult(TextRepr):
     """A steering attempt.
 
+    Printing it gives a short summary; :func:`cdpm.text.steer_text` (and
+    :func:`cdpm.text.tension_profile_text`) prints it in full,
+    :func:`cdpm.text.steer_json` gives its JSON data;
+    :func:`cdpm.plotting.plot_trajectory` draws its trajectory.
+
     Attributes:
         time: knot times [s], shape (K+1,).
         tension: absolute tensions [N], shape (K, m), exactly as simulated

@@ -41,6 +41,10 @@ MAX_RANDOM_DIRECTIONS = 1000
 class VerifyReport(TextRepr):
     """Steering runs around one pose.
 
+    Printing it gives a short summary; :func:`cdpm.text.verify_text` prints
+    it in full (a row per target), :func:`cdpm.text.verify_json` gives its
+    JSON data; :func:`cdpm.plotting.plot_verify_report` draws its runs.
+
     Attributes:
         model_name, pose_name: what was verified (pose_name None for a q).
         verdict: the POC verdict at the pose (``"yes"``, ``"no"``, ``"marginal"``).

@@ -19,7 +19,14 @@ from cdpm.text.regions import (
     sampled_pose_json,
 )
 from cdpm.text.report import PoseReport, analyze_pose
-from cdpm.text.steering import direction_text, steer_json, steer_text, verify_json, verify_text
+from cdpm.text.steering import (
+    direction_text,
+    steer_json,
+    steer_text,
+    tension_profile_text,
+    verify_json,
+    verify_text,
+)
 from cdpm.text.tension import (
     best_tension_json,
     best_tension_lines,
@@ -34,6 +41,7 @@ __all__ = [
     "analyze_pose",
     "steer_text",
     "steer_json",
+    "tension_profile_text",
     "verify_text",
     "verify_json",
     "direction_text",

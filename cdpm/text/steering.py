@@ -22,6 +22,20 @@ if TYPE_CHECKING:  # pragma: no cover
 # ------------------------------------------------------------------- steer
 
 
+def tension_profile_text(result: SteerResult) -> str:
+    """A steering attempt's tension profile as ``cdpm steer`` prints it
+    after :func:`steer_text`: a row per interval, its start [s] and each
+    cable's tension [N]."""
+    names = result.trajectory.cable_names
+    lines = [
+        "  tension profile [N] (interval start [s], then one column per cable)",
+        "  " + f"{'t':>8} " + " ".join(f"{n:>10}" for n in names),
+    ]
+    for t, row in zip(result.time[:-1], result.tension, strict=True):
+        lines.append("  " + f"{t:>8.4g} " + " ".join(f"{x:>10.4g}" for x in row))
+    return "\n".join(lines)
+
+
 def steer_text(result: SteerResult) -> str:
     """The steering attempt as ``cdpm steer`` prints it: outcome, outputs
     (target, y0, y(T)), miss, peak tension, final velocity and, toward a

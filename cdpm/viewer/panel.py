@@ -26,7 +26,6 @@ import numpy as np
 from cdpm.dynamics.equilibrium import InfeasibleEquilibriumError
 from cdpm.errors import CdpmError
 from cdpm.numerics import RANK_RTOL
-from cdpm.text.report import analyze_pose
 from cdpm.verdicts import NOT_ANALYSED, VERDICT_COLORS, verdict_code, verdict_key
 from cdpm.viewer.state import (
     COLORS,
@@ -266,6 +265,9 @@ def pose_panel(robot: CableRobot, q: Any, *, viewer: Viewer | None = None) -> Po
     t0 = time.perf_counter()
     report, reason, error = None, None, None
     try:
+        # the pose report's pipeline, loaded on first use (`cdpm --help` imports the viewer)
+        from cdpm.text.report import analyze_pose
+
         report = analyze_pose(robot, q)
     except CdpmError as exc:
         reason, error = str(exc), exc

@@ -57,7 +57,6 @@ _LOOP_PAUSE = 0.5
 def _import_meshcat():
     try:
         # optional: cdpm[viz]
-        # optional: cdpm[viz]
         import meshcat
         import meshcat.geometry
         import meshcat.servers.zmqserver  # noqa: F401

@@ -41,7 +41,6 @@ def _serve(argv: list[str] | None = None) -> None:
     import argparse
 
     # optional: cdpm[viz]
-    # optional: cdpm[viz]
     import tornado.ioloop
     from meshcat.servers.zmqserver import ZMQWebSocketBridge
 

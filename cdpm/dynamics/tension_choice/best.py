@@ -47,6 +47,10 @@ class BestTension(TextRepr):
     """Whether some feasible equilibrium tension makes a pose POC, and
     which tension the search chose.
 
+    Printing it gives a short summary; :func:`cdpm.text.best_tension_text`
+    prints it in full, :func:`cdpm.text.best_tension_json` gives its JSON
+    data.
+
     Attributes:
         q: configuration, shape (nq,).
         natural: natural coordinates, shape (nv,).

@@ -190,6 +190,10 @@ class TensionRange(TextRepr):
     """The feasible equilibrium tensions of one pose: the polytope
     ``{f : L(q)^T f = load(q), f_min <= f <= f_max}``, load = -G - w_ext.
 
+    Printing it gives a short summary; :func:`cdpm.text.tension_range_text`
+    prints it in full, :func:`cdpm.text.tension_range_json` gives its JSON
+    data.
+
     Exact up to the LP tolerance (TENSION_LP_TOL) and the bound tolerance
     (TENSION_RANGE_RTOL): every number comes from a linear program (HiGHS).
 
