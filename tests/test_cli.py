@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
 
@@ -334,3 +335,26 @@ def test_a_full_disk_names_the_output_and_the_fix(tmp_path, capsys, monkeypatch)
     err = capsys.readouterr().err
     assert f"cannot write {str(store)!r}: No space left on device; free some space" in err
     assert "folder must exist" not in err
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["anlyze", "x.yaml"], r"unknown command 'anlyze'; did you mean 'analyze'\?"),
+        (["mpa"], r"unknown command 'mpa'; did you mean 'map'\?"),
+        (["zzz"], r"unknown command 'zzz'; commands: analyze, .*import-caspr \(cdpm --help\)"),
+    ],
+)
+def test_a_misspelt_command_gets_the_nearest_names(argv, message, capsys):
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0, err  # one line, no usage text
+    assert re.search(message, err), err
+
+
+def test_top_level_help_shows_examples_of_the_main_commands(capsys):
+    with pytest.raises(SystemExit):
+        main(["--help"])
+    out = capsys.readouterr().out
+    for command in ("analyze", "map", "path", "find", "verify", "view"):
+        assert f"\n  cdpm {command} " in out, command

@@ -9,6 +9,7 @@ inside ``run`` so ``cdpm --help`` is instant.
 from __future__ import annotations
 
 import argparse
+import difflib
 import errno
 import importlib
 import os
@@ -39,6 +40,14 @@ _EPILOG = """\
 examples:
   cdpm analyze models/two_link_planar/two_link_planar.yaml --pose nominal
   cdpm analyze models/two_link_planar/two_link_planar.yaml --q pi/6 pi/3 --json
+  cdpm map models/two_link_vertical/two_link_vertical.yaml \\
+      --axis q1=-pi:pi:121 --axis q2=-pi:pi:121 --out vertical.zarr --plot vertical.png
+  cdpm path vertical.zarr --from nominal --to -2.6 2.4 --maximin --plot path.png
+  cdpm find models/two_link_vertical --where poc --count 3
+  cdpm verify models/two_link_planar/two_link_planar.yaml --pose nominal --plot verify.png
+  cdpm view models/two_link_planar/two_link_planar.yaml --pose nominal
+
+each command's --help lists its options.
 """
 
 
@@ -70,6 +79,20 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _unknown_command(argv: list[str]) -> str | None:
+    """The error for a first argument that is neither an option nor a
+    command, with the nearest command names (``cdpm anlyze`` -> "did you
+    mean 'analyze'?"); None when the first argument is fine."""
+    if not argv or argv[0].startswith("-"):
+        return None
+    names = [name.rsplit(".", 1)[1].replace("_", "-") for name in COMMAND_MODULES]
+    if argv[0] in names:
+        return None
+    near = difflib.get_close_matches(argv[0], names, n=2, cutoff=0.6)
+    hint = f"did you mean {' or '.join(repr(n) for n in near)}? " if near else ""
+    return f"unknown command {argv[0]!r}; {hint}commands: {', '.join(names)} (cdpm --help)"
+
+
 def _protect_negative_numbers(argv: list[str]) -> list[str]:
     """Let values such as ``-pi/6`` follow an option without being taken for
     an option themselves (argparse only recognises plain negative numbers)."""
@@ -93,8 +116,12 @@ def main(argv: list[str] | None = None) -> int:
     """Run the CLI; returns the process exit code (0 ok, 1 error, 2 usage; some
     commands add their own, listed in their --help: 3 analyze found no
     equilibrium, 3 path found no connection)."""
-    parser = build_parser()
     argv = sys.argv[1:] if argv is None else list(argv)
+    unknown = _unknown_command(argv)
+    if unknown is not None:
+        print(f"cdpm: error: {unknown}", file=sys.stderr)
+        return 2
+    parser = build_parser()
     args = parser.parse_args(_protect_negative_numbers(argv))
     if not getattr(args, "_run", None):
         parser.print_help()
