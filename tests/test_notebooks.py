@@ -4,6 +4,7 @@ committed)."""
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import pytest
 
@@ -48,3 +49,11 @@ def test_steering_notebook_executes():
     assert "two_link_two_cables.yaml, pose 'nominal': POC NO" in text
     assert "two_link_vertical.yaml, pose 'nominal': POC YES" in text
     assert sum("image/png" in out.get("data", {}) for out in outputs) == 5
+
+
+def test_every_notebook_cell_has_an_id():
+    """nbformat 4.5 cells carry ids (a cell without one draws a
+    MissingIDFieldWarning, and a future nbformat refuses it)."""
+    for path in sorted((Path(__file__).resolve().parents[1] / "notebooks").glob("*.ipynb")):
+        cells = json.loads(path.read_text())["cells"]
+        assert all("id" in cell for cell in cells), path.name

@@ -810,6 +810,7 @@ def test_view_command_serves_then_stops(capsys):
     assert "Positive output controllability (POC): NO (nilpotent); reach margin r_T = 0 m" in out
     assert "note: singular pose: the output Jacobian dy/dq has rank 0 < p = 1" in out
     assert "viewer: http://127.0.0.1:" in out
+    assert "  (for 0.2 s)" in out and "Ctrl-C to stop" not in out  # it stops by itself
 
 
 def test_view_command_ctrl_c_exits_130_and_stops_the_server():

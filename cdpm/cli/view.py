@@ -167,7 +167,8 @@ def run(args: argparse.Namespace) -> int:
             print(f"map: {page.map_points} poses from {args.map}, coloured by {args.color_by}")
         print(page.panel)
         print(f"scene alone: {page.viewer.url()}")
-        print(f"viewer: {page.url}  (Ctrl-C to stop)", flush=True)
+        until = "Ctrl-C to stop" if args.seconds is None else f"for {args.seconds:g} s"
+        print(f"viewer: {page.url}  ({until})", flush=True)
         try:
             if args.seconds is not None:
                 time.sleep(args.seconds)
