@@ -29,6 +29,14 @@ TINY = re.compile(r"\d(?:\.\d+)?e-(?:1\d|[2-9]\d|\d{3})\b")
 # ----------------------------------------------------- no equilibrium at the pose
 
 
+def test_the_statics_residual_has_its_unit_at_a_held_pose(capsys):
+    assert main(["analyze", VERTICAL, "--pose", "nominal"]) == 0
+    out = capsys.readouterr().out
+    line = next(x for x in out.splitlines() if x.startswith("Equilibrium (min_norm)"))
+    assert line.startswith("Equilibrium (min_norm): statics hold, residual |L^T f + G + w_ext| = ")
+    assert line.endswith(" (N or N m)")
+
+
 def test_infeasible_pose_prints_the_report_and_exits_3(capsys):
     assert main(ZERO_AT_STRETCHED) == 3
     out, err = capsys.readouterr()

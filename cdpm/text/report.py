@@ -286,7 +286,7 @@ class PoseReport(TextRepr):
             head = [
                 f"Equilibrium ({eq.method}"
                 + (f", pretension {eq.pretension:g} N" if eq.method == "pretension" else "")
-                + f"): {status}, residual |L^T f + G + w_ext| = {eq.residual:.3g}",
+                + f"): {status}, residual |L^T f + G + w_ext| = {eq.residual:.3g} (N or N m)",
                 f"  {eq.message}",
             ]
             states = eq.cable_states()
