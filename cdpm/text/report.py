@@ -161,7 +161,8 @@ class PoseReport(TextRepr):
             head = f"Reach margin r_T = {r + 0.0:.4g} {unit} ({exact})"
             moved = f"{r + 0.0:.4g} {unit} in every direction"
         return [
-            f"{head}: within T = {self.reach.horizon:.3g} s the cables can move {names} {moved}",
+            f"{head}: within T = {self.reach.horizon:.3g} s, on the linearisation, the cables "
+            f"can move {names} {moved}",
             f"  {self.reach.describe()}",
         ]
 
