@@ -13,6 +13,37 @@ from cdpm.expressions import parse_number
 #: Names that refer to the fixed world frame in a route.
 WORLD_FRAME_NAMES = ("world", "universe")
 
+#: The names a workspace map gives its own variables and dimensions, with
+#: what each is: the registered criteria (cdpm/pipeline/criteria.py
+#: CRITERIA), their extra dimensions (CRITERION_DIMS), the POC regions
+#: (cdpm/maps/regions.py REGION_VARIABLE) and a sampled map's pose
+#: dimension. A map names a dimension after each coordinate, so no
+#: coordinate may take one of these (the model layer cannot import the
+#: registry; tests/test_names.py checks that this table covers it).
+MAP_NAMES = {
+    "poc": "a map variable (the POC verdicts)",
+    "output_controllable": "a map variable (the output controllability verdicts)",
+    "positive_controllable": "a map variable (the positive controllability verdicts)",
+    "wrench_closure": "a map variable (the wrench closure verdicts)",
+    "static_feasible": "a map variable (the static feasibility verdicts)",
+    "reach_margin": "a map variable (the reach margins)",
+    "reach_margin_error": "a map variable (the reach margins' errors)",
+    "tension_min": "a map variable (the smallest equilibrium tensions)",
+    "tension_max": "a map variable (the largest equilibrium tensions)",
+    "n_taut": "a map variable (the numbers of taut cables)",
+    "y": "a map variable (the outputs y)",
+    "output_frame_position": "a map variable (the output frame's positions)",
+    "status": "a map variable (the pose status)",
+    "poc_some_tension": "a map variable (the tension search's POC verdicts)",
+    "reach_margin_best": "a map variable (the tension search's reach margins)",
+    "tension_best": "a map variable (the tension search's tensions)",
+    "poc_region": "a map variable (the POC regions)",
+    "output": "a map dimension (one entry per output)",
+    "xyz": "a map dimension (x, y, z)",
+    "cable": "a map dimension (one entry per cable)",
+    "sample": "a map dimension (the poses of a sampled map)",
+}
+
 
 class Problems:
     """Collects problems with their YAML path so all are reported at once."""
@@ -47,6 +78,24 @@ def read_vector(
             return None
         out.append(number)
     return out
+
+
+def unprintable_name(name: str) -> str | None:
+    """Why ``name`` cannot be printed as it is, or None when it can.
+
+    Names are printed raw in reports, tables and plots, so a control
+    character (newline, tab, ESC starting a terminal escape sequence) or
+    another non-printable one (``str.isprintable``: e.g. a right-to-left
+    override) could rewrite what a report shows.
+    """
+    bad = next((ch for ch in name if not ch.isprintable()), None)
+    if bad is None:
+        return None
+    return (
+        f"{short_repr(name)} has the non-printable character {bad!r} (U+{ord(bad):04X}); "
+        "names are printed in reports, so they must be printable text with no newline, "
+        "tab or escape sequence"
+    )
 
 
 def unknown_keys(problems: Problems, where: str, mapping: dict, allowed: tuple) -> None:

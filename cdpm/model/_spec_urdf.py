@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from cdpm.errors import SpecError, short_repr
-from cdpm.model._spec_parts import WORLD_FRAME_NAMES, Problems, unknown_keys
+from cdpm.model._spec_parts import WORLD_FRAME_NAMES, Problems, unknown_keys, unprintable_name
 from cdpm.model.urdf_check import read_urdf
 
 #: pip distribution that installs a ROS-style package's files, where the
@@ -158,7 +158,35 @@ def build_model(problems: Problems, urdf_path: Path):
         return None
     if detail:  # e.g. a visual element it skipped: the dynamics are read
         warnings.warn(f"{urdf_path.name}: the URDF parser reported: {detail}", stacklevel=3)
+    unprintable = _unprintable_names(model)
+    if unprintable:
+        for kind, problem in unprintable:
+            problems.add("urdf", f"{urdf_path.name}: the {kind} name {problem}: rename the {kind}")
+        return None  # its names would be printed in later messages and reports
     return model
+
+
+def _unprintable_names(model) -> list[tuple[str, str]]:
+    """(kind, problem) of each link, joint or frame of the model whose name
+    cannot be printed (:func:`~cdpm.model._spec_parts.unprintable_name`)."""
+    # pinocchio: loaded on first use
+    import pinocchio as pin
+
+    kinds = {
+        pin.FrameType.BODY: "link",
+        pin.FrameType.JOINT: "joint",
+        pin.FrameType.FIXED_JOINT: "joint",
+    }
+    found: list[tuple[str, str]] = []
+    seen: set[str] = set()
+    for frame in model.frames:
+        if frame.name in seen:  # a link and its joint may share a name
+            continue
+        seen.add(frame.name)
+        problem = unprintable_name(frame.name)
+        if problem is not None:
+            found.append((kinds.get(frame.type, "frame"), problem))
+    return found
 
 
 class _Captured:

@@ -24,7 +24,13 @@ from typing import Any
 import numpy as np
 
 from cdpm.expressions import parse_number
-from cdpm.model._spec_parts import WORLD_FRAME_NAMES, Problems, read_vector, unknown_keys
+from cdpm.model._spec_parts import (
+    WORLD_FRAME_NAMES,
+    Problems,
+    read_vector,
+    unknown_keys,
+    unprintable_name,
+)
 from cdpm.model._spec_urdf import FrameTable
 
 __all__ = [
@@ -208,6 +214,9 @@ def parse_outputs(
         if not isinstance(name, str) or not name:
             problems.add(f"{where}.name", f"expected a non-empty string, got {name!r}")
             continue
+        if (unprintable := unprintable_name(name)) is not None:
+            problems.add(f"{where}.name", f"the output name {unprintable}: rename the output")
+            continue
         if name in seen:
             problems.add(f"{where}.name", f"duplicate output name {name!r}")
         seen.add(name)
@@ -229,6 +238,9 @@ def _output_unit(problems: Problems, where: str, raw: Any, terms: list[OutputTer
         return derived
     if not isinstance(raw, str) or not raw.strip():
         problems.add(f"{where}.unit", f"expected a unit such as m or rad, got {raw!r}")
+        return None
+    if (unprintable := unprintable_name(raw.strip())) is not None:
+        problems.add(f"{where}.unit", f"the unit {unprintable}")
         return None
     return raw.strip()
 

@@ -55,7 +55,14 @@ import numpy as np
 
 from cdpm.errors import SpecError
 from cdpm.expressions import parse_number
-from cdpm.model._spec_parts import WORLD_FRAME_NAMES, Problems, read_vector, unknown_keys
+from cdpm.model._spec_parts import (
+    MAP_NAMES,
+    WORLD_FRAME_NAMES,
+    Problems,
+    read_vector,
+    unknown_keys,
+    unprintable_name,
+)
 from cdpm.model._spec_urdf import (
     FrameTable,
     link_coms,
@@ -63,7 +70,11 @@ from cdpm.model._spec_urdf import (
     package_share_directory,
     usable_path,
 )
-from cdpm.model.coordinates import ConfigurationError, configuration_from_values
+from cdpm.model.coordinates import (
+    ConfigurationError,
+    configuration_from_values,
+    coordinate_names,
+)
 from cdpm.model.outputs import (
     OUTPUT_COMPONENTS,
     POSITION_COMPONENTS,
@@ -272,6 +283,8 @@ def load_spec(path: str | os.PathLike) -> CableSpec:
     unknown_keys(problems, "", data, _TOP_KEYS)
 
     model, urdf_path = load_urdf(problems, spec_path, data.get("urdf"))
+    if model is not None:
+        _check_coordinate_names(problems, model, urdf_path)
 
     gravity = np.array(_DEFAULT_GRAVITY)
     if "gravity" in data:
@@ -315,6 +328,52 @@ def load_spec(path: str | os.PathLike) -> CableSpec:
         external_wrench=external,
         sha256=_file_hash(spec_path, urdf_path),
     )
+
+
+_CASE = "; the file systems of macOS and Windows ignore case"
+
+
+def _check_coordinate_names(problems: Problems, model, urdf_path: Path) -> None:
+    """Record each natural coordinate whose name a workspace map could not
+    use. A map has one dimension per coordinate, named after it, beside its
+    own variables and dimensions (MAP_NAMES), and a map store keeps each in
+    a folder of that name; so the names must differ from those and from each
+    other (a joint ``j.x`` and the x of a planar joint ``j``), also when
+    case is ignored (as the file systems of macOS and Windows do), and be
+    names of folders (no ``/``, not hidden, not ``zarr.json``)."""
+    names = coordinate_names(model)
+    map_names = {name.casefold(): name for name in MAP_NAMES}
+    joint_of: dict[str, tuple[str, str]] = {}  # casefolded -> (coordinate, joint)
+    for j in range(1, model.njoints):
+        start = model.joints[j].idx_v
+        for name in names[start : start + model.joints[j].nv]:
+            coordinate = f"coordinate {name!r}"
+            if name != model.names[j]:
+                coordinate += f" of joint {model.names[j]!r}"
+            key = name.casefold()
+            if key in map_names:
+                taken = map_names[key]
+                alike = "" if taken == name else f" but for case ({taken!r}{_CASE})"
+                problems.add(
+                    "urdf",
+                    f"{coordinate} has the name of {MAP_NAMES[taken]}{alike}, and a map names "
+                    f"a dimension after each coordinate; rename the joint in {urdf_path.name}",
+                )
+            elif key in joint_of:
+                other, joint = joint_of[key]
+                alike = "" if other == name else f" but for case ({other!r}{_CASE})"
+                problems.add(
+                    "urdf",
+                    f"{coordinate} has the name of a coordinate of joint {joint!r}{alike}; "
+                    f"rename one of the joints in {urdf_path.name}",
+                )
+            elif "/" in name or name.startswith(".") or name == "zarr.json":
+                problems.add(
+                    "urdf",
+                    f"{coordinate} cannot name a folder of a map store (no '/', no leading "
+                    f"'.', not zarr.json); rename the joint in {urdf_path.name}",
+                )
+            joint_of.setdefault(key, (name, model.names[j]))
 
 
 def tension_bound_problems(fmin: float, fmax: float, number=str) -> list[str]:
@@ -361,6 +420,9 @@ def _parse_cables(problems: Problems, raw: Any, frames: FrameTable | None) -> li
         if not isinstance(name, str) or not name:
             problems.add(f"{where}.name", f"expected a non-empty string, got {name!r}")
             name = f"cable{i + 1}"
+        elif (unprintable := unprintable_name(name)) is not None:
+            problems.add(f"{where}.name", f"the cable name {unprintable}: rename the cable")
+            name = f"cable{i + 1}"  # never printed again, even in later messages
         if name in seen:
             problems.add(f"{where}.name", f"duplicate cable name {name!r}; names must be unique")
         seen.add(name)
@@ -448,13 +510,29 @@ def _parse_poses(problems: Problems, raw: Any, model) -> dict[str, np.ndarray]:
     if not isinstance(raw, dict):
         problems.add("poses", "expected a mapping from pose name to configuration")
         return {}
-    if model is None:
-        return {}
 
     poses: dict[str, np.ndarray] = {}
-    for name, value in raw.items():
+    keys: dict[str, Any] = {}  # pose name -> the YAML key it was written as
+    for key, value in raw.items():
+        name = str(key)  # a YAML key may be a number: 1: [...] is the pose "1"
+        if not name:
+            problems.add("poses", "a pose has an empty name; give it a name")
+            continue
+        if (unprintable := unprintable_name(name)) is not None:
+            problems.add("poses", f"the pose name {unprintable}: rename the pose")
+            continue
+        if name in keys:
+            problems.add(
+                f"poses.{name}",
+                f"the pose name {name!r} is given twice (as {keys[name]!r} and {key!r}); "
+                "rename one of them",
+            )
+            continue
+        keys[name] = key
+        if model is None:
+            continue
         try:
-            poses[str(name)] = configuration_from_values(model, value)
+            poses[name] = configuration_from_values(model, value)
         except ConfigurationError as exc:
             problems.add(f"poses.{name}", str(exc))
     return poses
