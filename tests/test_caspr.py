@@ -301,16 +301,16 @@ def test_inertia_and_gravity_follow_caspr(tmp_path):
     # link 1 inertia about its joint (ref="joint") must be shifted to the COM;
     # link 2's about its COM is kept
     bodies, cables = _write_model(
-        tmp_path, ["R_X", "R_Y"], overrides={1: {"ref": "joint", "mass": 2.0, "com": "0.1 0.2 0.3"}}
+        tmp_path, ["R_X", "R_Y"], overrides={1: {"ref": "joint", "mass": 0.5, "com": "0.1 0.2 0.3"}}
     )
     result = _import_quietly(bodies, cables, tmp_path / "out")
     robot = cdpm.load_robot(result.spec_path)
     np.testing.assert_allclose(robot.gravity, [0, 0, -9.81])
     inertia_joint = np.array([[0.3, 0.01, -0.02], [0.01, 0.2, 0.005], [-0.02, 0.005, 0.25]])
     c = np.array([0.1, 0.2, 0.3])
-    inertia_com = inertia_joint - 2.0 * (c @ c * np.eye(3) - np.outer(c, c))
+    inertia_com = inertia_joint - 0.5 * (c @ c * np.eye(3) - np.outer(c, c))
     link1 = robot.model.inertias[robot.model.getJointId("joint1")]
-    assert link1.mass == pytest.approx(2.0)
+    assert link1.mass == pytest.approx(0.5)
     np.testing.assert_allclose(link1.lever, c, atol=1e-12)
     # Pinocchio stores the inertia about the COM
     np.testing.assert_allclose(link1.inertia, inertia_com, atol=1e-12)

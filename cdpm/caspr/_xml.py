@@ -20,6 +20,7 @@ from defusedxml import DefusedXmlException
 from defusedxml.ElementTree import fromstring
 
 from cdpm.errors import InputError, UnsupportedError
+from cdpm.model.robot import MODEL_INERTIA_NEGATIVE_RTOL
 
 # One 1-DOF URDF joint of a chain: (URDF type, axis, index into the CASPR
 # joint's q, name suffix). Axis "axis" means the joint's ``axis`` attribute.
@@ -267,6 +268,18 @@ def _read_link(path: Path, el: ET.Element, expected_num: int) -> _Link:
             bounds.append(tuple(sign * _DEFAULT_BOUND[kind] for kind, _a, _i in _sorted(chain)))
         else:
             bounds.append(_numbers(joint.get(attr), path, f"{jwhere} {attr}", n))
+    crossed = [
+        f"q_min[{i}] = {lo:g} > q_max[{i}] = {hi:g}"
+        for i, (lo, hi) in enumerate(zip(bounds[0], bounds[1], strict=True))
+        if lo > hi
+    ]
+    if crossed:
+        unset = [a for a in ("q_min", "q_max") if joint.get(a) is None]
+        default = f" ({unset[0]} not given: CASPR's default)" if unset else ""
+        raise InputError(
+            f"{path}: {jwhere}: {'; '.join(crossed)}{default}: each lower joint limit must "
+            "be at most its upper one; swap or correct them"
+        )
     axis = None
     if any(a == "axis" for _k, a, _i in chain):
         if joint.get("axis") is None:
@@ -312,6 +325,14 @@ def _read_link(path: Path, el: ET.Element, expected_num: int) -> _Link:
         raise UnsupportedError(
             f"{path}: {_describe(inertia_el)} of {where}: inertia reference {ref!r} is not "
             'supported; use ref="com" or ref="joint"'
+        )
+    moments = np.linalg.eigvalsh(inertia)
+    if moments.min() < -MODEL_INERTIA_NEGATIVE_RTOL * np.abs(moments).max():
+        about = " about the COM (the one given about the joint, less the mass at the COM)"
+        raise InputError(
+            f"{path}: {where}: its inertia{about if ref == 'joint' else ''} has a negative "
+            f"principal moment ({np.array2string(moments, precision=3)} kg m^2), which no "
+            "body has: check Ixx..Iyz, the mass and com_location"
         )
     parent_el = el.find("parent")
     if parent_el is None:

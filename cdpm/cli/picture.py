@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 
 from cdpm.cli._pose import add_pose_arguments, pose_from_args
-from cdpm.cli.plot import DPI_TYPE, argument_type
+from cdpm.cli.plot import argument_type
 
 NAME = "picture"
 HELP = "draw a pose (robot, cables by state, outputs, POC verdict) to a PNG/PDF/SVG file"
@@ -32,6 +32,20 @@ def _picture_file(text: str):
     return check_picture_path(text)
 
 
+def _picture_dpi(text: str) -> float:
+    # loaded when the command runs (cdpm --help stays fast)
+    from cdpm.plotting.picture import check_picture_dpi
+
+    return check_picture_dpi(text)
+
+
+def _picture_title(text: str) -> str:
+    # loaded when the command runs (cdpm --help stays fast)
+    from cdpm.plotting.picture import check_picture_title
+
+    return check_picture_title(text)
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_pose_arguments(parser)
     parser.add_argument(
@@ -48,8 +62,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default="auto",
         help="projection plane (default: across the thinnest world axis of the scene)",
     )
-    parser.add_argument("--title", default=None, help="figure title (default: pose and verdict)")
-    parser.add_argument("--dpi", type=DPI_TYPE, default=110, help="resolution (default 110)")
+    parser.add_argument(
+        "--title",
+        default=None,
+        type=argument_type(_picture_title),
+        help="figure title (default: pose and verdict)",
+    )
+    parser.add_argument(
+        "--dpi", type=argument_type(_picture_dpi), default=110, help="resolution (default 110)"
+    )
 
 
 def run(args: argparse.Namespace) -> int:

@@ -5,8 +5,11 @@ the store, and names its owner (pid, host, start time). The operating
 system releases the lock when its process dies, however it dies (Ctrl-C,
 SIGTERM, SIGKILL), so a lock file left by a killed run is stale: the next
 run takes it over. A second run while the first is alive refuses at once
-and says who owns the store. Locks are advisory and local: runs on other
-machines that share the store over a network file system may not see them.
+and says who owns the store. The lock file sits beside the store's resolved
+path, so two runs that name one store by different paths (a symbolic link
+to it, or to a folder above it) take the same lock. Locks are advisory and
+local: runs on other machines that share the store over a network file
+system may not see them.
 """
 
 from __future__ import annotations
@@ -28,8 +31,15 @@ class StoreBusyError(InputError):
 
 
 def lock_path(store) -> Path:
-    """The lock file of a store: ``<store>.lock`` beside it."""
+    """The lock file of a store: ``<store>.lock`` beside it, with symbolic
+    links resolved (a link to a store has the store's lock)."""
     path = Path(store).expanduser()
+    try:
+        path = path.resolve()
+    except (OSError, RuntimeError) as exc:  # RuntimeError: a symlink loop (Python < 3.13)
+        raise InputError(
+            f"cannot use the map store path {path}: {exc}; choose another path (--out)"
+        ) from None
     return path.with_name(path.name + ".lock")
 
 
@@ -47,8 +57,8 @@ def store_lock(store):
     except ImportError:  # pragma: no cover - not a POSIX system: no locking
         yield
         return
-    path = lock_path(store)
     _check_writable_folder(Path(store).expanduser())
+    path = lock_path(store)  # after the folder exists: resolved through it
     while True:
         try:
             fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)

@@ -54,6 +54,10 @@ __all__ = ["CableRobot", "CableKinematics", "BatchKinematics", "load_robot", "sp
 MODEL_MASS_RANGE = (1e-9, 1e9)
 MODEL_INERTIA_MAX = 1e12
 MAX_MODEL_LENGTH = 1e5
+#: an inertia matrix is positive semi-definite: a principal moment below
+#: -MODEL_INERTIA_NEGATIVE_RTOL times the largest |moment| is negative, not
+#: round-off (Pinocchio combines the inertias of links joined by fixed joints)
+MODEL_INERTIA_NEGATIVE_RTOL = 1e-9
 
 
 class CableRobot:
@@ -158,7 +162,8 @@ class CableRobot:
     def _check_magnitudes(self) -> None:
         """Refuse models whose masses, inertias or lengths are outside the
         range cdpm analyses (MODEL_MASS_RANGE, MODEL_INERTIA_MAX,
-        MAX_MODEL_LENGTH), before any solver sees them."""
+        MAX_MODEL_LENGTH), or whose inertia matrices have a negative principal
+        moment (MODEL_INERTIA_NEGATIVE_RTOL), before any solver sees them."""
         model, problems = self.model, []
         low, high = MODEL_MASS_RANGE
         for j in range(1, model.njoints):
@@ -173,6 +178,12 @@ class CableRobot:
                 problems.append(
                     f"the body moved by joint {name!r} has moments of inertia "
                     f"{np.array2string(moments, precision=3)} kg m^2"
+                )
+            elif moments.min() < -MODEL_INERTIA_NEGATIVE_RTOL * np.abs(moments).max():
+                problems.append(
+                    f"the body moved by joint {name!r} has an inertia matrix with a negative "
+                    f"principal moment ({np.array2string(moments, precision=3)} kg m^2), which "
+                    "no body has: fix its ixx, iyy, izz and the signs of ixy, ixz, iyz"
                 )
             offset = float(np.abs(model.jointPlacements[j].translation).max())
             if not offset <= MAX_MODEL_LENGTH:

@@ -3,12 +3,17 @@
 Cable specs are read with a :class:`yaml.SafeLoader` (nothing in the file is
 executed). PyYAML keeps the last of two equal keys in a mapping without a
 word, and reads a number too large for a float (``1.0e+400``) as infinity;
-:func:`load_yaml` lists both so the spec loader can refuse the file.
+:func:`load_yaml` lists both, and integers too long to be a number
+(Python refuses to read one of more than 4,300 digits), so the spec loader
+can refuse the file. YAML 1.1 reads ``190:20:30`` as the base-60 number
+685230; here it is read as written, the string ``"190:20:30"`` (as YAML 1.2
+does), so a number field holding it is refused as not a number.
 Before anything is built, the parser's event stream (read without
 recursion) is checked against size limits: the text's length, the nesting
-depth, and the number of values after aliases (``*anchor``) are expanded,
-so a small file that expands to millions of values (an "alias bomb") or
-nests thousands deep is refused at once with a clear message.
+depth (with aliases expanded: a chain of aliases nests as deep as it would
+when written out), and the number of values after aliases (``*anchor``) are
+expanded, so a small file that expands to millions of values (an "alias
+bomb") or nests thousands deep is refused at once with a clear message.
 PyYAML is imported on first use, so ``import cdpm`` stays fast.
 
 Texts are read with libyaml's parser when PyYAML has it (about fifty times
@@ -20,6 +25,8 @@ error shows the offending line, so errors read the same either way.
 from __future__ import annotations
 
 import math
+import re
+import sys
 from typing import Any
 
 __all__ = ["load_yaml", "YamlLimitError", "MAX_YAML_CHARS", "MAX_YAML_DEPTH", "MAX_YAML_VALUES"]
@@ -42,6 +49,10 @@ class YamlLimitError(ValueError):
 #: literals that mean infinity (YAML's .inf; inf and infinity under an
 #: explicit !!float tag)
 _INFINITY = frozenset({".inf", "inf", "infinity"})
+
+#: YAML 1.1's base-60 integers and floats (``190:20:30``, ``1:30.5``), read
+#: here as the strings they are written as
+_SEXAGESIMAL = re.compile(r"^[-+]?[0-9][0-9_]*(?::[0-5]?[0-9])+(?:\.[0-9_]*)?$")
 
 
 def _safe_loader(fast: bool):
@@ -75,20 +86,28 @@ def check_yaml_limits(text: str, fast: bool = True) -> None:
             "spec may have; a cable spec is a few kilobytes"
         )
     sizes: dict[str, int] = {}  # anchor -> values under it, aliases expanded
-    stack: list[list] = []  # open collections: [values so far, anchor]
+    heights: dict[str, int] = {}  # anchor -> levels of nesting under it, aliases expanded
+    stack: list[list] = []  # open collections: [values so far, anchor, levels under it]
     total = 0
     for event in yaml.parse(text, Loader=_safe_loader(fast)):
         if isinstance(event, yaml.CollectionStartEvent):
-            if len(stack) >= MAX_YAML_DEPTH:
-                line = event.start_mark.line + 1
-                raise YamlLimitError(
-                    f"line {line}: mappings and lists nest more than {MAX_YAML_DEPTH} deep; "
-                    "a cable spec needs a handful of levels"
-                )
-            stack.append([1, event.anchor])
+            height = 1
+        elif isinstance(event, yaml.AliasEvent):
+            height = heights.get(event.anchor, 0)
+        else:
+            height = 0
+        if len(stack) + height > MAX_YAML_DEPTH:
+            line = event.start_mark.line + 1
+            through = " once its aliases (*name) are expanded" if height > 1 else ""
+            raise YamlLimitError(
+                f"line {line}: mappings and lists nest more than {MAX_YAML_DEPTH} deep"
+                f"{through}; a cable spec needs a handful of levels"
+            )
+        if isinstance(event, yaml.CollectionStartEvent):
+            stack.append([1, event.anchor, 1])
             continue
         if isinstance(event, yaml.CollectionEndEvent):
-            size, anchor = stack.pop()
+            size, anchor, height = stack.pop()
         elif isinstance(event, yaml.ScalarEvent):
             size, anchor = 1, event.anchor
         elif isinstance(event, yaml.AliasEvent):
@@ -97,11 +116,13 @@ def check_yaml_limits(text: str, fast: bool = True) -> None:
             continue
         if anchor is not None:
             sizes[anchor] = size
+            heights[anchor] = height
         if stack:
             stack[-1][0] += size
+            stack[-1][2] = max(stack[-1][2], height + 1)
         else:
             total += size
-        if total + sum(s for s, _ in stack) > MAX_YAML_VALUES:
+        if total + sum(entry[0] for entry in stack) > MAX_YAML_VALUES:
             line = event.start_mark.line + 1
             raise YamlLimitError(
                 f"line {line}: the document expands to more than {MAX_YAML_VALUES:,} values "
@@ -149,6 +170,13 @@ def _load_yaml(text: str, fast: bool) -> tuple[Any, list[str]]:
     class _Loader(base):
         pass
 
+    # YAML 1.1's base-60 numbers are read as the strings they are written as:
+    # a resolver ahead of the int and float ones claims them for str
+    resolvers = {first: list(rules) for first, rules in base.yaml_implicit_resolvers.items()}
+    for first in "+-0123456789":
+        resolvers.setdefault(first, []).insert(0, ("tag:yaml.org,2002:str", _SEXAGESIMAL))
+    _Loader.yaml_implicit_resolvers = resolvers
+
     def construct_mapping(loader, node, deep=False):
         first_line: dict[Any, int] = {}
         for key_node, _ in node.value:
@@ -187,7 +215,30 @@ def _load_yaml(text: str, fast: bool) -> tuple[Any, list[str]]:
             )
         return value
 
+    def construct_int(loader, node):
+        # Python refuses to read an integer of more than 4,300 digits (a
+        # ValueError); one beyond float range would fail later, when used
+        try:
+            value = base.construct_yaml_int(loader, node)
+        except ValueError:
+            value = None
+        if value is None or abs(value) > sys.float_info.max:
+            line = node.start_mark.line + 1
+            digits = node.value.lstrip("+-").replace("_", "")
+            if digits[:2].lower() in ("0b", "0o", "0x"):
+                digits = digits[2:]
+            problems.append(
+                (
+                    line,
+                    f"line {line}: an integer of {len(digits):,} digits is too large for a number "
+                    "(beyond about 1.8e308): write a number of at most a few dozen digits",
+                )
+            )
+            return 0
+        return value
+
     _Loader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, construct_mapping)
+    _Loader.add_constructor("tag:yaml.org,2002:int", construct_int)
     _Loader.add_constructor("tag:yaml.org,2002:float", construct_float)
     data = yaml.load(text, Loader=_Loader)  # noqa: S506 - a SafeLoader subclass
     return data, [message for _, message in sorted(problems)]

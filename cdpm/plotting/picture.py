@@ -42,7 +42,23 @@ from cdpm.viewer.state import (
     with_unit,
 )
 
-__all__ = ["render_pose", "check_picture_path", "PLANES"]
+__all__ = [
+    "render_pose",
+    "check_picture_path",
+    "check_picture_dpi",
+    "check_picture_title",
+    "PLANES",
+    "MIN_PICTURE_DPI",
+    "MAX_TITLE_CHARS",
+]
+
+#: lowest resolution of a pose picture [dots per inch]: below it the
+#: 10-point text is under three pixels tall (and at a few dpi FreeType
+#: refuses to draw it)
+MIN_PICTURE_DPI = 20
+
+#: longest custom title [characters]: about a dozen lines at the default width
+MAX_TITLE_CHARS = 1000
 
 #: Projection planes: name -> (horizontal axis, vertical axis) indices.
 PLANES = {"xy": (0, 1), "xz": (0, 2), "yz": (1, 2)}
@@ -98,14 +114,17 @@ def render_pose(
 
     Raises:
         MissingExtraError: matplotlib is not installed.
-        InputError: unknown plane, unsupported file suffix or a dpi that is
-            not positive (checked before anything is computed).
+        InputError: unknown plane, unsupported file suffix, a dpi outside
+            [MIN_PICTURE_DPI, MAX_DPI] or a title longer than MAX_TITLE_CHARS
+            (checked before anything is computed).
     """
     _, Figure = matplotlib_parts("pictures", extra="viz")
     # optional: cdpm[viz/maps]
     from matplotlib.backends.backend_agg import FigureCanvasAgg
 
-    dpi = check_dpi(dpi)
+    dpi = check_picture_dpi(dpi)
+    if title is not None:
+        title = check_picture_title(title)
     target = None if path is None else check_picture_path(path)
     pose_name = q if isinstance(q, str) else None
     q = robot.as_q(default_pose(robot) if q is None else q)
@@ -399,6 +418,36 @@ def _legend(ax, handles: list, labels: list[str], ncol: int):
     )
 
 
+def check_picture_dpi(dpi: Any) -> float:
+    """``dpi`` as a float, when it is a resolution a picture can be drawn at.
+
+    Raises:
+        InputError: it is not a number from MIN_PICTURE_DPI to MAX_DPI.
+    """
+    value = check_dpi(dpi)
+    if value < MIN_PICTURE_DPI:
+        raise InputError(
+            f"dpi={dpi} is too low for a picture: its text would be under three pixels tall; "
+            f"use at least {MIN_PICTURE_DPI} dots per inch (the default is 110)"
+        )
+    return value
+
+
+def check_picture_title(title: Any) -> str:
+    """``title`` as a string, when it is short enough to show on a picture.
+
+    Raises:
+        InputError: it has more than MAX_TITLE_CHARS characters.
+    """
+    text = str(title)
+    if len(text) > MAX_TITLE_CHARS:
+        raise InputError(
+            f"the title has {len(text):,} characters, more than the {MAX_TITLE_CHARS:,} a "
+            "picture can show; shorten it"
+        )
+    return text
+
+
 def check_picture_path(path: str | os.PathLike) -> Path:
     """``path`` as a Path when its suffix is one a picture is written as.
 
@@ -467,7 +516,9 @@ def _fit_title(ax, titles: list[str], renderer, fontsize: float = 10) -> None:
     width = max(len(line) for line in lines)
     while width > 12 and not fits():
         box = ax.title.get_window_extent(renderer)
-        width = min(width - 1, int(width * ax.figure.bbox.width / box.width * 0.95))
+        # at least 12: a word longer than a line does not shrink the box, and
+        # the width would otherwise fall to 0
+        width = max(12, min(width - 1, int(width * ax.figure.bbox.width / box.width * 0.95)))
         wrapped = (
             textwrap.fill(line, width, break_long_words=False, break_on_hyphens=False)
             for line in lines
