@@ -124,7 +124,7 @@ LOG_GROWTH_HIGH = math.log(1e4)
 GRID_POINTS = {1: 256, 2: 64, 3: 32}
 #: ... and for p >= 4
 GRID_POINTS_HIGH = 64
-#: reach margin: Simpson intervals on [0, T] (multiples of 4), by output
+#: reach margin: intervals of the piecewise-constant inputs on [0, T], by output
 #: count p (the zonotope has m K generators; its facet candidates grow as
 #: (m K)^(p-1))
 REACH_NODES = {1: 64, 2: 32, 3: 12}
@@ -133,7 +133,7 @@ REACH_NODES_HIGH = 4
 #: reach margin: the most work of one pose's facet search, C(N, p-1) facet
 #: candidates times (N + p) for N generators in p output dimensions (the
 #: compiled search prunes most of it); beyond it r_T is not
-#: computed (NaN, with a NaN error estimate)
+#: computed (NaN, with a NaN error bound)
 REACH_MAX_FACET_WORK = 5e8
 #: a facet candidate whose normal is shorter than this times the product of
 #: its generators' lengths comes from dependent generators and is skipped

@@ -30,7 +30,7 @@ from cdpm.numerics import ZONOTOPE_BOUND_RTOL
 
 EPS = float(np.finfo(np.float64).eps)
 
-__all__ = ["facet_inradii"]
+__all__ = ["facet_inradii", "facet_inradii_normals"]
 
 
 @kernel
@@ -168,10 +168,11 @@ def _circle_above(G, a, runs, c, bound):  # pragma: no cover - compiled
 
 
 @kernel
-def _inradius3(G, norms, runs, exact, c, normal_rtol, slack):  # pragma: no cover - compiled
+def _inradius3(G, norms, runs, exact, c, normal_rtol, slack, best_normal):  # pragma: no cover
     """The facet search in R^3 (pairs of generators), with the run bound,
     an upper bound from the runs' own facets and the circles it shuts when
-    ``runs`` is not ``exact``."""
+    ``runs`` is not ``exact``; leaves the least candidate's unit normal in
+    ``best_normal`` (untouched if there is none)."""
     N = G.shape[0]
     grouped = runs.shape[0] < N
     ceiling = _upper_bound(runs, exact, c, slack) if grouped else np.inf
@@ -202,17 +203,19 @@ def _inradius3(G, norms, runs, exact, c, normal_rtol, slack):  # pragma: no cove
                 return np.nan
             if spread < best:
                 best = spread
+                best_normal[:] = n
     return best
 
 
 @kernel
-def _inradius2(G, norms, c, slack):  # pragma: no cover - compiled
+def _inradius2(G, norms, c, slack, best_normal):  # pragma: no cover - compiled
     """The facet search in R^2 by one sweep in angle: the candidates are
     the normals n_a of the generators; between two consecutive ones (in
     angle on [0, pi)) the signs of n . d_l are constant, so the sum
     ``S = sum_l sign(n . d_l) d_l`` is updated by one generator per
     candidate and ``h(n_a) = S . n_a``. The candidates within the sweep's
-    round-off (``slack``) of its least value are summed again exactly."""
+    round-off (``slack``) of its least value are summed again exactly; the
+    least one's unit normal is left in ``best_normal``."""
     N = G.shape[0]
     angle = np.empty(N)  # a key increasing with the angle of n_a
     normals = np.zeros((N, 2))
@@ -250,7 +253,9 @@ def _inradius2(G, norms, c, slack):  # pragma: no cover - compiled
             spread = _abs_sum(normals[a], G, np.inf, 2) - abs(
                 normals[a, 0] * c[0] + normals[a, 1] * c[1]
             )
-            best = min(best, spread)
+            if spread < best:
+                best = spread
+                best_normal[:] = normals[a]
     return best
 
 
@@ -305,7 +310,15 @@ def _search(G, norms, runs, exact, c, normal_rtol, ceiling, best_normal):  # pra
 @kernel
 def facet_inradii(D, center, normal_rtol, group):  # pragma: no cover - compiled
     """Least ``sum_l |n . d_l| - |n . c|`` over the unit normals n of the
-    hyperplanes spanned by p - 1 generators, per zonotope.
+    hyperplanes spanned by p - 1 generators, per zonotope: the first output
+    of :func:`facet_inradii_normals`, shape (k,)."""
+    return facet_inradii_normals(D, center, normal_rtol, group)[0]
+
+
+@kernel
+def facet_inradii_normals(D, center, normal_rtol, group):  # pragma: no cover - compiled
+    """Least ``sum_l |n . d_l| - |n . c|`` over the unit normals n of the
+    hyperplanes spanned by p - 1 generators, per zonotope, and that n.
 
     A candidate is first bounded from below with the sums of consecutive
     runs of ``group`` generators (``|n . sum d| <= sum |n . d|``, tight
@@ -320,11 +333,14 @@ def facet_inradii(D, center, normal_rtol, group):  # pragma: no cover - compiled
         group: run length of the lower bound (1: no bound; must divide N).
 
     Returns:
-        Shape (k,): the least value; +inf when no candidate is valid; NaN
-        when a value overflowed (NaN or inf arithmetic).
+        (values, normals): values shape (k,), the least value; +inf when no
+        candidate is valid; NaN when a value overflowed (NaN or inf
+        arithmetic). normals shape (k, p): the unit normal of the least
+        candidate (0 where there is none).
     """
     k, p, N = D.shape
     out = np.empty(k)
+    normals = np.zeros((k, p))
     n = np.empty(p)
     G = np.empty((N, p))
     norms = np.empty(N)
@@ -340,17 +356,19 @@ def facet_inradii(D, center, normal_rtol, group):  # pragma: no cover - compiled
             continue
         if p == 2:
             sweep = (8 * N * EPS + ZONOTOPE_BOUND_RTOL) * (norms.sum() + abs(c[0]) + abs(c[1]))
-            out[s] = _inradius2(G, norms, c, sweep)
+            out[s] = _inradius2(G, norms, c, sweep, normals[s])
             continue
         exact = _rows_longest_first(D, s, p, 1, N)  # the generators
         runs = _rows_longest_first(D, s, p, group, N // group)
         if p == 3:
-            out[s] = _inradius3(G, norms, runs, exact, c, normal_rtol, slack)
+            out[s] = _inradius3(G, norms, runs, exact, c, normal_rtol, slack, normals[s])
         else:
             ceiling = np.inf
             if p - 1 <= runs.shape[0] < N:  # the runs' least facet: an upper bound
                 lengths = np.array([_length(runs, g) for g in range(runs.shape[0])])
                 if _search(runs, lengths, runs, runs, c, normal_rtol, np.inf, n) < np.inf:
                     ceiling = _abs_sum(n, exact, np.inf, p) - abs((n * c).sum()) + slack
+            n[:] = 0.0
             out[s] = _search(G, norms, runs, exact, c, normal_rtol, ceiling, n)
-    return out
+            normals[s] = n
+    return out, normals

@@ -224,7 +224,7 @@ def reach_margins_at(
     Returns:
         :class:`cdpm.analysis.reach.ReachMargins` (value [the outputs' unit,
         :func:`reach_unit`],
-        error estimate, intervals), each (N,).
+        error bound, intervals), each (N,).
     """
     # scipy: loaded on first use
     from cdpm.analysis.reach import ReachMargins, reach_margins
@@ -244,4 +244,6 @@ def reach_margins_at(
         r = reach_margins(A[todo], B[todo], C[todo], lower[todo], upper[todo], settings.horizon)
         value[todo], error[todo], intervals[todo] = r.value, r.error, r.intervals
     zero = value < REACH_ZERO_RTOL * reach_scale(robot, settings)
+    # a value read as 0 widens its error bound by itself
+    error = np.where(zero & (value > 0), error + value, error)
     return ReachMargins(np.where(zero, 0.0, value), error, intervals)

@@ -198,7 +198,7 @@ def workspace_map(
 
     Returns:
         ``xarray.Dataset`` with dims the axis names (grid) or ``sample``, and
-        variables ``poc``, ``reach_margin`` [m] (and its error estimate
+        variables ``poc``, ``reach_margin`` [m] (and its error bound
         ``reach_margin_error``), ``output_controllable``,
         ``positive_controllable``, ``wrench_closure``, ``static_feasible``
         (int8 codes, see :data:`VERDICT_CODES`), ``tension_min``,

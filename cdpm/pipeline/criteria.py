@@ -422,10 +422,11 @@ register(
         "reach_margin_error",
         "float64",
         np.nan,
-        "estimated quadrature error of reach_margin",
+        "error bound of reach_margin: the true r_T lies in [reach_margin, reach_margin + this]",
         _reach_margin_error,
         units="m",
-        description="|r(K) - r(K/2)| of Simpson's rule on K and K/2 intervals; 0 where r_T "
+        description="bound of the gap between the piecewise-constant-input zonotope's "
+        "inradius and r_T, from the kinks of the support function's integrand; 0 where r_T "
         "is exact (A^2 = 0)",
         robot_attrs=_reach_attrs,
     )

@@ -125,8 +125,9 @@ class PoseReport(TextRepr):
 
     @property
     def reach_margin(self) -> tuple[float, float]:
-        """(r_T, its error estimate), in :attr:`reach_unit` (metres for
-        position outputs); NaN when not computed."""
+        """(r_T, its error bound), in :attr:`reach_unit` (metres for
+        position outputs): the true r_T lies in [r_T, r_T + error]; NaN when
+        not computed."""
         return (
             float(self.criteria.get("reach_margin", np.nan)),
             float(self.criteria.get("reach_margin_error", np.nan)),
@@ -137,7 +138,7 @@ class PoseReport(TextRepr):
             return []
         r, err = self.reach_margin
         names = ", ".join(self.linearisation.output_names) or "the outputs"
-        exact = "exact" if err == 0 else f"+- {err:.2g}, quadrature estimate"
+        exact = "exact" if err == 0 else f"a lower bound: at most {err:.2g} more"
         if not np.isfinite(r) and np.isnan(err):
             p, m = len(self.linearisation.output_names), len(self.linearisation.cable_names)
             return [

@@ -124,10 +124,10 @@ def best_tension_lines(best: BestTension) -> list[str]:
         int(best.poc_possible),
         f"{best.verdict.upper()}: none of the {best.n_candidates} tensions tried is POC",
     )
-    exact = "exact" if err == 0 else f"+- {err:.2g}"
+    exact = "exact" if err == 0 else f"at most {err:.2g} more"
     gain = r - best.default_margin
     if int(best.default_verdict) == YES and math.isfinite(gain) and 0 < gain <= err:
-        exact += "; its gain over the default is within this error estimate"
+        exact += "; its gain over the default is within this error bound"
     return [
         f"Best tension (objective {best.objective}): {what}",
         f"  default tension: {default}",

@@ -63,7 +63,8 @@ class BestTension(TextRepr):
         linearisation: ``cdpm.linearise(robot, q, tension=tension)``.
         poc: ``cdpm.positive_output_controllability`` of that
             linearisation (with its input cone): the certificate.
-        reach_margin: r_T at ``tension`` [m], and its quadrature error [m].
+        reach_margin: r_T at ``tension`` [m], and its error bound [m] (the
+            true r_T is at most that more).
         found_by: which candidate it is (``"relative interior point"``, ...).
         default_tension: the default tension [N] (the spec's method), (m,),
             NaN when that method finds no equilibrium here.

@@ -161,7 +161,7 @@ class BestTensionBatch:
         tension: the chosen tension [N], shape (N, m) (NaN without one).
         reach_margin: its r_T [output units, m], shape (N,) (NaN without one,
             or not resolvable within the horizon).
-        reach_margin_error: the quadrature error estimate of r_T, (N,).
+        reach_margin_error: the error bound of r_T, (N,): the true value is at most this more.
         found_by: how each chosen tension was found (``"default tension"``,
             ``"relative interior point"``, ``"greatest c1"``, ...).
         default_tension: the default tension [N] (the spec's method), (N, m)
