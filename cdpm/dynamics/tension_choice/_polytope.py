@@ -9,7 +9,9 @@ are solved once, by an SVD of L^T: ``f = f0 + N z`` with ``f0`` the
 least-norm solution and ``N`` (m, d) an orthonormal basis of the null
 space of L^T, d = m - rank. Every LP here then runs over z with the
 bounds as inequalities, so each of its solutions meets the statics to
-round-off, whatever the LP solver's tolerances. LPs are scipy's HiGHS.
+round-off (or, for cables the null space barely moves, within the
+equilibrium solver's statics tolerance: :func:`lp_null_space`), whatever
+the LP solver's tolerances. LPs are scipy's HiGHS.
 """
 
 from __future__ import annotations
@@ -20,7 +22,13 @@ import numpy as np
 
 from cdpm.dynamics.equilibrium.statics import holds, statics_tolerance
 from cdpm.errors import CdpmError
-from cdpm.numerics import STATICS_RANK_RTOL, TENSION_LP_RTOL, TENSION_LP_TOL, TENSION_RANGE_RTOL
+from cdpm.numerics import (
+    STATICS_RANK_RTOL,
+    STATICS_RTOL,
+    TENSION_LP_RTOL,
+    TENSION_LP_TOL,
+    TENSION_RANGE_RTOL,
+)
 
 __all__ = ["Polytope", "LPFailure", "polytope", "solve_lp", "polish"]
 
@@ -126,7 +134,7 @@ def solve_lp(
     from scipy.optimize import linprog
 
     upper = P.upper if upper is None else upper
-    N, f0 = P.null_space, P.f0
+    N, f0 = lp_null_space(P), P.f0
     m, d = N.shape
     with_s = cost.shape[0] == m + 1
     rows, rhs = [], []
@@ -160,7 +168,30 @@ def solve_lp(
     if res.status != 0 or res.x is None:
         raise LPFailure(f"the tension LP stopped: {res.message}")
     z = res.x[:d]
-    return "optimal", P.tension(z), float(res.x[d]) if with_s else np.nan
+    return "optimal", f0 + N @ z, float(res.x[d]) if with_s else np.nan
+
+
+def lp_null_space(P: Polytope) -> np.ndarray:
+    """The null space the LPs run over, shape (m, d): ``P.null_space``
+    with the rows of the cables it moves by at most STATICS_RTOL per newton
+    of internal force set to zero.
+
+    Such a cable is fixed at its least-norm tension f0_i by the statics rule
+    of the equilibrium solver (:func:`cdpm.dynamics.equilibrium.statics.holds`):
+    moving it along the null space changes ``L^T f`` by about STATICS_RTOL
+    |L^T| |f - f0|, within the statics tolerance (and :func:`polish` checks
+    every tension the LPs give with that rule). So the LPs judge
+    feasibility by the same rule as the solver. Left in, such a row is
+    below HiGHS's smallest matrix entry (1e-9): HiGHS drops it, and with it
+    the cable's bounds, and calls a pose where two cables are opposed to
+    within 1e-9 rad infeasible (a least-tension LP "unbounded") although
+    zero tension holds it.
+    """
+    N = P.null_space
+    if N.size == 0:
+        return N
+    fixed = np.abs(N).max(axis=1) <= STATICS_RTOL
+    return np.where(fixed[:, None], 0.0, N) if fixed.any() else N
 
 
 def polish(P: Polytope, f: np.ndarray, upper: np.ndarray) -> np.ndarray | None:
