@@ -367,3 +367,13 @@ TENSION_RANGE_RTOL = 1e-8
 #: this many reach tension budgets F (the robot's weight, or its mass times
 #: 1 m/s^2), or the largest finite maximum tension of a cable if larger
 TENSION_CAP_BUDGETS = 10.0
+
+# --------------------------------------------------------------------------
+# model size (cdpm.model.robot)
+
+#: most degrees of freedom (velocity coordinates nv: one per revolute or
+#: prismatic joint, 6 per free flyer) of a model cdpm loads. Pinocchio's
+#: data for a model takes about 64 nv^3 bytes (0.5 GB at 200, 64 GB at
+#: 1,000 joints), a robot keeps one per thread and a map's worker processes
+#: one each; a model with more is refused at load, before any is created
+MAX_MODEL_DOF = 200

@@ -159,10 +159,11 @@ def _reach_margins(A, B, C, lower, upper, horizon, weight) -> ReachMargins:
         value[lost], error[lost] = np.nan, np.inf
         rest = rest[growth <= math.log(REACH_GROWTH_MAX)]
     if rest.size:
-        K = reach_nodes(p)
-        if facet_work(K * m, p) > REACH_MAX_FACET_WORK:
-            # too many facet candidates to enumerate (the set of them alone
-            # would not fit in memory): not computed
+        K = fitting_intervals(m, p)
+        if K == 0:
+            # too many facet candidates to enumerate even on the fewest
+            # intervals (the set of them alone would not fit in memory):
+            # not computed
             value[rest], error[rest], intervals[rest] = np.nan, np.nan, 0
             rest = rest[:0]
     if rest.size:
@@ -187,6 +188,18 @@ def reach_margin(A, B, C, lower, upper, horizon: float, weight=None) -> tuple[fl
         A[None], B[None], C[None], np.asarray(lower)[None], np.asarray(upper)[None], horizon, weight
     )
     return float(r.value[0]), float(r.error[0])
+
+
+def fitting_intervals(m: int, p: int) -> int:
+    """Time intervals K for m inputs and p outputs: :func:`reach_nodes`,
+    or fewer (a multiple of 4, at least REACH_NODES_HIGH) where the facet
+    search of m K generators would exceed REACH_MAX_FACET_WORK (many
+    cables: a looser but still valid bracket, a larger error bound); 0
+    where even the fewest do not fit (r_T not computed)."""
+    for K in range(reach_nodes(p), REACH_NODES_HIGH - 1, -4):
+        if facet_work(K * m, p) <= REACH_MAX_FACET_WORK:
+            return K
+    return 0
 
 
 def _quadrature(A, B, Cw, mid, half, T: float, K: int):

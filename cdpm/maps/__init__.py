@@ -13,6 +13,7 @@ from __future__ import annotations
 import multiprocessing
 import os
 import sys
+import warnings
 from collections.abc import Callable, Mapping
 from contextlib import nullcontext
 from typing import TYPE_CHECKING, Any
@@ -36,7 +37,7 @@ from cdpm.maps._store import (
     open_map,
     store_path_problem,
 )
-from cdpm.maps._workers import RobotSource, prestart_workers
+from cdpm.maps._workers import RobotSource, prestart_workers, unimportable_main
 from cdpm.maps.plan import (
     DEFAULT_CHUNK_SIZE,
     IN_MEMORY_MAX,
@@ -298,6 +299,9 @@ def workspace_map(
         workers = default_workers()
     if not is_integer(workers) or workers < 1:
         raise InputError(f"workers must be a positive integer, got {workers!r}")
+    if scheduler is None and workers > 1 and (why := unimportable_main()) is not None:
+        warnings.warn(f"workspace_map runs with workers=1, not {workers}: {why}", stacklevel=2)
+        workers = 1
     if scheduler is None and workers > 1:
         # their start-up overlaps the store's creation
         prestart_workers(kernels=loaded)

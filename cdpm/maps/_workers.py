@@ -24,6 +24,7 @@ import json
 import multiprocessing
 import os
 import signal
+import sys
 import tempfile
 import threading
 import time
@@ -44,6 +45,7 @@ __all__ = [
     "RobotSource",
     "compute_chunk",
     "prestart_workers",
+    "unimportable_main",
     "run_processes",
     "EVALUATION_MODULES",
 ]
@@ -278,6 +280,28 @@ def _start_fork_server(ctx) -> threading.Thread | None:
         thread.start()
         _FORK_SERVER["thread"] = thread
     return thread
+
+
+def unimportable_main() -> str | None:
+    """Why worker processes could not start here, or None.
+
+    Local workers start like Python's ``spawn``: each first runs the main
+    module again from its file (``__main__.__file__``). A script piped on
+    stdin (``python - < script``) has the file name ``<stdin>``, which does
+    not exist, so every worker would stop before computing anything.
+    (``python -c`` and an interactive session have no file: their workers
+    skip this step and start.)
+    """
+    main = sys.modules.get("__main__")
+    if main is None or getattr(main, "__spec__", None) is not None:
+        return None  # python -m: workers import it by name
+    path = getattr(main, "__file__", None)
+    if path is None or os.path.isfile(path):
+        return None
+    return (
+        f"the main script {path!r} is not a file that worker processes can run "
+        "(a script on stdin?); save it to a file to use several workers"
+    )
 
 
 def prestart_workers(kernels: bool = True) -> None:

@@ -42,7 +42,7 @@ from cdpm.model.spec import (
     load_spec,
     usable_path,
 )
-from cdpm.numerics import MIN_SEGMENT_LENGTH
+from cdpm.numerics import MAX_MODEL_DOF, MIN_SEGMENT_LENGTH
 
 __all__ = ["CableRobot", "CableKinematics", "BatchKinematics", "load_robot", "spec_in_folder"]
 
@@ -89,6 +89,7 @@ class CableRobot:
 
         self.spec = spec
         self.model = spec.model
+        self._check_size()
         self._dyn_data = self.model.createData()
         self.nq = int(self.model.nq)
         self.nv = int(self.model.nv)
@@ -158,6 +159,20 @@ class CableRobot:
         self._last_batch: BatchKinematics | None = None  # its batch-of-one arrays
 
     # ------------------------------------------------------------------ setup
+
+    def _check_size(self) -> None:
+        """Refuse models with more than MAX_MODEL_DOF degrees of freedom
+        before Pinocchio's data for them (about 64 nv^3 bytes) is created."""
+        model = self.model
+        if model.nv > MAX_MODEL_DOF:
+            joints = sum(1 for j in range(1, model.njoints) if model.joints[j].nv > 0)
+            raise ModelError(
+                f"{self.spec.path.name}: the model has {joints:,} moving joints with "
+                f"{model.nv:,} degrees of freedom, more than the {MAX_MODEL_DOF} cdpm "
+                f"analyses (its dynamics would need about {64 * model.nv**3 / 1e9:.0f} GB of "
+                'memory); fix the joints that should not move as type="fixed" in the URDF, '
+                "or model fewer links"
+            )
 
     def _check_magnitudes(self) -> None:
         """Refuse models whose masses, inertias or lengths are outside the
