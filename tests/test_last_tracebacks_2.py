@@ -194,3 +194,13 @@ def test_the_degree_of_freedom_limit_is_exact(tmp_path):
     with pytest.raises(ModelError, match=f"{MAX_MODEL_DOF + 1} degrees of freedom"):
         cdpm.load_robot(_chain(tmp_path, MAX_MODEL_DOF + 1))
     assert cdpm.load_robot(_chain(tmp_path, 20)).nv == 20
+
+
+def test_a_criterion_not_computed_prints_so_not_nan_with_a_unit():
+    """A map criterion left at its NaN fill (a margin too large to search,
+    a pose not analysed) reads "not computed", never "nan m"."""
+    from cdpm.text.format import criteria_lines
+
+    lines = criteria_lines({"reach_margin": np.nan, "reach_margin_error": 0.5})
+    assert lines[0].split(":", 1)[1].strip() == "not computed (NaN)"
+    assert lines[1].split(":", 1)[1].strip() == "0.5 m"

@@ -96,9 +96,11 @@ def criteria_lines(
                 scale = max(scale, length_scale)
             if arr.ndim:
                 text = np.array2string(round_to_scale(arr, scale), precision=6, suppress_small=True)
+            elif np.isnan(arr):
+                text = "not computed (NaN)"  # a map's fill: no value, so no unit
             else:
                 text = f"{float(arr):.6g}"
-            if units not in (None, "1"):
+            if units not in (None, "1") and not (arr.ndim == 0 and np.isnan(arr)):
                 text += f" {units}"
         lines.append(f"{name + ':':<24}{text}")
     return lines
