@@ -246,10 +246,23 @@ def state_samples(A: np.ndarray, Bw: np.ndarray, T: np.ndarray, points: int) -> 
     Returns:
         X, shape (k, n, points * m), column ``k * m + j`` = x_j(t_k).
     """
-    k, n, m = Bw.shape
     E = expm_batch(A * (T / (points - 1))[:, None, None])
+    return stepped_samples(E, Bw, points)
+
+
+def stepped_samples(E: np.ndarray, B: np.ndarray, points: int) -> np.ndarray:
+    """``E^i b_j`` for i < points (``e^{A t_i} b_j`` at ``t_i = i h`` when
+    ``E = e^{A h}``), by doubling (``X <- [X, E X]``, ``E <- E^2``).
+
+    Args:
+        E: (k, n, n); B: (k, n, m); points: how many powers (>= 1).
+
+    Returns:
+        X, shape (k, n, points * m), column ``i * m + j`` = E^i b_j.
+    """
+    k, n, m = B.shape
     X = np.empty((k, n, points * m))
-    X[:, :, :m] = Bw
+    X[:, :, :m] = B
     done = m
     while done < X.shape[2]:
         step = min(done, X.shape[2] - done)

@@ -44,6 +44,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from cdpm.analysis._common import expm_batch, spectral_abscissae, square_zero
+from cdpm.analysis.margin import stepped_samples
 from cdpm.numerics import (
     REACH_GROWTH_MAX,
     REACH_MAX_FACET_WORK,
@@ -221,7 +222,7 @@ def _quadrature(A, B, Cw, mid, half, T: float, K: int):
     aug[:, :n, :n] = A * tau
     aug[:, :n, n:] = tau * np.eye(n)
     E_Phi = expm_batch(aug)
-    X = _nodes(E_Phi[:, :n, :n], B, K + 1)  # (k, n, (K+1) m): e^{A t_i} b_j
+    X = stepped_samples(E_Phi[:, :n, :n], B, K + 1)  # (k, n, (K+1) m): e^{A t_i} b_j
     # G[:, :, i, j] = int_{t_i}^{t_i+1} W C e^{A t} b_j dt = W C Phi e^{A t_i} b_j
     G = ((Cw @ E_Phi[:, :n, n:]) @ X[:, :, : K * m]).reshape(k, p, K, m)
     # summed per system in the same order whatever k (einsum's order
@@ -244,23 +245,6 @@ def _quadrature(A, B, Cw, mid, half, T: float, K: int):
     error = upper - value + ZONOTOPE_BOUND_RTOL * (size + shift)  # round-off of the sums
     bad = ~(np.isfinite(inner) & np.isfinite(error))  # overflow: not resolvable
     return np.where(bad, np.nan, value), np.where(bad, np.inf, error)
-
-
-def _nodes(E, B, points: int) -> np.ndarray:
-    """``e^{A t_i} b_j`` at ``t_i = i h``, i < points, from ``E = e^{A h}``
-    by doubling (``X <- [X, E X]``, ``E <- E^2``); shape (k, n, points m),
-    column ``i m + j``."""
-    k, n, m = B.shape
-    X = np.empty((k, n, points * m))
-    X[:, :, :m] = B
-    done = m
-    while done < X.shape[2]:
-        step = min(done, X.shape[2] - done)
-        np.matmul(E, X[:, :, :step], out=X[:, :, done : done + step])
-        done += step
-        if done < X.shape[2]:
-            E = E @ E
-    return X
 
 
 def _inradii_and_directions(D, center, group: int):
