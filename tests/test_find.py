@@ -12,7 +12,7 @@ import pytest
 
 import cdpm
 from cdpm.cli import main
-from cdpm.cli.find import coordinate_ranges
+from cdpm.model.coordinates import default_ranges
 from tests.conftest import MODELS, caspr_models
 
 VERTICAL = MODELS / "two_link_vertical" / "two_link_vertical.yaml"
@@ -145,12 +145,14 @@ def test_find_input_errors_name_the_option(argv, message, capsys):
 
 def test_coordinate_ranges_of_the_shipped_models():
     vertical = cdpm.load_robot(VERTICAL)
-    low, high, limited = coordinate_ranges(vertical)
+    r = default_ranges(vertical)
+    low, high, limited = r.low, r.high, r.limited
     np.testing.assert_allclose(low, [-np.pi, -np.pi]) and np.testing.assert_allclose(high, np.pi)
     assert limited.all()
     # a free flyer: x, y, z within the anchors' box, angles a turn (pitch half)
     spatial = cdpm.load_robot(MODELS / "spatial_8cable")
-    low, high, limited = coordinate_ranges(spatial)
+    r = default_ranges(spatial)
+    low, high, limited = r.low, r.high, r.limited
     anchors = np.array([c.route[0].point_in_frame for c in spatial.spec.cables])
     np.testing.assert_allclose(low[:3], anchors.min(axis=0))
     np.testing.assert_allclose(high[:3], anchors.max(axis=0))

@@ -118,18 +118,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 # the options as the search's inputs (cdpm.regions.search does the search)
 
 
-def coordinate_ranges(robot: CableRobot) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Where each natural coordinate is drawn by default: (low, high,
-    limited), each (nv,), writable copies. The rule is
-    :func:`cdpm.model.coordinates.default_ranges`; this is its old form,
-    kept for callers of this module."""
-    # loaded when the command runs (cdpm --help stays fast)
-    from cdpm.model.coordinates import default_ranges
-
-    ranges = default_ranges(robot)
-    return ranges.low.copy(), ranges.high.copy(), ranges.limited.copy()
-
-
 def _box_from_args(robot: CableRobot, args: argparse.Namespace) -> SearchBox:
     """The box poses are drawn from (:func:`cdpm.regions.search.search_box`)
     of --range, --near and --radius, each checked with a message naming it."""
