@@ -151,13 +151,17 @@ def strict(value: Any) -> Any:
     """``value`` as plain Python (:func:`to_plain`) with every non-finite
     float (NaN, inf) replaced by None, through dicts, lists and tuples:
     JSON has no NaN."""
-    value = to_plain(value)
+    return _finite_or_none(to_plain(value))
+
+
+def _finite_or_none(value: Any) -> Any:
+    """Plain data (:func:`to_plain`'s) with NaN and inf as None."""
     if isinstance(value, float):
         return value if math.isfinite(value) else None
     if isinstance(value, dict):
-        return {k: strict(v) for k, v in value.items()}
+        return {k: _finite_or_none(v) for k, v in value.items()}
     if isinstance(value, list):
-        return [strict(v) for v in value]
+        return [_finite_or_none(v) for v in value]
     return value
 
 
