@@ -86,6 +86,8 @@ def criteria_lines(
         if c is not None and c.flags is not None:
             names = {code: key for key, code in c.flags.items()}
             text = f"{names.get(int(value), str(value))} ({int(value)})"
+        elif c is not None and _is_nan(c.fill) and _all_fill(value, c.fill):
+            text = "not computed (NaN)"  # the map's fill: no value, so no unit
         elif c is not None and c.dims == ("output",) and len(output_names) == np.size(value):
             per_output = attrs.get("output_units") or [units] * len(output_names)
             text = values_with_units(output_names, value, per_output, length_scale)
@@ -96,20 +98,22 @@ def criteria_lines(
                 scale = max(scale, length_scale)
             if arr.ndim:
                 text = np.array2string(round_to_scale(arr, scale), precision=6, suppress_small=True)
-            elif np.isnan(arr):
-                text = "not computed (NaN)"  # a map's fill: no value, so no unit
             else:
                 text = f"{float(arr):.6g}"
-            if units not in (None, "1") and not (arr.ndim == 0 and np.isnan(arr)):
+            if units not in (None, "1"):
                 text += f" {units}"
         lines.append(f"{name + ':':<24}{text}")
     return lines
 
 
+def _is_nan(fill) -> bool:
+    return isinstance(fill, float) and math.isnan(fill)
+
+
 def _all_fill(value, fill) -> bool:
     """Every entry of ``value`` is the criterion's fill value (NaN counts)."""
     arr = np.asarray(value)
-    if isinstance(fill, float) and np.isnan(fill):
+    if _is_nan(fill):
         return bool(np.all(np.isnan(arr.astype(float))))
     return bool(np.all(arr == fill))
 
