@@ -16,7 +16,7 @@ import sys
 import warnings
 from collections.abc import Callable, Mapping
 from contextlib import nullcontext
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 from numpy import bool_
@@ -60,9 +60,6 @@ from cdpm.pipeline.evaluate import (
     resolve_tension,
     zero_equilibrium,
 )
-
-if TYPE_CHECKING:  # pragma: no cover
-    from cdpm.model.robot import CableRobot
 
 __all__ = [
     "workspace_map",

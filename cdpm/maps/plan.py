@@ -13,7 +13,7 @@ import hashlib
 import json
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
@@ -31,9 +31,6 @@ from cdpm.model.robot import CableRobot
 from cdpm.model.spec import tension_bound_problems
 from cdpm.numerics import MAX_EXTERNAL_LOAD, MAX_GRAVITY, SPAN_TOL
 from cdpm.pipeline.criteria import CRITERIA
-
-if TYPE_CHECKING:  # pragma: no cover
-    from cdpm.model.robot import CableRobot
 
 __all__ = [
     "SampledAxes",

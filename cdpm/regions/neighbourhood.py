@@ -46,7 +46,6 @@ from cdpm.verdicts import NOT_ANALYSED, STATUS_CODES, STATUS_LABELS, VERDICT_COD
 
 if TYPE_CHECKING:  # pragma: no cover
     from cdpm.dynamics.reach import ReachSettings
-    from cdpm.model.robot import CableRobot
 
 __all__ = ["Neighbourhood", "SampledPose", "NonYesPose", "poc_neighbourhood"]
 

@@ -23,7 +23,7 @@ import math
 import os
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
@@ -35,10 +35,6 @@ from cdpm.model.robot import CableRobot, load_robot
 from cdpm.pipeline.evaluate import evaluate_poses, single_threaded_blas
 from cdpm.printing import TextRepr
 from cdpm.verdicts import STATUS_CODES, VERDICT_LABELS, YES
-
-if TYPE_CHECKING:  # pragma: no cover - for static type checkers only
-    from cdpm.dynamics.reach import ReachSettings
-    from cdpm.model.robot import CableRobot
 
 __all__ = [
     "SearchBox",
