@@ -106,8 +106,7 @@ def _scheduler_lost_errors() -> tuple[type[BaseException], ...]:
     """The exceptions a future's result raises when its scheduler is gone
     (looked up when a map runs on Dask: importing dask.distributed costs a
     third of a second, which local maps and their workers do not pay)."""
-    # asyncio: loaded on first use
-    # concurrent: loaded on first use
+    # asyncio, concurrent.futures: loaded on first use (a local map needs neither)
     import asyncio
     import concurrent.futures
 
