@@ -20,20 +20,25 @@ import math
 MIN_SEGMENT_LENGTH = 1e-9
 #: mass matrices whose condition number exceeds this are singular
 MASS_COND_MAX = 1e12
+#: a steering target past an output's range (the bound no pose goes past) by
+#: more than this times the output's scale (at least 1) is out of reach
+STEER_RANGE_RTOL = 1e-9
 
 # --------------------------------------------------------------------------
 # statics and the input cone
 
-#: statics hold when |L^T f + G + w_ext| <= STATICS_RTOL max(1 N, |G + w_ext|,
-#: |L| |f|); a tension within STATICS_RTOL max(1, |f|) [N] of a bound sits on it
+#: statics hold when |L^T f + G + w_ext| <= STATICS_RTOL max(|G + w_ext|,
+#: |L| max(F, |f|)), F the robot's force scale (its weight: no absolute newton,
+#: cdpm.model.robot.CableRobot.force_scale); a tension within STATICS_RTOL
+#: max(F, |f|) [N] of a bound sits on it
 STATICS_RTOL = 1e-9
-#: a given tension whose statics residual is below this times max(1 N, its
+#: a given tension whose statics residual is below this times max(|load|, its
 #: largest entry) fails the statics by round-off only (printed digits,
 #: float32); the refusal then says so
 ROUNDED_RESIDUAL_RTOL = 1e-5
 #: caller-given equilibrium tensions (cdpm.linearise, evaluate_poses, maps:
 #: :func:`cdpm.dynamics.equilibrium.checked_tensions`): an entry beyond its
-#: cable's bound by at most this times max(1 N, the largest |entry| of the
+#: cable's bound by at most this times max(F, the largest |entry| of the
 #: given tensions) is round-off and put on the bound; farther is an error.
 #: The statics cannot tell such tensions apart (their tolerance is
 #: STATICS_RTOL times |L| |f|), so this is STATICS_RTOL.
@@ -44,12 +49,13 @@ STATICS_RANK_RTOL = 1e-12
 #: the batched least-norm solver: residual (relative to the statics' scale)
 #: below which a pose is solved
 BATCH_STATICS_RTOL = 1e-11
-#: ... its Newton steps stop below this residual (relative to max(1, |load|))
+#: ... its Newton steps stop below this residual (relative to the pose's force
+#: scale max(|load|, |L|_F F), F the robot's force scale)
 BATCH_NEWTON_STOP_RTOL = 1e-13
 #: ... Newton steps at most, and halvings of its backtracking line search
 NEWTON_ITERATIONS = 25
 NEWTON_HALVINGS = 16
-#: the batched solver's Farkas gap (relative to max(1, |load|)) that proves
+#: the batched solver's Farkas gap (relative to the pose's force scale) that proves
 #: a pose has no equilibrium
 FARKAS_RTOL = 1e-6
 #: the batched solver's ridge on L^T L (relative to its trace) and its
@@ -153,6 +159,11 @@ REACH_ZERO_RTOL = 1e-12
 #: reach margin: the largest growth e^{Re(lambda) T} of a pose's modes
 #: within the horizon; beyond it r_T is not resolvable (NaN)
 REACH_GROWTH_MAX = 1e8
+#: reach margin: the model's default horizon is shortened so that the
+#: fastest-growing mode at the robot's reference pose grows by at most this
+#: within it (the square root of REACH_GROWTH_MAX: poses whose modes grow
+#: up to twice as fast resolve too)
+REACH_DEFAULT_GROWTH = 1e4
 #: default tension budget: the least characteristic acceleration [m/s^2]
 #: (the budget accelerates the robot's mass by max(|g|, this))
 REACH_MIN_ACCELERATION = 1.0
@@ -201,6 +212,11 @@ REGION_BASE_ATOL = 1e-6
 #: r(a) + r(b) <= SUSPECT_LIPSCHITZ_SAFETY * L * h, L the largest slope
 #: |r(x) - r(y)| / |x - y| over the sampled edges at a or b
 SUSPECT_LIPSCHITZ_SAFETY = 2.0
+#: POC neighbourhoods resample r_T at this many poses along each suspect
+#: edge (the nearest first, up to as many poses as the grid has) and judge
+#: the finer steps by the same rule: an edge whose finer steps all clear it
+#: is not suspect
+NEIGHBOURHOOD_REFINE_POINTS = 15
 
 # --------------------------------------------------------------------------
 # spec
@@ -223,6 +239,10 @@ CASPR_LIMIT_TOL = 1e-9
 CASPR_MOVING_OUTPUT_ATOL = 1e-9
 #: output Jacobian singular values <= this times max(1, largest) are zero (rank check)
 CASPR_OUTPUT_RANK_RTOL = 1e-9
+#: a body moves with a singular mass matrix's null motion when its angular
+#: speed [rad/s], or its centre of mass's speed over the robot's size, exceeds
+#: this times the largest of them (the motion of unit norm)
+CASPR_NULL_MOTION_RTOL = 1e-6
 
 # --------------------------------------------------------------------------
 # analysis (inline thresholds)
@@ -355,13 +375,16 @@ RECHECK_MODAL_RANK_RTOL = 1e-8
 # --------------------------------------------------------------------------
 # choosing the tension (cdpm.dynamics.tension_choice)
 
-#: primal and dual feasibility tolerance of the tension LPs (HiGHS) [N]
+#: primal and dual feasibility tolerance of the tension LPs (HiGHS), relative to
+#: the pose's tension scale (max(F, the largest finite |bound|, the least-norm
+#: tension), F the robot's force scale): the LPs solve in its units
 TENSION_LP_TOL = 1e-9
-#: ... or this times the LP's largest right-hand side [N] when that is more
+#: ... or this times the LP's largest right-hand side (same units) when that is more
 TENSION_LP_RTOL = 1e-13
-#: a least or greatest feasible tension within this times max(1 N, the
-#: largest |bound| or tension of the pose) of a cable's bound is on it; a
-#: cable whose feasible range is shorter than that is fixed by the statics
+#: a least or greatest feasible tension within this times the pose's tension
+#: scale (max(F, the largest finite |bound|, the least-norm tension)) of a
+#: cable's bound is on it; a cable whose feasible range is shorter than that
+#: (relative to its greatest tension) is fixed by the statics
 TENSION_RANGE_RTOL = 1e-8
 #: default tension cap of cables without an upper bound in the tension search:
 #: this many reach tension budgets F (the robot's weight, or its mass times
@@ -377,3 +400,24 @@ TENSION_CAP_BUDGETS = 10.0
 #: 1,000 joints), a robot keeps one per thread and a map's worker processes
 #: one each; a model with more is refused at load, before any is created
 MAX_MODEL_DOF = 200
+
+# --------------------------------------------------------------------------
+# certified boxes (cdpm.certify)
+
+#: absolute error bound of numpy's float64 sin and cos [1] on the arguments
+#: cdpm certifies (|x| <= 1e5 rad): libm and numpy's SIMD versions are
+#: within 4 units in the last place; this allows 8 units of 1.0. Interval
+#: enclosures of sin and cos widen by it (cdpm.certify.interval)
+CERTIFY_SINCOS_ERROR = 8 * 2.0**-52
+#: certified boxes: a patch of directions is proven by a column whose angle
+#: margin (w . g_j over |w| |g_j|, lower bounds over the patch and the box)
+#: exceeds this [rad]: well above SPAN_TOL, within which the per-pose
+#: analyser calls a set on the boundary NO
+CERTIFY_ANGLE_MIN = 1e-6
+#: certified boxes: the most direction patches of one box's YES proof
+CERTIFY_MAX_PATCHES = 4096
+#: certified boxes: the Neumann bound |I - M X| of the mass matrix over a box
+#: (X the inverse of its midpoint) must stay below this
+CERTIFY_NEUMANN_MAX = 0.9
+#: certified boxes: candidate separators tried for a NO proof
+CERTIFY_SEPARATOR_CANDIDATES = 720

@@ -97,7 +97,7 @@ def test_best_tension_holds_the_pose_in_the_band(robot):
         f = best.tension
         assert np.all(f >= robot.tension_min)
         _, LT, load = pose_statics(robot, q)
-        assert holds(LT[None], load[None], f[None])[0]
+        assert holds(LT[None], load[None], f[None], robot.force_scale)[0]
 
 
 def test_analyze_best_tension_in_the_band(spec, capsys):

@@ -465,7 +465,9 @@ def test_batched_equilibria_equal_the_solver():
         for method, lower in (("min_norm", robot.tension_min), ("pretension", None)):
             if lower is None:
                 lower = np.maximum(robot.tension_min, robot.spec.pretension or 10.0)
-            f, solved, infeasible = min_norm_tensions(LT, load, lower, robot.tension_max)
+            f, solved, infeasible = min_norm_tensions(
+                LT, load, lower, robot.tension_max, robot.force_scale
+            )
             assert not (solved & infeasible).any()
             for i in np.flatnonzero(solved | infeasible):
                 eq = equilibrium_tension(robot, qs[i], method=method, pretension=float(lower.max()))

@@ -17,13 +17,17 @@ def test_one_joint_two_cables_known_answers():
     of 1 N has no tension (v = 1: v.load = 1 > max f1 - f2 = 0.8)."""
     LT = np.array([[[1.0, -1.0]]] * 2)
     load = np.array([[1.0], [-3.0]])
-    f, solved, infeasible = min_norm_tensions(LT, load, np.full(2, -np.inf), np.full(2, np.inf))
+    f, solved, infeasible = min_norm_tensions(
+        LT, load, np.full(2, -np.inf), np.full(2, np.inf), force=1.0
+    )
     np.testing.assert_allclose(f, [[0.5, -0.5], [-1.5, 1.5]], rtol=0, atol=1e-14)
     assert solved.tolist() == [True, True] and not infeasible.any()
-    f, solved, infeasible = min_norm_tensions(LT, load, np.zeros(2), np.full(2, np.inf))
+    f, solved, infeasible = min_norm_tensions(LT, load, np.zeros(2), np.full(2, np.inf), force=1.0)
     np.testing.assert_allclose(f, [[1.0, 0.0], [0.0, 3.0]], rtol=0, atol=1e-14)
     assert solved.tolist() == [True, True] and not infeasible.any()
-    f, solved, infeasible = min_norm_tensions(LT, load, np.zeros(2), np.array([0.8, np.inf]))
+    f, solved, infeasible = min_norm_tensions(
+        LT, load, np.zeros(2), np.array([0.8, np.inf]), force=1.0
+    )
     assert solved.tolist() == [False, True]
     assert infeasible.tolist() == [True, False]
     np.testing.assert_allclose(f[1], [0.0, 3.0], rtol=0, atol=1e-14)
@@ -34,7 +38,9 @@ def test_interior_optimum_is_the_pseudo_inverse():
     rng = np.random.default_rng(4)
     LT = rng.normal(size=(50, 3, 7))
     load = rng.normal(size=(50, 3))
-    f, solved, infeasible = min_norm_tensions(LT, load, np.full(7, -1e6), np.full(7, 1e6))
+    f, solved, infeasible = min_norm_tensions(
+        LT, load, np.full(7, -1e6), np.full(7, 1e6), force=1.0
+    )
     lam = np.linalg.solve(LT @ np.swapaxes(LT, 1, 2), load[..., None])
     expected = (np.swapaxes(LT, 1, 2) @ lam)[..., 0]
     assert solved.all() and not infeasible.any()
@@ -58,13 +64,13 @@ def test_decided_poses_agree_with_the_qp(nv, m):
     upper = np.where(rng.uniform(size=m) < 0.5, np.inf, lower + rng.uniform(1.0, 5.0, m))
     # loads of tensions partly outside the bounds: some held, some not
     load = (LT @ rng.uniform(-SPREAD[m], 3.0, (k, m, 1)))[..., 0]
-    f, solved, infeasible = min_norm_tensions(LT, load, lower, upper)
+    f, solved, infeasible = min_norm_tensions(LT, load, lower, upper, force=1.0)
     assert not (solved & infeasible).any()
     assert solved.sum() >= 0.09 * k and infeasible.sum() >= 0.09 * k
     assert (solved | infeasible).sum() >= 0.8 * k
     assert np.all(f[solved] >= lower) and np.all(f[solved] <= upper)
     for i in np.flatnonzero(solved | infeasible):
-        x, _ = min_norm_in_bounds(LT[i], load[i], lower, upper)
+        x, _ = min_norm_in_bounds(LT[i], load[i], lower, upper, force=1.0)
         if solved[i]:
             np.testing.assert_allclose(f[i], x, rtol=1e-8, atol=1e-8)
             np.testing.assert_allclose(LT[i] @ f[i], load[i], rtol=0, atol=1e-9)
@@ -80,11 +86,11 @@ def test_a_pose_does_not_depend_on_its_batch():
     LT = np.swapaxes(L, 1, 2)  # not C-contiguous
     load = rng.normal(scale=2.0, size=(40, 6))
     lower, upper = np.full(8, 0.5), np.full(8, 20.0)
-    f, solved, infeasible = min_norm_tensions(LT, load, lower, upper)
+    f, solved, infeasible = min_norm_tensions(LT, load, lower, upper, force=1.0)
     assert solved.any() and infeasible.any()
     for i in range(40):
         fi, si, ii = min_norm_tensions(
-            np.ascontiguousarray(LT[i : i + 1]), load[i : i + 1], lower, upper
+            np.ascontiguousarray(LT[i : i + 1]), load[i : i + 1], lower, upper, force=1.0
         )
         np.testing.assert_array_equal(fi[0], f[i])
         assert (si[0], ii[0]) == (solved[i], infeasible[i])
@@ -94,11 +100,11 @@ def test_empty_batch_and_undecidable_poses():
     """No poses: empty results. A NaN load is neither solved nor proved
     infeasible (left to the per-pose solver), without an exception."""
     f, solved, infeasible = min_norm_tensions(
-        np.zeros((0, 2, 3)), np.zeros((0, 2)), np.zeros(3), np.ones(3)
+        np.zeros((0, 2, 3)), np.zeros((0, 2)), np.zeros(3), np.ones(3), force=1.0
     )
     assert f.shape == (0, 3) and solved.shape == infeasible.shape == (0,)
     LT = np.array([[[1.0, 0.0, -1.0], [0.0, 1.0, -1.0]]])
     f, solved, infeasible = min_norm_tensions(
-        LT, np.array([[np.nan, 1.0]]), np.zeros(3), np.full(3, np.inf)
+        LT, np.array([[np.nan, 1.0]]), np.zeros(3), np.full(3, np.inf), force=1.0
     )
     assert not solved[0] and not infeasible[0]

@@ -4,7 +4,8 @@
 ``cdpm.check_equilibrium`` take tensions [N] from the caller. They judge
 them alike (:func:`cdpm.dynamics.equilibrium.checked_tensions`): a tension
 beyond its cable's bound by at most GIVEN_TENSION_BOUND_RTOL times
-max(1 N, the largest given tension) is round-off and sits on the bound;
+max(F, the largest given tension) is round-off (F the robot's force
+scale, its weight) and sits on the bound;
 farther beyond, non-finite entries and wrong lengths are InputErrors with
 the same message on every path, and accepted tensions give the same
 verdicts on every path.
@@ -33,8 +34,9 @@ def test_tolerance_is_the_pinned_one():
     assert GIVEN_TENSION_BOUND_RTOL == RTOL
 
 
-def _tol(f) -> float:
-    return RTOL * max(1.0, float(np.max(np.abs(f))))
+def _tol(f, force: float) -> float:
+    """The rule's tolerance [N] for tensions f of a robot of force scale ``force``."""
+    return RTOL * max(force, float(np.max(np.abs(f))))
 
 
 def _with(f, **entries):
@@ -66,10 +68,10 @@ def capped():
     return robot, "elbow_up", f0
 
 
-def _cases(f0, lower_cable: str, upper_cable: str | None):
+def _cases(f0, lower_cable: str, upper_cable: str | None, force: float = 1.0):
     """(id, tension, expected): expected is the tension accepted (clipped
     onto the bounds) or the regex of the InputError."""
-    tol = _tol(f0)
+    tol = _tol(f0, force)
     lo = int(lower_cable[1:]) - 1
     cases = [
         ("as_given", f0, f0),
@@ -138,7 +140,8 @@ CAPPED_CASES = [c[0] for c in _cases(np.ones(4), "c2", "c1")]
 def _case(robot_case, case_id):
     robot, pose, f0 = robot_case
     loaded = bool(f0.any())
-    cases = {c[0]: c[1:] for c in _cases(f0, "c2" if loaded else "c1", "c1" if loaded else None)}
+    lower_cable, upper_cable = ("c2", "c1") if loaded else ("c1", None)
+    cases = {c[0]: c[1:] for c in _cases(f0, lower_cable, upper_cable, robot.force_scale)}
     if case_id == "round_off_everywhere":
         cases[case_id] = (robot.tension_min - 1e-10, robot.tension_min.copy())
     elif case_id == "round_off_everywhere_outside":
@@ -246,10 +249,13 @@ def test_rule_in_one_home(capped):
     from cdpm.dynamics.equilibrium import checked_tensions, onto_bounds, tension_bound_tolerance
 
     robot, _, f0 = capped
-    assert tension_bound_tolerance(f0) == pytest.approx(RTOL * f0[0], rel=1e-15)
-    assert tension_bound_tolerance(np.zeros(4)) == RTOL  # the 1 N floor
-    f = _with(f0, c1=f0[0] + 0.5 * _tol(f0), c2=-0.5 * _tol(f0))
-    clipped, beyond = onto_bounds(f, robot.tension_min, robot.tension_max)
+    F = robot.force_scale
+    assert tension_bound_tolerance(f0, F) == pytest.approx(RTOL * max(F, f0[0]), rel=1e-15)
+    # no absolute newton: the floor is the robot's force scale (its weight)
+    assert tension_bound_tolerance(np.zeros(4), F) == RTOL * F
+    assert F == pytest.approx(robot.mass * 9.81)
+    f = _with(f0, c1=f0[0] + 0.5 * _tol(f0, F), c2=-0.5 * _tol(f0, F))
+    clipped, beyond = onto_bounds(f, robot.tension_min, robot.tension_max, F)
     np.testing.assert_array_equal(clipped, f0)
     assert not beyond.any()
     np.testing.assert_array_equal(checked_tensions(robot, f), f0)

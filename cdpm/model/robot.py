@@ -42,7 +42,7 @@ from cdpm.model.spec import (
     load_spec,
     usable_path,
 )
-from cdpm.numerics import MAX_MODEL_DOF, MIN_SEGMENT_LENGTH
+from cdpm.numerics import MAX_MODEL_DOF, MIN_SEGMENT_LENGTH, REACH_MIN_ACCELERATION
 
 __all__ = ["CableRobot", "CableKinematics", "BatchKinematics", "load_robot", "spec_in_folder"]
 
@@ -219,6 +219,25 @@ class CableRobot:
         """Total mass of the links [kg] (0 for a massless model)."""
         model = self.model
         return float(sum(model.inertias[i].mass for i in range(1, model.njoints)))
+
+    @functools.cached_property
+    def force_scale(self) -> float:
+        """The robot's own force scale [N]: its weight, or its mass times
+        REACH_MIN_ACCELERATION (1 m/s^2) under weaker gravity; 1 N for a
+        massless model.
+
+        The statics are judged relative to it, never to an absolute newton:
+        a residual or a tension is round-off when it is below a relative
+        tolerance of the tensions this force scale (or larger given
+        tensions, or a larger load) produces through L^T
+        (:func:`cdpm.dynamics.equilibrium.statics.statics_tolerance`). So
+        scaling every mass (with bounds [0, inf)) or every length of a robot
+        changes no verdict. It is also the default tension budget of the
+        reach margin."""
+        mass = self.mass
+        if not mass > 0:
+            return 1.0
+        return mass * max(float(np.linalg.norm(self.gravity)), REACH_MIN_ACCELERATION)
 
     @functools.cached_property
     def size(self) -> float:

@@ -177,28 +177,33 @@ def given_tensions(robot: CableRobot, tension: Any) -> np.ndarray:
     return f
 
 
-def tension_bound_tolerance(f: np.ndarray) -> float:
+def tension_bound_tolerance(f: np.ndarray, force: float) -> float:
     """How far [N] given tensions f (m,) may pass a cable's bound and still
-    be on it: GIVEN_TENSION_BOUND_RTOL max(1 N, max |f|), the round-off of
-    tensions at their scale (:data:`cdpm.numerics.GIVEN_TENSION_BOUND_RTOL`)."""
+    be on it: GIVEN_TENSION_BOUND_RTOL max(force, max |f|), the round-off of
+    tensions at their scale (:data:`cdpm.numerics.GIVEN_TENSION_BOUND_RTOL`;
+    ``force``: the robot's force scale [N],
+    :attr:`cdpm.model.robot.CableRobot.force_scale`)."""
     largest = float(np.max(np.abs(f), initial=0.0))
-    return GIVEN_TENSION_BOUND_RTOL * max(1.0, largest)
+    return GIVEN_TENSION_BOUND_RTOL * max(force, largest)
 
 
-def onto_bounds(f: np.ndarray, fmin: np.ndarray, fmax: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def onto_bounds(
+    f: np.ndarray, fmin: np.ndarray, fmax: np.ndarray, force: float
+) -> tuple[np.ndarray, np.ndarray]:
     """The one rule for given tensions at the cable bounds: an entry beyond
     its bound by at most :func:`tension_bound_tolerance` is on it.
 
     Args:
         f: finite tensions [N], shape (m,) (:func:`given_tensions`).
         fmin, fmax: the cable bounds [N], each (m,) (fmax may be inf).
+        force: the robot's force scale [N].
 
     Returns:
         (tensions, beyond): f with the entries within the tolerance of a
         bound put on it (a new array; entries beyond it are left as
         given), and the boolean mask (m,) of entries farther beyond.
     """
-    tol = tension_bound_tolerance(f)
+    tol = tension_bound_tolerance(f, force)
     beyond = (f < fmin - tol) | (f > fmax + tol)
     return np.where(beyond, f, np.clip(f, fmin, fmax)), beyond
 
@@ -234,13 +239,14 @@ def checked_tensions(robot: CableRobot, tension: Any) -> np.ndarray:
             bound and the fix).
     """
     f = given_tensions(robot, tension)
-    clipped, beyond = onto_bounds(f, robot.tension_min, robot.tension_max)
+    clipped, beyond = onto_bounds(f, robot.tension_min, robot.tension_max, robot.force_scale)
     if beyond.any():
         raise InputError(
             f"tension outside the cable bounds: {_beyond_text(robot, f, beyond)}; give tensions "
             "within the spec's tension_min/tension_max (a tension within "
-            f"{GIVEN_TENSION_BOUND_RTOL:g} x max(1 N, the largest tension) of a bound counts as "
-            f"on it) or a method name ({', '.join(EQUILIBRIUM_METHODS)})"
+            f"{GIVEN_TENSION_BOUND_RTOL:g} x max({robot.force_scale:.3g} N (the robot's force "
+            "scale), the largest tension) of a bound counts as on it) or a method name "
+            f"({', '.join(EQUILIBRIUM_METHODS)})"
         )
     return clipped
 
@@ -262,10 +268,13 @@ def equilibrium_tensions(
     if method is not None and not isinstance(method, str):
         # given tensions: round-off beyond a bound is on it (onto_bounds);
         # farther beyond, the batch is infeasible
-        f, _ = onto_bounds(given_tensions(robot, method), robot.tension_min, robot.tension_max)
-        return solve_equilibria(LT, load, robot.tension_min, robot.tension_max, f)
+        fmin, fmax, force = robot.tension_min, robot.tension_max, robot.force_scale
+        f, _ = onto_bounds(given_tensions(robot, method), fmin, fmax, force)
+        return solve_equilibria(LT, load, fmin, fmax, f, force=force)
     method, pretension = resolve_method(robot, method, pretension)
-    return solve_equilibria(LT, load, robot.tension_min, robot.tension_max, method, pretension)
+    return solve_equilibria(
+        LT, load, robot.tension_min, robot.tension_max, method, pretension, force=robot.force_scale
+    )
 
 
 def _result(robot: CableRobot, q, load, batch: EquilibriumBatch, message: str) -> EquilibriumResult:
@@ -308,9 +317,10 @@ def check_equilibrium(robot: CableRobot, q: Any, tension: Any) -> EquilibriumRes
             not finite or larger than MAX_TENSION in magnitude.
     """
     given = given_tensions(robot, tension)
-    f, beyond = onto_bounds(given, robot.tension_min, robot.tension_max)
+    force = robot.force_scale
+    f, beyond = onto_bounds(given, robot.tension_min, robot.tension_max, force)
     q, LT, load = _statics(robot, q)
-    batch = solve_equilibria(LT, load, robot.tension_min, robot.tension_max, f)
+    batch = solve_equilibria(LT, load, robot.tension_min, robot.tension_max, f, force=force)
     if beyond.any():
         message = f"the given tensions leave the cable bounds: {_beyond_text(robot, f, beyond)}"
     elif batch.feasible[0]:
@@ -357,7 +367,7 @@ def equilibrium_tension(
         warnings.warn(ZeroPretensionWarning(), stacklevel=2)
     q, LT, load = _statics(robot, q)
     fmin, fmax = robot.tension_min, robot.tension_max
-    batch = solve_equilibria(LT, load, fmin, fmax, method, pretension)
+    batch = solve_equilibria(LT, load, fmin, fmax, method, pretension, force=robot.force_scale)
     how = int(batch.how[0])
     if batch.feasible[0]:
         if how == HOW["zero"]:
@@ -397,12 +407,13 @@ def _infeasible(robot: CableRobot, q, lt, load, batch, method, pretension) -> Eq
         message = f"pretension {pretension:g} N exceeds the maximum tension of {', '.join(over)}"
         return _result(robot, q, load, batch, message)
     # the exact QP says why (its exit flag), then the closest tensions in bounds
-    x, why = min_norm_in_bounds(lt, load, lower, upper)
+    force = robot.force_scale
+    x, why = min_norm_in_bounds(lt, load, lower, upper, force)
     if x is not None:
         residual = float(np.linalg.norm(lt @ x - load))
         why = f"the QP solution misses the statics by {residual:.3g}"
     f = closest_in_bounds(lt, load, lower, upper)
-    closest = solve_equilibria(lt[None], load[None], fmin, fmax, f)
+    closest = solve_equilibria(lt[None], load[None], fmin, fmax, f, force=force)
     closest = dataclasses.replace(
         closest, feasible=np.zeros(1, bool), method=method, pretension=batch.pretension
     )

@@ -158,6 +158,7 @@ def solve_poses(
     stop_rtol,
     statics_rtol,
     farkas_rtol,
+    force,
     f_out,
     solved_out,
     infeasible_out,
@@ -174,9 +175,13 @@ def solve_poses(
             backtracking line search.
         damping, ridge_rtol: Levenberg-Marquardt damping and ridge, relative
             to trace(L^T L).
-        stop_rtol: Newton stops below this residual relative to max(1, |load|).
+        stop_rtol: Newton stops below this residual relative to the pose's
+            force scale, max(|load|, |L|_F force).
         statics_rtol: residual, relative to the statics' scale, of a solved pose.
-        farkas_rtol: Farkas gap, relative to max(1, |load|), proving infeasibility.
+        farkas_rtol: Farkas gap, relative to the pose's force scale, proving
+            infeasibility.
+        force: the robot's force scale [N]: no absolute newton enters a
+            decision (:attr:`cdpm.model.robot.CableRobot.force_scale`).
     """
     k, nv, m = LT.shape
     lam = np.empty(nv)
@@ -193,16 +198,18 @@ def solve_poses(
     for i in range(k):
         A = LT[i]
         b = load[i]
-        scale = 1.0
-        load_sq = 0.0
-        for a in range(nv):
-            scale = max(scale, abs(b[a]))
-            load_sq += b[a] * b[a]
-        load_norm = max(math.sqrt(load_sq), 1.0)
         trace = 0.0
         for a in range(nv):
             for j in range(m):
                 trace += A[a, j] * A[a, j]
+        # the pose's force scale: the load, or what the robot's force scale
+        # exerts through L^T (a bound on it: |L|_F >= |L|_2)
+        scale = math.sqrt(trace) * force
+        load_sq = 0.0
+        for a in range(nv):
+            scale = max(scale, abs(b[a]))
+            load_sq += b[a] * b[a]
+        load_norm = max(math.sqrt(load_sq), scale, 1e-300)
         ridge = ridge_rtol * max(trace, 1e-300)
         # start: the least-norm multipliers of the unbounded problem
         for a in range(nv):

@@ -96,6 +96,8 @@ def solve_equilibria(
     fmax: np.ndarray,
     method: str | np.ndarray,
     pretension: float = 0.0,
+    *,
+    force: float,
 ) -> EquilibriumBatch:
     """Equilibrium tensions of many poses by one method (or given tensions).
 
@@ -110,6 +112,8 @@ def solve_equilibria(
         method: a name in :data:`EQUILIBRIUM_METHODS` (validated by the
             caller), or given tensions [N] of shape (m,).
         pretension: least tension for methods that use one [N].
+        force: the robot's force scale [N], which the statics are judged
+            relative to (:attr:`cdpm.model.robot.CableRobot.force_scale`).
 
     Returns:
         :class:`EquilibriumBatch`.
@@ -119,47 +123,49 @@ def solve_equilibria(
     if not isinstance(method, str):
         f = np.tile(np.asarray(method, dtype=float), (k, 1))
         in_bounds = bool(np.all((f[0] >= fmin) & (f[0] <= fmax))) if k else True
-        feasible = holds(LT, load, f) & in_bounds
+        feasible = holds(LT, load, f, force) & in_bounds
         how[:] = HOW["given"]
-        return _batch(LT, load, f, feasible, how, fmin, fmax, "given", 0.0)
+        return _batch(LT, load, f, feasible, how, fmin, fmax, "given", 0.0, force)
     box = EQUILIBRIUM_METHODS[method].box
     used = pretension if EQUILIBRIUM_METHODS[method].uses_pretension else 0.0
     if box is None:
         f = np.zeros((k, m))
-        feasible = holds(LT, load, f) & bool(np.all(fmin <= 0))
+        feasible = holds(LT, load, f, force) & bool(np.all(fmin <= 0))
         how[:] = HOW["zero"]
-        return _batch(LT, load, f, feasible, how, fmin, fmax, method, used)
+        return _batch(LT, load, f, feasible, how, fmin, fmax, method, used, force)
     lower, upper = box(fmin, fmax, pretension)
     if np.any(lower > upper):
         f = np.tile(np.minimum(lower, upper), (k, 1))
         how[:] = HOW["bound_conflict"]
-        return _batch(LT, load, f, np.zeros(k, bool), how, fmin, fmax, method, used)
+        return _batch(LT, load, f, np.zeros(k, bool), how, fmin, fmax, method, used, force)
     if not np.any(lower) and not np.any(load):
         # no load and a box with corner 0: f = 0 holds every pose exactly
         how[:] = HOW["box_corner"]
-        return _batch(LT, load, np.zeros((k, m)), np.ones(k, bool), how, fmin, fmax, method, used)
+        return _batch(
+            LT, load, np.zeros((k, m)), np.ones(k, bool), how, fmin, fmax, method, used, force
+        )
     f = np.tile(lower, (k, 1))
-    feasible = holds(LT, load, f)  # the box's least-norm point holds the pose
+    feasible = holds(LT, load, f, force)  # the box's least-norm point holds the pose
     how[:] = HOW["box_corner"]
     rest = np.flatnonzero(~feasible)
     if rest.size:
-        f_rest, solved, infeasible = min_norm_tensions(LT[rest], load[rest], lower, upper)
+        f_rest, solved, infeasible = min_norm_tensions(LT[rest], load[rest], lower, upper, force)
         f[rest] = f_rest
-        feasible[rest] = solved & holds(LT[rest], load[rest], f_rest)
+        feasible[rest] = solved & holds(LT[rest], load[rest], f_rest, force)
         how[rest] = np.where(feasible[rest], HOW["solved"], HOW["infeasible"])
         for i in rest[~solved & ~infeasible]:
-            x, _ = min_norm_in_bounds(LT[i], load[i], lower, upper)
+            x, _ = min_norm_in_bounds(LT[i], load[i], lower, upper, force)
             if x is None:
                 how[i] = HOW["solver_failed"]
                 continue
             f[i] = x
-            feasible[i] = bool(holds(LT[i : i + 1], load[i : i + 1], x[None])[0])
+            feasible[i] = bool(holds(LT[i : i + 1], load[i : i + 1], x[None], force)[0])
             how[i] = HOW["solved"] if feasible[i] else HOW["infeasible"]
-    return _batch(LT, load, f, feasible, how, fmin, fmax, method, used)
+    return _batch(LT, load, f, feasible, how, fmin, fmax, method, used, force)
 
 
-def _batch(LT, load, f, feasible, how, fmin, fmax, method, pretension) -> EquilibriumBatch:
-    at_lower, at_upper, _ = classify(f, fmin, fmax)
+def _batch(LT, load, f, feasible, how, fmin, fmax, method, pretension, force) -> EquilibriumBatch:
+    at_lower, at_upper, _ = classify(f, fmin, fmax, force)
     if method != "given":
         # a solved cable on a bound sits exactly on it (round-off apart,
         # the solvers leave it within STATICS_RTOL)

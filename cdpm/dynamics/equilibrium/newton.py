@@ -23,6 +23,7 @@ def min_norm_tensions(
     load: np.ndarray,
     lower: np.ndarray,
     upper: np.ndarray,
+    force: float,
     iterations: int = NEWTON_ITERATIONS,
 ):
     """Least-norm tensions ``f`` with ``L^T f = load`` and ``lower <= f <= upper``
@@ -43,12 +44,14 @@ def min_norm_tensions(
         LT: L^T of each pose, shape (k, nv, m).
         load: the generalised force to balance, -G - w_ext, shape (k, nv).
         lower, upper: tension bounds [N], each (m,) (upper may be inf).
+        force: the robot's force scale [N], which the statics are judged
+            relative to (:attr:`cdpm.model.robot.CableRobot.force_scale`).
         iterations: Newton steps at most.
 
     Returns:
         (f (k, m), solved (k,), infeasible (k,)): ``solved`` poses have the
         least-norm tension with a statics residual below BATCH_STATICS_RTOL of the
-        statics' scale (max(1, |load|, |L| |f|)); ``infeasible`` ones provably have none.
+        statics' scale (max(|load|, |L| max(force, |f|))); ``infeasible`` ones provably have none.
     """
     # scipy: loaded on first use
     from cdpm.dynamics.equilibrium._newton_kernel import solve_poses
@@ -74,6 +77,7 @@ def min_norm_tensions(
         BATCH_NEWTON_STOP_RTOL,
         BATCH_STATICS_RTOL,
         FARKAS_RTOL,
+        float(force),
         f,
         solved,
         infeasible,

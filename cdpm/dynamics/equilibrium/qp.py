@@ -30,11 +30,11 @@ def closest_in_bounds(lt, load, lower, upper) -> np.ndarray:
     return f
 
 
-def _polish(lt, load, lower, upper, x) -> np.ndarray:
+def _polish(lt, load, lower, upper, x, force) -> np.ndarray:
     """Fix the cables the solver left on a bound exactly at it and solve the
     statics for the others in least norm (their closed-form optimum)."""
     m = x.shape[0]
-    tol = STATICS_RTOL * max(1.0, float(np.max(np.abs(x), initial=0.0)))
+    tol = STATICS_RTOL * max(force, float(np.max(np.abs(x), initial=0.0)))
     at_lower = x <= lower + tol
     at_upper = np.isfinite(upper) & (x >= upper - tol) & ~at_lower
     f = x.copy()
@@ -66,18 +66,20 @@ _DAQP_FAILURES = {
 
 def _solver_failure(exitflag: int) -> str:
     """Why the least-norm QP gave no tension, in plain words (the solver's
-    exit flag kept as a detail)."""
+    status code only where a bug report needs it)."""
     if exitflag == -1:
-        return (
-            "no tension within the cable bounds balances the load (the QP solver proved "
-            "it infeasible; DAQP exit flag -1)"
-        )
+        return "no tension within the cable bounds balances the load (proved by an exact solver)"
     what = _DAQP_FAILURES.get(exitflag, "failed")
-    return f"the QP solver stopped without a tension: it {what} (DAQP exit flag {exitflag})"
+    return (
+        f"the equilibrium solver stopped without a tension: it {what} (status {exitflag}; "
+        "please report this pose)"
+    )
 
 
-def min_norm_in_bounds(lt, load, lower, upper) -> tuple[np.ndarray | None, str]:
-    """Least-norm f with L^T f = load and lower <= f <= upper, or None."""
+def min_norm_in_bounds(lt, load, lower, upper, force) -> tuple[np.ndarray | None, str]:
+    """Least-norm f with L^T f = load and lower <= f <= upper, or None
+    (``force``: the robot's force scale [N], which the statics are judged
+    relative to: :func:`cdpm.dynamics.equilibrium.statics.statics_tolerance`)."""
     try:
         # daqp: loaded on first use
         import daqp
@@ -92,19 +94,26 @@ def min_norm_in_bounds(lt, load, lower, upper) -> tuple[np.ndarray | None, str]:
     u, s, vt = np.linalg.svd(lt, full_matrices=False)
     rank = int(np.count_nonzero(s > STATICS_RANK_RTOL * (s[0] if s.size else 0.0)))
     outside = load - u[:, :rank] @ (u[:, :rank].T @ load)
-    if np.linalg.norm(outside) > statics_tolerance(lt[None], load[None], np.zeros((1, 0)))[0]:
+    tol = statics_tolerance(lt[None], load[None], np.zeros((1, 0)), force)[0]
+    if np.linalg.norm(outside) > tol:
         return None, "the load has a component no cable can balance (L^T lacks rank there)"
     eq_matrix = vt[:rank]
     eq_rhs = (u[:, :rank].T @ load) / s[:rank]
+    # DAQP's tolerances are absolute: it solves for the tensions in units of
+    # the problem's tension scale (the robot's force scale, the least-norm
+    # tension or a lower bound, whichever is largest)
+    finite_lower = np.abs(lower[np.isfinite(lower)])
+    unit = max(force, float(np.abs(eq_rhs).max(initial=0.0)), float(finite_lower.max(initial=0.0)))
     sense = np.array([0] * m + [5] * rank, dtype=c_int)
     x, _, exitflag, _ = daqp.solve(
         np.eye(m),
         np.zeros(m),
         np.ascontiguousarray(eq_matrix),
-        np.concatenate([upper, eq_rhs]),
-        np.concatenate([lower, eq_rhs]),
+        np.concatenate([upper / unit, eq_rhs / unit]),
+        np.concatenate([lower / unit, eq_rhs / unit]),
         sense,
     )
     if exitflag < 1:
         return None, _solver_failure(int(exitflag))
-    return _polish(lt, load, lower, upper, np.asarray(x, dtype=float)), ""
+    x = np.asarray(x, dtype=float) * unit
+    return _polish(lt, load, lower, upper, x, force), ""

@@ -34,10 +34,11 @@ __all__ = ["Polytope", "LPFailure", "polytope", "solve_lp", "polish"]
 
 
 def _options(b: np.ndarray) -> dict:
-    """HiGHS's feasibility tolerances for an LP with right-hand sides
-    ``b`` [N]: TENSION_LP_TOL, or TENSION_LP_RTOL times the largest |b| when
-    that is more (a tension cap of 1e12 N next to a pose's tens of newtons:
-    1e-9 N is below the round-off of 1e12, and HiGHS stopped with its
+    """HiGHS's feasibility tolerances for an LP with right-hand sides ``b``
+    in units of the pose's tension scale (:attr:`Polytope.scale`):
+    TENSION_LP_TOL, or TENSION_LP_RTOL times the largest |b| when that is
+    more (a tension cap of 1e12 N next to a pose's tens of newtons: 1e-9 of
+    the scale is below the round-off of 1e12, and HiGHS stopped with its
     status unknown)."""
     tol = max(TENSION_LP_TOL, TENSION_LP_RTOL * float(np.abs(b).max(initial=0.0)))
     return {"primal_feasibility_tolerance": tol, "dual_feasibility_tolerance": tol}
@@ -61,8 +62,11 @@ class Polytope:
         rank: rank of L^T.
         in_range: the load lies in the range of L^T (within the statics
             tolerance); else no tension at all holds the pose.
-        scale: the pose's tension scale [N]: max(1 N, the largest finite
-            |bound|, |f0|); tolerances are relative to it.
+        scale: the pose's tension scale [N]: max(the robot's force scale,
+            the largest finite |bound|, |f0|); tolerances are relative to
+            it, and the LPs solve in its units.
+        force: the robot's force scale [N]
+            (:attr:`cdpm.model.robot.CableRobot.force_scale`).
     """
 
     LT: np.ndarray
@@ -74,6 +78,7 @@ class Polytope:
     rank: int
     in_range: bool
     scale: float
+    force: float
 
     @property
     def tol(self) -> float:
@@ -86,9 +91,11 @@ class Polytope:
         return self.f0 + self.null_space @ z
 
 
-def polytope(LT: np.ndarray, load: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> Polytope:
-    """The pose's :class:`Polytope` from L^T (nv, m), the load (nv,) and
-    the bounds [N] (m,)."""
+def polytope(
+    LT: np.ndarray, load: np.ndarray, lower: np.ndarray, upper: np.ndarray, force: float
+) -> Polytope:
+    """The pose's :class:`Polytope` from L^T (nv, m), the load (nv,), the
+    bounds [N] (m,) and the robot's force scale [N]."""
     nv, m = LT.shape
     if m == 0:
         U, s, Vt = np.zeros((nv, 0)), np.zeros(0), np.zeros((0, 0))
@@ -99,11 +106,11 @@ def polytope(LT: np.ndarray, load: np.ndarray, lower: np.ndarray, upper: np.ndar
     f0 = Vt[:rank].T @ coeff
     null = Vt[rank:].T.copy() if m else np.zeros((0, 0))
     residual = float(np.linalg.norm(LT @ f0 - load))
-    tol = float(statics_tolerance(LT[None], load[None], f0[None])[0])
+    tol = float(statics_tolerance(LT[None], load[None], f0[None], force)[0])
     bounds = np.concatenate([lower, upper])
     finite = np.abs(bounds[np.isfinite(bounds)])
-    scale = max(1.0, float(finite.max(initial=0.0)), float(np.abs(f0).max(initial=0.0)))
-    return Polytope(LT, load, lower, upper, f0, null, rank, residual <= tol, scale)
+    scale = max(force, float(finite.max(initial=0.0)), float(np.abs(f0).max(initial=0.0)))
+    return Polytope(LT, load, lower, upper, f0, null, rank, residual <= tol, scale, force)
 
 
 def solve_lp(
@@ -158,6 +165,8 @@ def solve_lp(
     if n_var == 0:
         ok = bool(np.all(b >= -P.tol))
         return ("optimal", f0.copy(), np.nan) if ok else ("infeasible", None, np.nan)
+    # HiGHS's tolerances are absolute: z and s in units of the pose's scale
+    b = b / P.scale
     res = linprog(
         c, A_ub=A, b_ub=b, bounds=[(None, None)] * n_var, method="highs", options=_options(b)
     )
@@ -167,8 +176,8 @@ def solve_lp(
         return "unbounded", None, np.nan
     if res.status != 0 or res.x is None:
         raise LPFailure(f"the tension LP stopped: {res.message}")
-    z = res.x[:d]
-    return "optimal", f0 + N @ z, float(res.x[d]) if with_s else np.nan
+    z = res.x[:d] * P.scale
+    return "optimal", f0 + N @ z, float(res.x[d] * P.scale) if with_s else np.nan
 
 
 def lp_null_space(P: Polytope) -> np.ndarray:
@@ -213,12 +222,13 @@ def polish(P: Polytope, f: np.ndarray, upper: np.ndarray) -> np.ndarray | None:
         f = np.where(at_low, lower, np.where(at_high, upper, f))
         r = P.load - P.LT @ f
         free = ~(at_low | at_high)
-        if np.linalg.norm(r) <= 1e-3 * statics_tolerance(P.LT[None], P.load[None], f[None])[0]:
+        tol = statics_tolerance(P.LT[None], P.load[None], f[None], P.force)[0]
+        if np.linalg.norm(r) <= 1e-3 * tol:
             break
         if not free.any():
             break
         f[free] += np.linalg.lstsq(P.LT[:, free], r, rcond=None)[0]
     f = np.clip(f, lower, upper)
-    if not holds(P.LT[None], P.load[None], f[None])[0]:
+    if not holds(P.LT[None], P.load[None], f[None], P.force)[0]:
         return None
     return f

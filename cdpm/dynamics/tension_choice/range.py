@@ -25,7 +25,7 @@ from cdpm.dynamics.equilibrium import statics
 from cdpm.dynamics.reach import reach_settings
 from cdpm.dynamics.tension_choice._polytope import Polytope, polish, polytope, solve_lp
 from cdpm.errors import positive_number
-from cdpm.numerics import MAX_TENSION, TENSION_CAP_BUDGETS
+from cdpm.numerics import MAX_TENSION, TENSION_CAP_BUDGETS, TENSION_RANGE_RTOL
 from cdpm.printing import TextRepr
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -82,6 +82,7 @@ def explore(
     upper: np.ndarray,
     cap: float,
     names: tuple[str, ...],
+    force: float,
 ) -> Exploration:
     """Feasibility, per-cable ranges (uncapped), the cap, the relative
     interior point and the per-cable extreme vertices (capped) of one pose.
@@ -90,8 +91,10 @@ def explore(
         LT: L^T, (nv, m); load: (nv,); lower, upper: bounds [N] (m,).
         cap: the stated cap [N] of cables without an upper bound.
         names: cable names (labels of the vertices).
+        force: the robot's force scale [N]
+            (:attr:`cdpm.model.robot.CableRobot.force_scale`).
     """
-    P = polytope(LT, load, lower, upper)
+    P = polytope(LT, load, lower, upper, force)
     m = lower.shape[0]
     nan = np.full(m, np.nan)
     empty = Exploration(P, False, nan, nan.copy(), cap, upper.copy(), nan.copy(), np.nan)
@@ -284,7 +287,7 @@ class TensionRange(TextRepr):
                 out.append("must be slack")
             elif self.can_be_slack[i]:
                 out.append("slack or taut")
-            elif self.greatest[i] - self.least[i] <= 1e-8 * max(1.0, abs(self.least[i])):
+            elif self.greatest[i] - self.least[i] <= TENSION_RANGE_RTOL * abs(self.greatest[i]):
                 out.append(f"fixed at {self.least[i]:.6g} N")
             else:
                 out.append("always taut")
@@ -341,5 +344,7 @@ def tension_range(
     cap = default_tension_cap(robot, tension_budget) if tension_cap is None else None
     cap = checked_cap(tension_cap) if cap is None else cap
     q, LT, load = pose_statics(robot, q)
-    X = explore(LT, load, robot.tension_min, robot.tension_max, cap, robot.cable_names)
+    X = explore(
+        LT, load, robot.tension_min, robot.tension_max, cap, robot.cable_names, robot.force_scale
+    )
     return TensionRange.from_exploration(q, robot.cable_names, X)

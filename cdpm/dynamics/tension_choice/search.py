@@ -286,7 +286,13 @@ def search_tensions(
     for j, i in enumerate(ok):
         try:
             X = explore(
-                LT[i], load[i], robot.tension_min, robot.tension_max, base_cap, robot.cable_names
+                LT[i],
+                load[i],
+                robot.tension_min,
+                robot.tension_max,
+                base_cap,
+                robot.cable_names,
+                robot.force_scale,
             )
         except LPFailure:
             out.status[i] = STATUS_CODES["analysis_failed"]
@@ -350,7 +356,9 @@ def _candidates(robot, X, default, settings: TensionSearch, pretension: float):
         levels.append(pretension)
     for level in levels:
         lower = np.maximum(P.lower, np.minimum(level, np.minimum(X.greatest, X.capped_upper)))
-        eq = solve_equilibria(P.LT[None], P.load[None], lower, X.capped_upper, "min_norm")
+        eq = solve_equilibria(
+            P.LT[None], P.load[None], lower, X.capped_upper, "min_norm", force=P.force
+        )
         if eq.feasible[0]:
             g = polish(P, eq.tension[0], X.capped_upper)
             if g is not None:
@@ -449,7 +457,7 @@ def _evaluate_into(robot, kin, minv, cands, reach, tol, out: _Result, first_is_d
         return
     pose = np.array([i for i, _, _ in cands])
     F = np.array([f for _, _, f in cands])
-    at_lower, at_upper, _ = classify(F, robot.tension_min, robot.tension_max)
+    at_lower, at_upper, _ = classify(F, robot.tension_min, robot.tension_max, robot.force_scale)
     signs = input_signs(at_lower, at_upper)
     lin = linearise_batch(robot, kin.take(pose), minv[pose], F, signs)
     verdicts = analyse_systems(
