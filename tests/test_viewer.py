@@ -853,20 +853,25 @@ def test_view_command_bad_map(tmp_path, capsys):
     assert "is a zarr store but not a cdpm map" in capsys.readouterr().err
 
 
-@pytest.mark.parametrize("port", ["0", "-1", "65536", "99999", "http"])
-def test_view_command_port_out_of_range(port, capsys):
+@pytest.mark.parametrize("option", ["--port", "--scene-port"])
+@pytest.mark.parametrize("port", ["-1", "65536", "99999", "http"])
+def test_view_command_port_out_of_range(option, port, capsys):
     from cdpm.cli import main
 
     with pytest.raises(SystemExit) as info:
-        main(["view", str(PAPER_SPEC), "--port", port, "--seconds", "0"])
+        main(["view", str(PAPER_SPEC), option, port, "--seconds", "0"])
     assert info.value.code == 2
     err = capsys.readouterr().err
-    assert f"argument --port: port {port} is not a TCP port; use 1-65535" in err
+    assert (
+        f"argument {option}: port {port} is not a TCP port; use 0 (any free port) or 1-65535" in err
+    )
 
 
 def test_viewer_port_out_of_range(paper_robot):
-    with pytest.raises(InputError, match="port 99999 is not a TCP port; use 1-65535"):
+    with pytest.raises(InputError, match="port 99999 is not a TCP port; use 0 .any free port."):
         cdpm.viewer.Viewer(paper_robot, port=99999)
+    with pytest.raises(InputError, match="port 0 is not a TCP port; use 1-65535"):
+        cdpm.viewer.check_port(0)  # 0 (any free port) only where the caller allows it
 
 
 # ---------------------------------------------------------------- real browser

@@ -162,7 +162,7 @@ def test_page_files_are_package_data():
     pyproject = tomllib.loads((ROOT / "pyproject.toml").read_text())
     globs = pyproject["tool"]["setuptools"]["package-data"]["cdpm.viewer"]
     files = sorted(p.name for p in (ROOT / "cdpm" / "viewer" / "static").iterdir())
-    assert files == ["page.css", "page.html", "page.js"]
+    assert files == ["page.css", "page.html", "page.js", "scene.html"]
     for name in files:  # a wheel ships every file the page serves
         assert any(fnmatch.fnmatch(f"static/{name}", g) for g in globs), name
 
@@ -170,12 +170,17 @@ def test_page_files_are_package_data():
 # ---------------------------------------------------------------- endpoints
 
 
-def _request(url: str, body=None, host: str | None = None):
-    """(status, JSON or text) of a GET (body None) or a JSON POST."""
+def _request(url: str, body=None, host: str | None = None, token: str | None = None):
+    """(status, JSON or text) of a GET (body None) or a JSON POST (with the
+    page's ``token``, as the page sends it)."""
     data = None if body is None else json.dumps(body).encode()
     request = urllib.request.Request(url, data=data)
+    if data is not None:
+        request.add_header("Content-Type", "application/json")
     if host:
         request.add_header("Host", host)
+    if token:
+        request.add_header("X-Cdpm-Token", token)
     try:
         with urllib.request.urlopen(request, timeout=30) as response:
             status, raw, kind = response.status, response.read(), response.headers["Content-Type"]
@@ -221,7 +226,7 @@ def test_page_endpoints_and_shutdown(paper_robot):
         if os.path.exists("/proc/net/tcp"):
             assert _listening(page.port) == ["0100007F"]  # 127.0.0.1 only
         status, html = _request(page.url)
-        assert status == 200 and '<aside id="panel"' in html and "/static/page.js" in html
+        assert status == 200 and '<aside id="panel"' in html and '"static/page.js"' in html
         status, js = _request(page.url + "static/page.js")
         assert status == 200 and "performance.now()" in js
         status, model = _request(page.url + "api/model")
@@ -229,7 +234,7 @@ def test_page_endpoints_and_shutdown(paper_robot):
         assert [c["name"] for c in model["coordinates"]] == ["q1", "q2"]
         assert model["coordinates"][0]["unit"] == "rad"
         assert model["poses"] == [{"name": "nominal", "natural": pytest.approx(NOMINAL.tolist())}]
-        assert model["scene"] == {"port": _scene_port(page), "path": "/static/"}
+        assert model["scene"] == {"path": "scene/"}
         assert model["map"] is None and model["panel"]["pose"] == "nominal"
         assert [v["label"] for v in model["legend"]["verdicts"]] == [
             "YES",
@@ -237,10 +242,10 @@ def test_page_endpoints_and_shutdown(paper_robot):
             "NO",
             "unavailable",
         ]
-        status, panel = _request(page.url + "api/pose", {"natural": [0.0, 0.0]})
+        status, panel = _request(page.url + "api/pose", {"natural": [0.0, 0.0]}, token=page.token)
         assert status == 200 and panel["verdicts"][0]["text"] == "NO" and panel["pose"] is None
         assert page.viewer.state.verdict_key == "no"  # the scene moved too
-        status, panel = _request(page.url + "api/pose", {"pose": "nominal"})
+        status, panel = _request(page.url + "api/pose", {"pose": "nominal"}, token=page.token)
         assert (
             status == 200 and panel["pose"] == "nominal" and panel["verdicts"][0]["text"] == "YES"
         )
@@ -251,9 +256,9 @@ def test_page_endpoints_and_shutdown(paper_robot):
             ({"pose": "home"}, "pose 'home' not in spec; poses: nominal"),
             ({}, "give natural coordinates or a pose name"),
         ]:
-            status, answer = _request(page.url + "api/pose", body)
+            status, answer = _request(page.url + "api/pose", body, token=page.token)
             assert status == 400 and answer["error"].startswith(message), answer
-        status, answer = _request(page.url + "api/map", {"visible": True})
+        status, answer = _request(page.url + "api/map", {"visible": True}, token=page.token)
         assert status == 400 and "start cdpm view with --map STORE" in answer["error"]
         assert _request(page.url + "api/none")[0] == 404
         status, answer = _request(page.url + "api/model", host="evil.example:80")
@@ -294,10 +299,10 @@ def test_page_map_toggle(paper_robot, tmp_path):
             "visible": True,
         }
         assert "cdpm/map" in _server_scene(page.viewer)
-        status, answer = _request(page.url + "api/map", {"visible": False})
+        status, answer = _request(page.url + "api/map", {"visible": False}, token=page.token)
         assert (status, answer) == (200, {"visible": False, "points": 5})
         assert "cdpm/map" not in _server_scene(page.viewer)
-        _request(page.url + "api/map", {"visible": True})
+        _request(page.url + "api/map", {"visible": True}, token=page.token)
         assert "cdpm/map" in _server_scene(page.viewer)
 
 
@@ -644,6 +649,45 @@ def test_browser_lists_every_output_with_its_unit_and_formula(browser, write_spe
     ]
     assert legend == [False, "marker", "axes", "sleeve", "joint"]
     # outputs in metres and radians: the reach margin counts one as the other
-    assert reach.endswith("[m and rad, one to one] within T = " + reach.split("T = ")[1])
+    horizon = reach.split("T = ")[1]
+    assert reach.endswith(f"[m and rad, one to one] (exact) within T = {horizon}")
     assert _count_near(pixels, AXIS_RGB[1], tol=40) > 30, "the triad's green y axis"
     assert not errors, errors
+
+
+def _reach_text(driver) -> str:
+    return driver.execute_script(
+        "return document.querySelector('#reach td:nth-child(2) span:last-child').textContent"
+    )
+
+
+def test_browser_shows_the_reach_margin_as_a_lower_bound(browser):
+    """r_T is a lower bound, the true margin in [r_T, r_T + error]: the page
+    says so in the text report's words, not as r_T +- error."""
+    from cdpm.viewer import InspectionPage
+
+    robot = cdpm.load_robot(VERTICAL_SPEC)
+    report = cdpm.analyze_pose(robot, "nominal")
+    value, error = report.reach_margin
+    assert error > 0  # a pose whose margin is not exact
+    horizon = f"within T = {report.reach.horizon:.3g} s"
+    driver = browser
+    with InspectionPage(robot, "nominal") as page:
+        driver.get(page.url)
+        driver.execute_async_script(_WAIT_SEQ, 0)
+        shown = _reach_text(driver)
+        assert shown == f"{value:.4g} m (a lower bound: at most {error:.2g} more) {horizon}"
+        assert "±" not in shown
+        # the words of the text report (cdpm analyze)
+        assert f"r_T = {value:.4g} m (a lower bound: at most {error:.2g} more)" in str(report)
+        seq = _seq(driver)
+        driver.find_element("css selector", "#pose-picker button[data-pose=horizontal]").click()
+        driver.execute_async_script(_WAIT_SEQ, seq)
+        exact = cdpm.analyze_pose(robot, "horizontal")
+        assert exact.reach_margin == (0.0, 0.0)
+        assert _reach_text(driver) == f"0 m (exact) within T = {exact.reach.horizon:.3g} s"
+        ports, server = [page.port, _scene_port(page)], page.viewer.server_pid
+    for port in ports:
+        assert _listening(port) == []
+    if os.path.isdir("/proc"):
+        assert not _alive(server)

@@ -6,12 +6,14 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
+import math
 import signal
 import sys
+import threading
 import time
 import warnings
 
-from cdpm.cli._play import _port, _seconds
+from cdpm.cli._play import _seconds
 from cdpm.cli._pose import Q_HELP, add_pose_arguments, pose_from_args
 from cdpm.cli.plot import argument_type
 
@@ -33,14 +35,19 @@ output. With --map, overlay a workspace map made by `cdpm map` from the
 same spec (output positions coloured by the POC verdict, its margin or
 another map variable, --color-by; --allow-other-spec for a map made from
 another spec file), with a toggle on the page. Prints the
-verdicts and the URL, then serves until Ctrl-C. Needs the viz extra: pip
-install "cdpm[viz]". From another machine, forward both ports it prints:
-ssh -L 7000:127.0.0.1:7000 -L 7001:127.0.0.1:7001 HOST."""
+verdicts and the URL, then serves until Ctrl-C (or for --seconds). Needs
+the viz extra: pip install "cdpm[viz]". The page reaches the 3-D scene
+through its own port, so one port is all a browser needs: open it as
+127.0.0.1 or localhost, or from another machine forward it (ssh -L
+7000:127.0.0.1:7000 HOST). The servers answer only requests naming a
+loopback host, from the page itself; a mesh outside the model's folder (and
+its package:// packages) is not loaded."""
 EPILOG = (
     """\
 examples:
   cdpm view models/two_link_planar/two_link_planar.yaml --pose nominal
   cdpm view models/two_link_planar/two_link_planar.yaml --q pi/4 pi/2 --port 7010
+  cdpm view models/two_link_planar/two_link_planar.yaml --port 0 --scene-port 0 --seconds 60
   cdpm view models/two_link_planar/two_link_planar.yaml --map map.zarr --color-by margin
 
 """
@@ -52,10 +59,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_pose_arguments(parser)
     parser.add_argument(
         "--port",
-        type=argument_type(_port),
+        type=argument_type(_any_port),
         default=None,
-        help="port of the page, 1-65535 (default: first free from 7000; the 3-D scene "
-        "takes the next free one)",
+        help="port of the page, 1-65535, or 0 for any free port (default: first free from 7000)",
+    )
+    parser.add_argument(
+        "--scene-port",
+        type=argument_type(_any_port),
+        default=None,
+        help="port of the 3-D scene's own server, 1-65535, or 0 for any free port "
+        "(default: first free from 7000, after the page's); the page reaches the "
+        "scene through its own port, so a browser needs only the page's",
     )
     parser.add_argument(
         "--map", metavar="STORE", help="workspace map to overlay (zarr store from cdpm map)"
@@ -83,10 +97,32 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--seconds",
-        type=argument_type(_seconds),
+        type=argument_type(_serve_seconds),
         default=None,
-        help="serve this long then exit (default: until Ctrl-C)",
+        help="serve this long then exit, at most "
+        f"{threading.TIMEOUT_MAX:.3g} s (default: until Ctrl-C)",
     )
+
+
+def _any_port(text: str) -> int:
+    # loaded when the command runs (cdpm --help stays fast)
+    from cdpm.viewer import check_port
+
+    return check_port(text, any_free=True)
+
+
+def _serve_seconds(text: str) -> float:
+    """--seconds: a time [s] the clock can wait (``1e300`` overflows it)."""
+    # loaded when the command runs (cdpm --help stays fast)
+    from cdpm.errors import InputError
+
+    value = _seconds(text)
+    if value > threading.TIMEOUT_MAX:
+        raise InputError(
+            f"--seconds {text} is longer than this system can wait "
+            f"({threading.TIMEOUT_MAX:.3g} s); omit it to serve until Ctrl-C"
+        )
+    return value
 
 
 def _exit_on_sigterm(signum, frame) -> None:
@@ -150,6 +186,7 @@ def run(args: argparse.Namespace) -> int:
                     robot,
                     q,
                     port=args.port,
+                    scene_port=args.scene_port,
                     dataset=dataset,
                     map_name=args.map,
                     color_by=args.color_by,
@@ -170,11 +207,10 @@ def run(args: argparse.Namespace) -> int:
         until = "Ctrl-C to stop" if args.seconds is None else f"for {args.seconds:g} s"
         print(f"viewer: {page.url}  ({until})", flush=True)
         try:
-            if args.seconds is not None:
-                time.sleep(args.seconds)
-            else:
-                while True:
-                    time.sleep(3600)
+            deadline = math.inf if args.seconds is None else time.monotonic() + args.seconds
+            # an hour at a time: one long sleep past the clock's range fails
+            while (left := deadline - time.monotonic()) > 0:
+                time.sleep(min(left, 3600.0))
         except KeyboardInterrupt:
             print("stopped", file=sys.stderr)
             return 130

@@ -31,15 +31,17 @@ Modules, each importing only those above it:
 - :mod:`cdpm.viewer.outputs`: where each output is drawn, from the spec;
 - :mod:`cdpm.viewer.state`: the pose state and colours (no meshcat);
 - :mod:`cdpm.viewer.coordinates`: slider ranges and units of the coordinates;
-- :mod:`cdpm.viewer.server`: the meshcat server process (loopback only);
+- :mod:`cdpm.viewer.server`: the meshcat server process (loopback only)
+  and the host and origin checks of both web servers;
 - :mod:`cdpm.viewer.overlay`: workspace-map points and their colours;
 - :mod:`cdpm.viewer.output_marks`: the outputs' marks in the meshcat scene;
 - :mod:`cdpm.viewer.scene`: the meshcat scene, :class:`Viewer`;
 - :mod:`cdpm.viewer.inspector`: notebook sliders, :class:`PoseInspector`;
 - :mod:`cdpm.viewer.panel`: every verdict at a pose, :func:`pose_panel`;
 - :mod:`cdpm.viewer.page`: the inspection page of ``cdpm view``,
-  :class:`InspectionPage` (the standard library's HTTP server; the page's
-  files are in ``cdpm/viewer/static``).
+  :class:`InspectionPage` (the standard library's HTTP server, which also
+  serves the scene on the page's origin; the page's files are in
+  ``cdpm/viewer/static``).
 """
 
 from __future__ import annotations

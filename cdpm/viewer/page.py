@@ -1,22 +1,36 @@
 """The inspection page of ``cdpm view``: the 3-D scene beside a live panel.
 
 :class:`InspectionPage` serves one page on 127.0.0.1: meshcat's own viewer
-(an iframe on the web port of the :class:`~cdpm.viewer.Viewer`'s meshcat
-server) beside a panel with a slider per natural coordinate, the verdicts at
-the pose, a colour legend, each cable's state and tension, the outputs, a
-picker of the spec's named poses, a "copy as --q" button and, with a
-workspace map, a toggle of its overlay. The page's files are
-``cdpm/viewer/static/page.{html,js,css}``; each pose is one request to a JSON
+(an iframe on the page's own origin, see below) beside a panel with a
+slider per natural coordinate, the verdicts at the pose, a colour legend,
+each cable's state and tension, the outputs, a picker of the spec's named
+poses, a "copy as --q" button and, with a workspace map, a toggle of its
+overlay. The page's files are ``cdpm/viewer/static/page.{html,js,css}`` and
+``scene.html``; each pose is one request to a JSON
 endpoint, answered by one :func:`~cdpm.viewer.panel.pose_panel` call (one
 :func:`cdpm.analyze_pose`, then the scene drawn from that report).
 
-Endpoints (loopback only; requests naming another host are refused):
+Endpoints (loopback only):
 
 - ``GET /``: the page; ``GET /static/page.js`` and ``/static/page.css``;
+- ``GET /scene/``: meshcat's viewer (``static/scene.html`` and meshcat's
+  own ``main.min.js``); ``GET /scene/ws``, a websocket, is piped byte for
+  byte to the meshcat server's websocket. So page, scene and the scene's
+  websocket share one origin, every URL is relative, and the page works
+  under either loopback name and through a forwarded port;
 - ``GET /api/model``: sliders, named poses, legend, map, the current panel;
 - ``POST /api/pose``: ``{"natural": [nv numbers]}`` [rad or m] or
   ``{"pose": NAME}`` -> the panel at that pose;
 - ``POST /api/map``: ``{"visible": true|false}`` -> the map overlay shown or hidden.
+
+Every request must name a loopback host (DNS rebinding is refused) and come
+from no page or a loopback page; a POST and the websocket must come from
+the page itself (same origin), and a POST must carry the page's token
+(``X-Cdpm-Token``, written into the page when it is served, so another
+site's form or script cannot change the pose) and be JSON
+(``Content-Type: application/json``, else 415). Refusals are 403, a body
+over 1 MiB 413, a malformed one 400; a client that goes away mid-answer is
+let go silently.
 
 The server is the standard library's threading HTTP server (HTTP/1.1,
 kept-alive connections), in a thread of the process that holds the robot;
@@ -27,10 +41,16 @@ coalesces slider moves that arrive meanwhile into the next one.
 
 from __future__ import annotations
 
+import contextlib
 import errno
+import functools
 import http.server
 import json
 import math
+import secrets
+import select
+import socket
+import sys
 import threading
 from importlib import resources
 from typing import TYPE_CHECKING, Any
@@ -45,7 +65,7 @@ from cdpm.viewer.coordinates import coordinate_sliders
 from cdpm.viewer.outputs import output_drawing
 from cdpm.viewer.panel import PosePanel, pose_panel, rgb_hex
 from cdpm.viewer.scene import Viewer
-from cdpm.viewer.server import LOOPBACK, check_port
+from cdpm.viewer.server import LOOPBACK, SERVER_TIMEOUT, check_port, host_problem, origin_problem
 from cdpm.viewer.state import AXIS_RGB, COLORS, default_pose, tension_scale
 
 if TYPE_CHECKING:  # pragma: no cover - for static type checkers only
@@ -69,8 +89,20 @@ _STATIC = {
     "page.css": "text/css; charset=utf-8",
 }
 
-#: Host names a request may name (a page on another host is refused).
-_LOCAL_HOSTS = {"127.0.0.1", "localhost", "::1"}
+#: What ``page.html`` holds where the page's token goes.
+_TOKEN_SLOT = "{{cdpm-token}}"
+
+#: The header a POST carries the page's token in.
+TOKEN_HEADER = "X-Cdpm-Token"
+
+#: Files of meshcat's viewer (``meshcat/viewer/dist``) served under /scene/.
+_SCENE_FILES = {"main.min.js": "text/javascript; charset=utf-8"}
+
+#: Bytes read at once from either end of the scene's websocket.
+_PIPE_CHUNK = 1 << 16
+
+#: Connection errors of a client that went away (nothing to answer).
+_GONE = (ConnectionError, TimeoutError)
 
 
 class InspectionPage:
@@ -85,8 +117,12 @@ class InspectionPage:
         robot: a :class:`~cdpm.model.robot.CableRobot`.
         q: first pose (name, configuration or natural coordinates); default
             the spec's first pose, else neutral.
-        port: port of the page, 1-65535 (default: the first free of
-            :data:`PAGE_PORTS`).
+        port: port of the page, 1-65535 or 0 (any free port) (default: the
+            first free of :data:`PAGE_PORTS`).
+        scene_port: port of the meshcat server, 1-65535 or 0 (any free
+            port) (default: the first free from 7000). The page reaches the
+            scene through its own port; the scene's port serves it alone
+            (:meth:`Viewer.url`).
         dataset: a workspace map (``xarray.Dataset`` from ``cdpm map``) to
             overlay, already checked against the robot's spec, or None.
         map_name: what the page calls the map (e.g. its store's path).
@@ -100,9 +136,10 @@ class InspectionPage:
         pose_name: the named pose shown now, or None.
         map_points: points of the map overlay (0 without a map).
         map_visible: whether the map overlay is shown.
+        token: the page's token: a POST without it is refused (403).
 
     Raises:
-        InputError: a port outside 1-65535, or a port in use.
+        InputError: a port outside 0-65535, or a port in use.
         CdpmError: the meshcat server could not start.
     """
 
@@ -112,6 +149,7 @@ class InspectionPage:
         q: Any = None,
         *,
         port: int | None = None,
+        scene_port: int | None = None,
         dataset=None,
         map_name: str | None = None,
         color_by: str = "verdict",
@@ -121,12 +159,17 @@ class InspectionPage:
         self._lock = threading.Lock()
         self._thread: threading.Thread | None = None
         self.viewer: Viewer | None = None
-        self._http = _bind(None if port is None else check_port(port))  # before meshcat's port
+        self.token = secrets.token_urlsafe(24)
+        if scene_port is not None:
+            scene_port = check_port(scene_port, any_free=True)
+        # before meshcat's port
+        self._http = _bind(None if port is None else check_port(port, any_free=True))
         try:
             q = default_pose(robot) if q is None else q
             self.pose_name = q if isinstance(q, str) else None
             q0 = robot.as_q(q)
-            self.viewer = Viewer(robot, q0, geometry=geometry)
+            self.viewer = Viewer(robot, q0, port=scene_port, geometry=geometry)
+            self.scene_port = int(urlsplit(self.viewer.url()).port)
             self._dataset, self._map_name, self._color_by = dataset, map_name, color_by
             self.map_points, self.map_visible = 0, False
             if dataset is not None:
@@ -155,11 +198,13 @@ class InspectionPage:
         return f"http://{LOOPBACK}:{self.port}/"
 
     def close(self) -> None:
-        """Stop the page's server and the viewer's meshcat server."""
+        """Stop the page's server (and the scene's websockets it pipes) and
+        the viewer's meshcat server."""
         if self._thread is not None:
             self._http.shutdown()
             self._thread.join()
             self._thread = None
+        self._http.close_pipes()
         self._http.server_close()
         if self.viewer is not None:
             self.viewer.close()
@@ -222,7 +267,6 @@ class InspectionPage:
     def model_dict(self) -> dict:
         """What the page loads first: sliders, poses, legend, map, panel."""
         robot = self.robot
-        web = urlsplit(self.viewer.url())
         return strict(
             {
                 "model": robot.spec.path.name,
@@ -231,7 +275,7 @@ class InspectionPage:
                     {"name": name, "natural": robot.to_natural(q).tolist()}
                     for name, q in robot.poses.items()
                 ],
-                "scene": {"port": web.port, "path": web.path},
+                "scene": {"path": "scene/"},
                 "legend": _legend(robot),
                 "map": None
                 if self._dataset is None
@@ -381,26 +425,89 @@ def _legend(robot: CableRobot) -> dict:
     }
 
 
-def _bind(port: int | None) -> http.server.ThreadingHTTPServer:
-    """The page's HTTP server bound to 127.0.0.1:port (or the first free port)."""
+class _PageServer(http.server.ThreadingHTTPServer):
+    """The page's HTTP server: a thread per connection, the scene's
+    websockets piped to the meshcat server, and clients that go away let go
+    without a traceback."""
+
+    daemon_threads = True
+
+    def __init__(self, address: tuple[str, int]) -> None:
+        super().__init__(address, _Handler)
+        self.page: InspectionPage | None = None
+        self._pipes: set[socket.socket] | None = set()  # None once closing
+        self._pipes_lock = threading.Lock()
+
+    def handle_error(self, request, client_address) -> None:
+        # socketserver calls this inside the handler's except clause
+        if isinstance(sys.exc_info()[1], _GONE):
+            return  # the browser closed the tab or the connection: nothing to answer
+        super().handle_error(request, client_address)
+
+    def add_pipe(self, *sockets: socket.socket) -> bool:
+        """Track the sockets of a websocket pipe (False: the server is closing)."""
+        with self._pipes_lock:
+            if self._pipes is None:
+                return False
+            self._pipes.update(sockets)
+            return True
+
+    def drop_pipe(self, *sockets: socket.socket) -> None:
+        with self._pipes_lock:
+            if self._pipes is not None:
+                self._pipes.difference_update(sockets)
+
+    def close_pipes(self) -> None:
+        """End every websocket pipe (their threads then return)."""
+        with self._pipes_lock:
+            pipes, self._pipes = self._pipes or set(), None
+        for sock in pipes:
+            with contextlib.suppress(OSError):
+                sock.shutdown(socket.SHUT_RDWR)
+
+
+def _bind(port: int | None) -> _PageServer:
+    """The page's HTTP server bound to 127.0.0.1:port (0: any free port;
+    None: the first free of :data:`PAGE_PORTS`)."""
     ports = [port] if port is not None else list(PAGE_PORTS)
     for p in ports:
         try:
-            server = http.server.ThreadingHTTPServer((LOOPBACK, p), _Handler)
+            return _PageServer((LOOPBACK, p))
         except OSError as exc:
             if exc.errno != errno.EADDRINUSE:
                 raise CdpmError(f"cannot serve the page on {LOOPBACK}:{p}: {exc}") from exc
-            continue
-        server.daemon_threads = True
-        server.page = None
-        return server
     if port is not None:
         raise InputError(f"port {port} is in use; choose another port or omit --port")
     raise CdpmError(f"no free port in {PAGE_PORTS.start}-{PAGE_PORTS.stop - 1} for the page")
 
 
+@functools.cache
 def _static(name: str) -> bytes:
     return resources.files("cdpm.viewer").joinpath("static", name).read_bytes()
+
+
+@functools.cache
+def _scene_file(name: str) -> bytes:
+    """A file of meshcat's own viewer (``meshcat/viewer/dist``)."""
+    # optional: cdpm[viz] (the page's Viewer has imported it already)
+    import meshcat
+
+    return resources.files(meshcat).joinpath("viewer", "dist", name).read_bytes()
+
+
+def _pipe(one: socket.socket, other: socket.socket) -> None:
+    """Copy bytes both ways between two sockets until either end closes."""
+    ends = {one: other, other: one}
+    try:
+        while True:
+            readable, _, _ = select.select(list(ends), [], [])
+            for sock in readable:
+                data = sock.recv(_PIPE_CHUNK)
+                if not data:
+                    return
+                ends[sock].sendall(data)
+    except (OSError, ValueError):  # an end reset, or closed by close_pipes
+        return
 
 
 class _Handler(http.server.BaseHTTPRequestHandler):
@@ -420,34 +527,95 @@ class _Handler(http.server.BaseHTTPRequestHandler):
         self.send_header("Content-Type", content_type)
         self.send_header("Content-Length", str(len(body)))
         self.send_header("Cache-Control", "no-store")
+        self.send_header("X-Content-Type-Options", "nosniff")
         self.end_headers()
         self.wfile.write(body)
 
     def _json(self, status: int, content: Any) -> None:
         self._send(status, json.dumps(content).encode(), "application/json")
 
-    def _local(self) -> bool:
-        """Refuse requests that name another host (e.g. DNS rebinding)."""
-        host = urlsplit("//" + self.headers.get("Host", "")).hostname or ""
-        if host in _LOCAL_HOSTS:
-            return True
-        self._json(403, {"error": f"host {host!r} refused: the page is served on {LOOPBACK}"})
-        return False
+    def _refuse(self, problem: str | None) -> bool:
+        """Answer 403 with ``problem`` (True), or go on when it is None (False)."""
+        if problem is None:
+            return False
+        self.close_connection = True
+        self._json(403, {"error": problem})
+        return True
+
+    def _refused(self, same_origin: bool) -> bool:
+        """Refuse (403) a request naming another host (DNS rebinding) or
+        sent by another site's page (or, with ``same_origin``, by any page
+        but this one)."""
+        host = self.headers.get("Host")
+        problem = host_problem(host) or origin_problem(
+            self.headers.get("Origin"), host if same_origin else None
+        )
+        return self._refuse(problem)
 
     def do_GET(self) -> None:
-        if not self._local():
-            return
         path = urlsplit(self.path).path
+        websocket = path == "/scene/ws"
+        if self._refused(same_origin=websocket):
+            return
+        page = self.server.page
         name = "page.html" if path in ("/", "/index.html") else path.removeprefix("/static/")
         if name in _STATIC and (path.startswith("/static/") or name == "page.html"):
-            self._send(200, _static(name), _STATIC[name])
+            body = _static(name)
+            if name == "page.html":
+                body = body.replace(_TOKEN_SLOT.encode(), page.token.encode())
+            self._send(200, body, _STATIC[name])
+        elif path == "/scene/":  # its relative URLs need the slash
+            self._send(200, _static("scene.html"), _STATIC["page.html"])
+        elif path.removeprefix("/scene/") in _SCENE_FILES:
+            name = path.removeprefix("/scene/")
+            self._send(200, _scene_file(name), _SCENE_FILES[name])
+        elif websocket:
+            self._websocket(page.scene_port)
         elif path == "/api/model":
-            self._json(200, self.server.page.model_dict())
+            self._json(200, page.model_dict())
         else:
             self._json(404, {"error": f"no page {path}; open /"})
 
+    def _websocket(self, port: int) -> None:
+        """Pipe the scene's websocket to the meshcat server: the handshake
+        request goes on with the meshcat server's own Host, then bytes flow
+        both ways unchanged until either end closes."""
+        self.close_connection = True
+        if self.headers.get("Upgrade", "").lower() != "websocket":
+            self._json(400, {"error": "/scene/ws takes a websocket (Upgrade: websocket)"})
+            return
+        try:
+            upstream = socket.create_connection((LOOPBACK, port), timeout=SERVER_TIMEOUT)
+        except OSError as exc:
+            self._json(502, {"error": f"the meshcat server on port {port} does not answer: {exc}"})
+            return
+        with upstream:
+            lines = ["GET / HTTP/1.1", f"Host: {LOOPBACK}:{port}"]
+            lines += [f"{k}: {v}" for k, v in self.headers.items() if k.lower() != "host"]
+            upstream.sendall(("\r\n".join(lines) + "\r\n\r\n").encode("latin-1"))
+            upstream.settimeout(None)
+            self.connection.settimeout(None)
+            if self.server.add_pipe(self.connection, upstream):
+                try:
+                    _pipe(self.connection, upstream)
+                finally:
+                    self.server.drop_pipe(self.connection, upstream)
+
     def do_POST(self) -> None:
-        if not self._local():
+        if self._refused(same_origin=True):
+            return
+        if not secrets.compare_digest(
+            self.headers.get(TOKEN_HEADER, "").encode(), self.server.page.token.encode()
+        ):
+            self._refuse(
+                f"a request without the page's token ({TOKEN_HEADER}) refused: "
+                "change the pose from the page (reload it if the viewer was restarted)"
+            )
+            return
+        kind = self.headers.get("Content-Type", "").split(";")[0].strip().lower()
+        if kind != "application/json":  # a form or text/plain: what another site can send
+            self.close_connection = True
+            self._json(415, {"error": "a JSON body (Content-Type: application/json) is expected"})
             return
         path = urlsplit(self.path).path
         try:
@@ -456,13 +624,16 @@ class _Handler(http.server.BaseHTTPRequestHandler):
             length = -1
         if not 0 <= length <= _MAX_BODY:
             self.close_connection = True
-            self._json(400, {"error": f"a request body of 0-{_MAX_BODY} bytes is expected"})
+            status = 413 if length > _MAX_BODY else 400
+            self._json(status, {"error": f"a request body of 0-{_MAX_BODY} bytes is expected"})
             return
         raw = self.rfile.read(length)
         page = self.server.page
         try:
             try:
                 body = json.loads(raw or b"{}")
+            except RecursionError as exc:
+                raise InputError("the request body is JSON nested too deeply") from exc
             except ValueError as exc:
                 raise InputError(f"the request body is not JSON: {exc}") from exc
             if not isinstance(body, dict):

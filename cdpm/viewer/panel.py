@@ -25,7 +25,6 @@ import numpy as np
 
 from cdpm.dynamics.equilibrium import InfeasibleEquilibriumError
 from cdpm.errors import CdpmError
-from cdpm.numerics import RANK_RTOL
 from cdpm.verdicts import NOT_ANALYSED, VERDICT_COLORS, verdict_code, verdict_key
 from cdpm.viewer.state import (
     COLORS,
@@ -395,37 +394,7 @@ def _reach(report: PoseReport) -> dict | None:
     }
 
 
-def _rank(matrix: np.ndarray) -> int:
-    """Numerical rank: singular values above RANK_RTOL times max(1, the largest)."""
-    if matrix.size == 0:
-        return 0
-    s = np.linalg.svd(np.asarray(matrix, dtype=float), compute_uv=False)
-    return int(np.count_nonzero(s > RANK_RTOL * max(1.0, float(s.max()))))
-
-
 def _notes(report: PoseReport) -> tuple[str, ...]:
-    """Singular poses: an output Jacobian (p, nv) or a cable Jacobian (m, nv)
-    whose rank drops below the most its shape allows (a robot with fewer
-    cables than coordinates is not singular at every pose)."""
-    lin = report.linearisation
-    notes = []
-    p, nv = lin.output_jacobian.shape
-    rank = _rank(lin.output_jacobian)
-    if rank < min(p, nv):
-        notes.append(
-            f"singular pose: the output Jacobian dy/dq has rank {rank} < {_bound(p, 'p', nv)}, "
-            "so to first order the outputs cannot move in some direction"
-        )
-    m = lin.cable_jacobian.shape[0]
-    rank = _rank(lin.cable_jacobian)
-    if rank < min(m, nv):
-        notes.append(
-            f"singular pose: the cable Jacobian L has rank {rank} < {_bound(m, 'm', nv)}, "
-            "so the cables cannot act on every coordinate"
-        )
-    return tuple(notes)
-
-
-def _bound(rows: int, name: str, nv: int) -> str:
-    """``p = 1`` or ``nv = 2``: the largest rank of a (rows, nv) matrix, named."""
-    return f"{name} = {rows}" if rows <= nv else f"nv = {nv}"
+    """Singular poses, as ``cdpm analyze`` words them
+    (:attr:`cdpm.PoseReport.singular_notes`)."""
+    return report.singular_notes

@@ -40,6 +40,7 @@ from cdpm.viewer.state import (
     default_pose,
     link_segments,
     mesh_package_dirs,
+    meshes_outside,
     pose_state,
     tension_colors,
     tension_scale,
@@ -142,18 +143,20 @@ class Viewer:
         robot: a :class:`~cdpm.model.robot.CableRobot`.
         q: first pose (name, configuration or natural coordinates); default
             the spec's first pose, else neutral.
-        port: web port of the started server, 1-65535 (default: first free
-            from 7000).
+        port: web port of the started server, 1-65535 or 0 (any free port)
+            (default: first free from 7000).
         zmq_url: connect to this running meshcat server instead of starting one.
         geometry: ``"auto"`` (URDF visuals when the URDF has some and they
             load, else generated; one warning names a mesh that cannot be
-            loaded), ``"urdf"`` or ``"generated"``.
+            loaded, or that lies outside the model's folder and its
+            ``package://`` packages, :func:`~cdpm.viewer.state.meshes_outside`,
+            and is not loaded), ``"urdf"`` or ``"generated"``.
         tension_scale: tension [N] drawn in the darkest taut colour (default
             :func:`tension_scale`).
 
     Raises:
         MissingExtraError: meshcat is not installed.
-        InputError: a port outside 1-65535 or an unknown geometry.
+        InputError: a port outside 0-65535 or an unknown geometry.
         CdpmError: the server could not start (e.g. the port is in use).
     """
 
@@ -168,7 +171,7 @@ class Viewer:
         tension_scale: float | None = None,
     ) -> None:
         if port is not None:
-            port = check_port(port)
+            port = check_port(port, any_free=True)
         meshcat = _import_meshcat()
         if geometry not in ("auto", "urdf", "generated"):
             raise InputError(f"geometry={geometry!r}; use 'auto', 'urdf' or 'generated'")
@@ -273,8 +276,14 @@ class Viewer:
         )
 
     def _send(self, path: str, method: str, *args) -> None:
-        try:
+        with self._answered():
             getattr(self._root[path], method)(*args)
+
+    @contextlib.contextmanager
+    def _answered(self):
+        """Turn a request the meshcat server leaves unanswered into a CdpmError."""
+        try:
+            yield
         except self._zmq.error.Again as exc:
             raise CdpmError(
                 f"the meshcat server at {self.zmq_url} did not answer within "
@@ -358,6 +367,24 @@ class Viewer:
         import pinocchio as pin
 
         urdf = self.robot.spec.urdf_path
+        # a mesh outside the model (e.g. /home/you/.ssh/key as a mesh) is
+        # neither read nor sent to the browser
+        outside = meshes_outside(urdf, [self.robot.spec.path.parent, urdf.parent])
+        if outside:
+            more = f" (and {len(outside) - 1} more)" if len(outside) > 1 else ""
+            problem = (
+                f"{outside[0]}{more}; the viewer loads meshes only from the model's "
+                "folder or a package:// package (move the mesh there)"
+            )
+            if required:
+                raise ModelError(
+                    f"URDF visual geometry not loaded: {problem}, or use geometry='generated'"
+                )
+            warnings.warn(
+                f"URDF visual geometry not loaded: {problem}; drawing generated links",
+                stacklevel=4,
+            )
+            return None
         dirs = mesh_package_dirs(urdf)
         try:
             return pin.buildGeomFromUrdf(
@@ -490,7 +517,8 @@ class Viewer:
         q) and the materials of cables and marker whose colour changed."""
         geo = self._geometry
         if self._pin_viz is not None:
-            self._pin_viz.display(q)
+            with self._answered():
+                self._pin_viz.display(q)
         else:
             placements = geo.joint_placements()
             for j in range(1, self.robot.model.njoints):

@@ -8,7 +8,8 @@ and the text panel of :class:`cdpm.viewer.PoseInspector` all draw it.
 :func:`link_segments` the generated links (from each joint to its child
 joints, :func:`skeleton_segments`, and to the points its link carries) and
 :func:`centres_of_mass` their centres of mass; :func:`mesh_package_dirs`
-the folders holding the URDF's meshes; :data:`COLORS` the colours (verdict
+the folders holding the URDF's meshes and :func:`meshes_outside` the meshes
+the viewer refuses to load; :data:`COLORS` the colours (verdict
 colours from :mod:`cdpm.verdicts`).
 
 Pinocchio is imported when a :class:`PoseGeometry` is made, not here.
@@ -18,7 +19,9 @@ from __future__ import annotations
 
 import enum
 import html
+import os
 import re
+import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -45,6 +48,7 @@ __all__ = [
     "link_segments",
     "centres_of_mass",
     "mesh_package_dirs",
+    "meshes_outside",
     "default_pose",
     "tension_scale",
     "cable_colors",
@@ -502,6 +506,72 @@ def mesh_package_dirs(urdf_path: str | Path) -> list[Path]:
     return list(dict.fromkeys(dirs))
 
 
+def _within(path: Path, folders: list[Path]) -> bool:
+    """Whether ``path`` (symbolic links resolved) lies in one of ``folders``."""
+    real = path.resolve()
+    return any(real.is_relative_to(folder.resolve()) for folder in folders)
+
+
+def meshes_outside(urdf_path: str | Path, model_dirs: list[Path]) -> list[str]:
+    """The URDF's visual meshes the viewer refuses to load, one sentence each.
+
+    A mesh is loaded (read and sent to the browser) only from the model's
+    folders or from the package a ``package://`` path names: its file,
+    found as Pinocchio finds it (the first of :func:`mesh_package_dirs`,
+    then $ROS_PACKAGE_PATH, that holds it), with symbolic links and ``..``
+    resolved, must lie in
+
+    - ``package://NAME/REL`` (or ``model://``): the folder of package NAME
+      it was found in;
+    - a relative path, an absolute path or ``file://``: one of ``model_dirs``.
+
+    Any other scheme (``http://``) is refused too. A mesh that is not found
+    anywhere is not listed (loading it fails and says so).
+
+    Args:
+        urdf_path: the URDF file.
+        model_dirs: the model's folders (the spec's and the URDF's).
+
+    Returns:
+        One sentence per refused mesh (once however many links use it),
+        naming its path and where it leads.
+    """
+    urdf = Path(urdf_path).resolve()
+    try:
+        root = ET.parse(urdf).getroot()
+    except (ET.ParseError, OSError):
+        return []  # not ours to report: the robot was loaded from it
+    dirs = mesh_package_dirs(urdf)
+    dirs += [Path(d) for d in os.environ.get("ROS_PACKAGE_PATH", "").split(os.pathsep) if d]
+    folders = ", ".join(str(d) for d in dict.fromkeys(model_dirs))
+    problems = []
+    for mesh in root.iterfind(".//visual/geometry/mesh"):
+        name = (mesh.get("filename") or "").strip()
+        scheme, sep, rest = name.partition("://")
+        if not sep:
+            scheme, rest = "", name
+        if scheme in ("package", "model"):
+            package = rest.split("/", 1)[0]
+            found = next((d for d in dirs if (d / rest).exists()), None)
+            if found is not None and not _within(found / rest, [found / package]):
+                problems.append(
+                    f"mesh {name!r} leads outside its package's folder {found / package} "
+                    f"(to {(found / rest).resolve()})"
+                )
+        elif scheme in ("", "file"):
+            if scheme == "file" or os.path.isabs(rest):
+                path = Path(rest)
+            else:
+                path = next((d / rest for d in dirs if (d / rest).exists()), None)
+            if path is not None and path.exists() and not _within(path, model_dirs):
+                problems.append(
+                    f"mesh {name!r} lies outside the model's folder ({folders}): {path.resolve()}"
+                )
+        else:
+            problems.append(f"mesh {name!r} is not a file: use a path or package://")
+    return list(dict.fromkeys(problems))  # a mesh several links use, once
+
+
 def _analyse(robot: CableRobot, q: np.ndarray):
     """Equilibrium tension, cable states and POC verdict at q.
 
@@ -670,7 +740,8 @@ def tension_colors(
     """
 
     f = np.asarray(tension, dtype=float)
-    at_lower, _, _ = classify(f, np.asarray(tension_min), np.asarray(tension_max))
+    # the colour scale stands for the robot's force scale of the bound test
+    at_lower, _, _ = classify(f, np.asarray(tension_min), np.asarray(tension_max), scale)
     return [
         COLORS["slack"] if slack else _taut_color(fi, scale, levels)
         for fi, slack in zip(f, at_lower, strict=True)

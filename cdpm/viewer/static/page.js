@@ -1,8 +1,12 @@
 // The inspection page of `cdpm view` (cdpm/viewer/page.py serves it).
 //
-// Loads the model (/api/model), builds one slider per natural coordinate,
+// Every URL is relative: page, scene (the iframe's scene/) and the scene's
+// websocket share the page's origin, whichever loopback name or forwarded
+// port reached it.
+//
+// Loads the model (api/model), builds one slider per natural coordinate,
 // the named-pose picker, the legend and the map toggle, and renders the
-// panel. A slider move sends the pose to /api/pose; while a request is in
+// panel. A slider move sends the pose to api/pose; while a request is in
 // flight, further moves are coalesced into the next request, so the panel
 // follows the slider without a queue of stale poses.
 //
@@ -22,6 +26,9 @@ cdpm.busy = () => inFlight || pending !== null;
 window.cdpm = cdpm;
 
 const $ = (id) => document.getElementById(id);
+
+// the page's token, written into it by the server: a POST without it is refused
+const token = document.querySelector('meta[name="cdpm-token"]').content;
 
 function el(tag, attrs = {}, children = []) {
   const node = document.createElement(tag);
@@ -56,7 +63,7 @@ function badge(text, color) {
 async function post(path, body) {
   const response = await fetch(path, {
     method: "POST",
-    headers: { "Content-Type": "application/json" },
+    headers: { "Content-Type": "application/json", "X-Cdpm-Token": token },
     body: JSON.stringify(body),
   });
   const content = await response.json();
@@ -74,7 +81,7 @@ async function flush() {
   pending = null;
   inFlight = true;
   try {
-    const panel = await post("/api/pose", job.body);
+    const panel = await post("api/pose", job.body);
     render(panel);
     const ms = performance.now() - job.t0;
     cdpm.timings.push(ms);
@@ -194,7 +201,7 @@ function buildMap(map) {
   $("map-label").textContent = `show ${map.name || "the map"} (${map.points} poses, coloured by ${map.color_by})`;
   toggle.addEventListener("change", async () => {
     try {
-      const state = await post("/api/map", { visible: toggle.checked });
+      const state = await post("api/map", { visible: toggle.checked });
       toggle.checked = state.visible;
     } catch (error) {
       $("map-label").textContent = `map: ${error.message}`;
@@ -224,14 +231,38 @@ function buildCopy() {
 
 // ------------------------------------------------------------------ rendering
 
-function reachRow(reach) {
-  let text = "unavailable";
-  if (reach) {
-    const error = reach.error ? ` ± ${Number(reach.error).toPrecision(2)}` : "";
-    // a unit of several (metres and radians, one to one) in brackets
-    const unit = reach.unit.includes(",") ? ` [${reach.unit}]` : ` ${reach.unit}`;
-    text = `${Number(reach.value).toPrecision(4)}${error}${unit} within T = ${Number(reach.horizon).toPrecision(3)} s`;
+// a number as Python's format(x, ".{digits}g") writes it (the text report's numbers)
+function fmtG(x, digits) {
+  const value = Number(x);
+  if (value === 0 || !Number.isFinite(value)) return String(value);
+  const trim = (text) => (text.includes(".") ? text.replace(/\.?0+$/, "") : text);
+  const [mantissa, power] = value.toExponential(digits - 1).split("e");
+  const exponent = Number(power);
+  if (exponent < -4 || exponent >= digits) {
+    const sign = exponent < 0 ? "-" : "+";
+    return `${trim(mantissa)}e${sign}${String(Math.abs(exponent)).padStart(2, "0")}`;
   }
+  return trim(value.toFixed(digits - 1 - exponent));
+}
+
+// r_T is a lower bound: the true margin lies in [value, value + error]; the
+// words are the text report's (cdpm/text/report.py): "(exact)" or
+// "(a lower bound: at most E more)"
+function reachText(reach) {
+  if (!reach) return "unavailable";
+  const horizon = `within T = ${fmtG(reach.horizon, 3)} s`;
+  // JSON null: NaN (not computed) or infinite (a mode grows too fast within T)
+  if (reach.value === null) return reach.error === null ? "not computed" : `not resolvable ${horizon}`;
+  // a unit of several (metres and radians, one to one) in brackets
+  const unit = reach.unit.includes(",") ? ` [${reach.unit}]` : ` ${reach.unit}`;
+  let bound = "a lower bound"; // its error not known (JSON null)
+  if (reach.error === 0) bound = "exact";
+  else if (reach.error !== null) bound = `a lower bound: at most ${fmtG(reach.error, 2)} more`;
+  return `${fmtG(reach.value, 4)}${unit} (${bound}) ${horizon}`;
+}
+
+function reachRow(reach) {
+  const text = reachText(reach);
   return el("tr", { id: "reach", class: "reach", "data-value": reach ? reach.value : "", title: reach ? reach.budget : "" }, [
     el("td", { text: "r_T" }),
     el("td", {}, [el("span", { class: "label", text: "Reach margin " }), el("span", { text })]),
@@ -292,17 +323,12 @@ function render(panel) {
 
 async function start() {
   try {
-    const response = await fetch("/api/model");
+    const response = await fetch("api/model");
     const model = await response.json();
     if (!response.ok) throw new Error(model.error || response.statusText);
     cdpm.model = model;
     document.title = `cdpm view: ${model.model}`;
     $("model-name").textContent = model.model;
-    // the scene from the other name of the loopback address: another site to the
-    // browser, so site isolation renders it in a process of its own and its
-    // WebGL frames never hold up this page's panel
-    const sceneHost = location.hostname === "localhost" ? "127.0.0.1" : "localhost";
-    $("scene-frame").src = `${location.protocol}//${sceneHost}:${model.scene.port}${model.scene.path}`;
     buildSliders(model.coordinates);
     buildPoses(model.poses);
     buildLegend(model.legend);
