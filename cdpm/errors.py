@@ -50,6 +50,13 @@ def short_repr(value, limit: int = 80) -> str:
     return text if len(text) <= limit + 20 else text[: limit + 17] + "..."
 
 
+def short_str(value, limit: int = 80) -> str:
+    """``str(value)`` cut to ``limit`` characters (ending in ``...``), for
+    messages that quote a value as the user typed it."""
+    text = str(value)
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
 def capped_lines(lines: list[str]) -> list[str]:
     """The first MAX_LISTED_PROBLEMS lines, each cut to MAX_PROBLEM_CHARS,
     then ``and N more`` when there were more."""

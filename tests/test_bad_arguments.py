@@ -28,7 +28,7 @@ TABLE = [
     (["picture", PLANAR, "-o", "/proc/x.png"], "cannot"),
     (["picture", PLANAR, "-o", "{d}/nodir/x.png"], "does not exist"),
     (["picture", PLANAR, "-o", "{d}/x.png", "--dpi", "100000"], "from 1 to 1200"),
-    (["picture", PLANAR, "-o", "{d}/afolder"], "use a .png, .pdf or .svg name"),
+    (["picture", PLANAR, "-o", "{d}/afolder"], "is a folder"),
     (["plot", "{d}/m.zarr", "-o", "/proc/p.png"], "cannot"),
     (["plot", "{d}/m.zarr", "-o", "{d}/afolder"], "is a folder"),
     (["plot", "{d}/m.zarr", "-o", "{d}/p.png", "--dpi", "1e6"], "from 1 to 1200"),

@@ -35,6 +35,14 @@ def test_paper_example_notebook_executes():
     assert "certificate re-checks: True" in text
     assert "r_T = 0.1501 m (error 0); closed form 0.1501 m" in text
     assert "Verdict.YES" in text or "verdict: YES" in text or "verdict: yes" in text
+    # the last cell shows the pose report as it prints, in plain text and in html,
+    # not the dump of its fields (about 4.9 kB of "PoseReport(model_name=...")
+    last = nb.cells[-1].outputs[-1]["data"]
+    plain, html = last["text/plain"], last["text/html"]
+    assert plain.startswith("cdpm report: two_link_planar.yaml, pose 'nominal'")
+    assert "Positive output controllability (Theorem 1): YES (nilpotent" in plain
+    assert "PoseReport(" not in plain and "array(" not in plain
+    assert html.startswith("<pre>cdpm report: two_link_planar.yaml")
 
 
 @pytest.mark.slow

@@ -67,8 +67,8 @@ def test_bad_plane_and_suffix(paper_robot, tmp_path):
 
     with pytest.raises(InputError, match="plane='top'"):
         render_pose(paper_robot, "nominal", plane="top")
-    with pytest.raises(InputError, match="use a .png, .pdf or .svg name"):
-        render_pose(paper_robot, "nominal", tmp_path / "pose.jpeg")
+    with pytest.raises(InputError, match=r"unknown image format '\.jpgg'; use one of .*jpg"):
+        render_pose(paper_robot, "nominal", tmp_path / "pose.jpgg")
 
 
 def test_picture_command(tmp_path, capsys):
@@ -82,11 +82,33 @@ def test_picture_command(tmp_path, capsys):
     assert "pose 'nope' not in spec; poses: nominal" in capsys.readouterr().err
     # the file name is checked before the spec is even read
     with pytest.raises(SystemExit) as info:
-        main(["picture", "missing.yaml", "-o", str(tmp_path / "pose.jpeg")])
+        main(["picture", "missing.yaml", "-o", str(tmp_path / "pose.jpgg")])
     assert info.value.code == 2
-    assert "argument -o/--output: picture file 'pose.jpeg': use a .png, .pdf or .svg name" in (
-        capsys.readouterr().err
-    )
+    err = capsys.readouterr().err
+    assert "argument -o/--output: cannot write pose.jpgg: unknown image format '.jpgg'" in err
+
+
+def test_picture_writes_every_format_plot_writes(tmp_path, capsys):
+    """cdpm picture and cdpm plot take the same image formats (one list,
+    matplotlib's): a .jpg picture is a JPEG of the pose, not an error."""
+    from PIL import Image
+
+    from cdpm.cli import main
+    from cdpm.plotting import image_formats
+
+    assert {"png", "pdf", "svg", "jpg", "jpeg"} <= set(image_formats())
+    out = tmp_path / "pose.jpg"
+    assert main(["picture", str(PAPER_SPEC), "--pose", "nominal", "-o", str(out)]) == 0
+    assert f"wrote {out}: POC YES" in capsys.readouterr().out
+    with Image.open(out) as image:
+        assert image.format == "JPEG" and image.size[0] > 300
+        pixels = np.asarray(image.convert("RGB")).astype(int)
+    # JPEG blurs colours a little: the green YES star and the pink slack cables show
+    assert _count_near(pixels, COLORS["yes"], tol=30) > 60
+    assert _count_near(pixels, COLORS["slack"], tol=30) > 300
+    # a name without an extension gets .png, as with cdpm plot
+    assert main(["picture", str(PAPER_SPEC), "--pose", "nominal", "-o", str(tmp_path / "p")]) == 0
+    assert (tmp_path / "p.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
 def test_missing_matplotlib_gives_install_hint():

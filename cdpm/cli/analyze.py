@@ -44,7 +44,9 @@ in the outputs' unit, with metres and radians counted one to one when they mix
 At a pose that no tension within the cable bounds holds (by the chosen
 method) there is no linearisation: the report then shows the pose, the
 outputs, the cables with the closest tensions within the bounds and their
-statics residual, and the map criteria, marked INFEASIBLE (exit status 3)."""
+statics residual, and the map criteria, marked INFEASIBLE (exit status 3).
+A singular pose (the outputs or the cables lose a direction there) is noted
+under the outputs."""
 
 #: exit status when the pose has no equilibrium (the report is printed)
 EXIT_NO_EQUILIBRIUM = 3
@@ -60,7 +62,7 @@ examples:
   cdpm analyze models/two_link_planar/two_link_planar.yaml --q 0.5 1.0 --json > report.json
   cdpm analyze models/two_link_planar --pose nominal --format npz --output lin.npz
   cdpm analyze models/two_link_planar --pose nominal --output lin.mat   (MATLAB file)
-  cdpm analyze models/two_link_vertical --pose horizontal --tension pretension --pretension 10
+  cdpm analyze models/two_link_vertical --q 0.2 0.4 --tension pretension --pretension 10
   cdpm analyze models/two_link_planar --pose nominal --tension 0 0 0 0   (given tensions)
   cdpm analyze models/two_link_planar --pose nominal --neighbourhood 0.3 --points 31
   cdpm analyze models/two_link_vertical --pose nominal --horizon 0.5 --tension-budget 10
@@ -85,7 +87,9 @@ exit status:
   2  bad usage
   3  no tension within the cable bounds holds the pose by the chosen method:
      the report is printed, marked INFEASIBLE, without linearisation or
-     verdicts; stderr says what to change (nothing is written for npz/mat).
+     verdicts; stderr says what to change (nothing is written for npz/mat;
+     when the mass matrix is singular there too, a body without inertia
+     about an axis, stderr and the report name that first).
      With --tension best: no tension within the cable bounds holds the pose
      at all (when only the spec's method finds none, the search still runs
      and the status is 0)
@@ -179,7 +183,7 @@ def run(args: argparse.Namespace) -> int:
     if search:
         return _print_with_best(report, best, fmt, output)
     if not report.feasible:
-        print(f"cdpm analyze: error: {cli_infeasible_message(report.equilibrium)}", file=sys.stderr)
+        print(f"cdpm analyze: error: {_infeasible_words(report)}", file=sys.stderr)
     if fmt in ("npz", "mat"):
         if not report.feasible:
             print(report)
@@ -197,6 +201,20 @@ def run(args: argparse.Namespace) -> int:
         output.write_text(text + "\n", encoding="utf-8")
         print(f"wrote {output}: the {fmt} report of {_where(report)}")
     return 0 if report.feasible else EXIT_NO_EQUILIBRIUM
+
+
+def _infeasible_words(report) -> str:
+    """Why a report without equilibrium has no verdicts: a singular mass
+    matrix first (the map status says so), else the missing equilibrium."""
+    # loaded when the command runs (cdpm --help stays fast)
+    from cdpm.text.report import SINGULAR_MASS_MATRIX, SINGULAR_MASS_MATRIX_FIX
+
+    if report.singular_mass_matrix:
+        return (
+            f"{SINGULAR_MASS_MATRIX}. To fix: {SINGULAR_MASS_MATRIX_FIX} (no tension within "
+            f"the cable bounds holds this pose either, by method {report.equilibrium.method!r})"
+        )
+    return cli_infeasible_message(report.equilibrium)
 
 
 def _best_tension(robot: CableRobot, q, args: argparse.Namespace):
@@ -223,6 +241,8 @@ def _print_with_best(report, best, fmt: str, output: Path | None) -> int:
     # loaded when the command runs (cdpm --help stays fast)
     from cdpm.text.tension import best_tension_json, best_tension_text
 
+    if not report.feasible and report.singular_mass_matrix:
+        print(f"cdpm analyze: error: {_infeasible_words(report)}", file=sys.stderr)
     if best is None:
         print(
             "cdpm analyze: error: no tension within the cable bounds holds this pose, so there "
@@ -321,4 +341,7 @@ def neighbourhood_from_args(robot: CableRobot, args: argparse.Namespace):
 
 
 def _where(report) -> str:
-    return f"pose {report.pose_name!r}" if report.pose_name else "the given q"
+    # loaded when the command runs (cdpm --help stays fast)
+    from cdpm.text.format import pose_words
+
+    return pose_words(report.pose_name)

@@ -8,7 +8,7 @@ from cdpm.cli._pose import add_pose_arguments, pose_from_args
 from cdpm.cli.plot import argument_type
 
 NAME = "picture"
-HELP = "draw a pose (robot, cables by state, outputs, POC verdict) to a PNG/PDF/SVG file"
+HELP = "draw a pose (robot, cables by state, outputs, POC verdict) to an image file"
 DESCRIPTION = """\
 Render the robot at one pose as a 2-D projection with matplotlib, headless:
 links, base anchors, attachment points, cables coloured by state (taut:
@@ -18,11 +18,13 @@ verdict (green YES, red NO, amber MARGINAL): a star on each output point,
 the axes of the frame of an orientation output (x red, y green, z blue), a
 halo along a cable whose length is an output, a joint output named at its
 joint; the legend gives the values of joint and cable outputs, the title the
-verdict. Needs the viz extra: pip install "cdpm[viz]"."""
+verdict. The file's extension picks the format, as for cdpm plot (.png,
+.pdf, .svg, .jpg, ...). Needs the viz extra: pip install "cdpm[viz]"."""
 EPILOG = """\
 examples:
   cdpm picture models/two_link_planar/two_link_planar.yaml --pose nominal -o pose.png
-  cdpm picture models/two_link_planar/two_link_planar.yaml --q 0.3 1.2 --plane xy -o pose.svg"""
+  cdpm picture models/two_link_planar/two_link_planar.yaml --q 0.3 1.2 --plane xy -o pose.svg
+  cdpm picture models/two_link_vertical --pose nominal -o pose.jpg"""
 
 
 def _picture_file(text: str):
@@ -54,7 +56,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         required=True,
         metavar="FILE",
         type=argument_type(_picture_file),
-        help="image file (.png, .pdf or .svg)",
+        help="image to write; the extension picks the format (.png, .pdf, .svg, .jpg, ...)",
     )
     parser.add_argument(
         "--plane",

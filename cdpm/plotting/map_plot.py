@@ -39,7 +39,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from cdpm.errors import InputError, is_integer
+from cdpm.errors import InputError, is_integer, short_str
 from cdpm.maps import open_map
 from cdpm.maps.plan import describe_overrides
 from cdpm.maps.regions import grid_wrap
@@ -161,8 +161,8 @@ def check_dpi(dpi: Any) -> float:
         value = math.nan
     if not (math.isfinite(value) and 0 < value <= MAX_DPI):
         raise InputError(
-            f"dpi={dpi} must be a number of dots per inch from 1 to {MAX_DPI} (print quality "
-            "is 300-600)"
+            f"dpi={short_str(dpi, 40)} must be a number of dots per inch from 1 to {MAX_DPI} "
+            "(print quality is 300-600)"
         )
     return value
 

@@ -24,8 +24,8 @@ from typing import Any
 
 import numpy as np
 
-from cdpm.errors import InputError
-from cdpm.plotting import check_dpi, check_output_folder
+from cdpm.errors import InputError, short_str
+from cdpm.plotting import check_dpi, check_image_path
 from cdpm.plotting._common import matplotlib_parts
 from cdpm.viewer.state import (
     AXIS_RGB,
@@ -101,7 +101,8 @@ def render_pose(
         robot: a :class:`~cdpm.model.robot.CableRobot`.
         q: a pose name, configuration vector (nq,) or natural coordinates
             (nv,); default the spec's first pose, else neutral.
-        path: write the figure there (format from the suffix: .png, .pdf, .svg).
+        path: write the figure there (format from the suffix: .png, .pdf,
+            .svg, .jpg or any other matplotlib writes; none: .png added).
         plane: ``"xy"``, ``"xz"``, ``"yz"`` (world axes) or ``"auto"``: the
             plane across the scene's thinnest world axis.
         title: figure title; default names the model, the pose and the verdict.
@@ -245,7 +246,14 @@ def render_pose(
             zorder=6,
         )
     frame_labels = [
-        ax.annotate(name, (p[h], p[v]), xytext=(8, -12), textcoords="offset points", fontsize=9)
+        ax.annotate(
+            name,
+            (p[h], p[v]),
+            xytext=(8, -12),
+            textcoords="offset points",
+            fontsize=9,
+            parse_math=False,
+        )
         for name, p in zip(out_labels, out, strict=True)
     ]
     extent = max(float(np.ptp(everything[:, [h, v]], axis=0).max()), 1e-9)
@@ -266,6 +274,7 @@ def render_pose(
                 xytext=(9, 7),
                 textcoords="offset points",
                 fontsize=9,
+                parse_math=False,
                 color="0.15",
                 zorder=7,
                 bbox={"boxstyle": "round,pad=0.1", "facecolor": "white", "edgecolor": "none"},
@@ -407,7 +416,7 @@ def _legend(ax, handles: list, labels: list[str], ncol: int):
     # optional: cdpm[viz/maps]
     from matplotlib.legend_handler import HandlerTuple
 
-    return ax.legend(
+    legend = ax.legend(
         handles,
         labels,
         loc="upper center",
@@ -416,6 +425,9 @@ def _legend(ax, handles: list, labels: list[str], ncol: int):
         frameon=False,
         handler_map={tuple: HandlerTuple(ndivide=None, pad=0.0)},
     )
+    for text in legend.get_texts():  # names are drawn as written, never as maths
+        text.set_parse_math(False)
+    return legend
 
 
 def check_picture_dpi(dpi: Any) -> float:
@@ -427,7 +439,8 @@ def check_picture_dpi(dpi: Any) -> float:
     value = check_dpi(dpi)
     if value < MIN_PICTURE_DPI:
         raise InputError(
-            f"dpi={dpi} is too low for a picture: its text would be under three pixels tall; "
+            f"dpi={short_str(dpi, 40)} is too low for a picture: its text would be under three "
+            "pixels tall; "
             f"use at least {MIN_PICTURE_DPI} dots per inch (the default is 110)"
         )
     return value
@@ -449,17 +462,19 @@ def check_picture_title(title: Any) -> str:
 
 
 def check_picture_path(path: str | os.PathLike) -> Path:
-    """``path`` as a Path when its suffix is one a picture is written as.
+    """The file a picture saved at ``path`` is written to: as a map plot
+    (:func:`cdpm.plotting.check_image_path`, the one list of image formats:
+    every extension matplotlib writes, .png, .pdf, .svg, .jpg, ...; none
+    adds .png).
 
     Raises:
-        InputError: any other suffix.
+        MissingExtraError: matplotlib is not installed.
+        InputError: ``path`` is a folder, its folder does not exist or is not
+            writable, or matplotlib cannot write its extension (the message
+            lists those it can).
     """
-
-    target = Path(path).expanduser()
-    if target.suffix.lower() not in (".png", ".pdf", ".svg"):
-        raise InputError(f"picture file {target.name!r}: use a .png, .pdf or .svg name")
-    check_output_folder(target)
-    return target
+    matplotlib_parts("pictures", extra="viz")  # its hint names this extra
+    return check_image_path(path)
 
 
 def _put_under_axes(legend, renderer) -> None:
@@ -509,7 +524,7 @@ def _fit_title(ax, titles: list[str], renderer, fontsize: float = 10) -> None:
         return box.x0 >= figure.x0 and box.x1 <= figure.x1
 
     for title in titles:
-        ax.set_title(title, fontsize=fontsize)
+        ax.set_title(title, fontsize=fontsize, parse_math=False)
         if renderer is None or fits():
             return
     lines = titles[-1].splitlines()
@@ -523,7 +538,7 @@ def _fit_title(ax, titles: list[str], renderer, fontsize: float = 10) -> None:
             textwrap.fill(line, width, break_long_words=False, break_on_hyphens=False)
             for line in lines
         )
-        ax.set_title("\n".join(wrapped), fontsize=fontsize)
+        ax.set_title("\n".join(wrapped), fontsize=fontsize, parse_math=False)
 
 
 #: most cable names one merged label lists before "and N more"
@@ -561,6 +576,7 @@ class _CableLabels:
         return self.ax.annotate(
             ", ".join(texts),
             tuple(point),
+            parse_math=False,
             xytext=(-3 * inward, 6 * up),
             textcoords="offset points",
             ha={1: "left", 0: "center", -1: "right"}[inward],

@@ -63,15 +63,17 @@ def tension_panel(ax, time, values, names, equilibrium=None) -> None:
     title = "tensions" + ("; dotted: equilibrium f*" if equilibrium is not None else "")
     if idle:
         title += f"\nat 0 N throughout: {', '.join(idle)}"
-    ax.set_title(title, fontsize=9)
+    ax.set_title(title, fontsize=9, parse_math=False)
     if len(idle) < len(names):
-        ax.legend(
+        legend = ax.legend(
             fontsize=7,
             loc="center left",
             bbox_to_anchor=(1.01, 0.5),
             frameon=False,
             ncol=1 + (len(groups) - 1) // 9,
         )
+        for text in legend.get_texts():  # cable names as written, never as maths
+            text.set_parse_math(False)
 
 
 def plot_trajectory(

@@ -10,8 +10,9 @@ from typing import Any
 
 import numpy as np
 
+from cdpm.numerics import RANK_RTOL
 from cdpm.pipeline.criteria import CRITERIA
-from cdpm.printing import largest_magnitude, named_values, round_to_scale
+from cdpm.printing import VALUE_DIGITS, largest_magnitude, named_values, round_to_scale
 
 # ---------------------------------------------------------------- printing
 #
@@ -177,21 +178,89 @@ def impulse_scale(poc: Any) -> float:
         return math.nan
 
 
-def tension_table(names, lengths, tensions, states, last: list[str], last_head: str) -> list[str]:
-    """The cable table: name, length [m], tension [N] (rounded to the
-    largest tension), state and a last column."""
-    tensions = round_to_scale(tensions, largest_magnitude(tensions))
+def tension_texts(tensions, at_bound) -> list[str]:
+    """Each tension [N] as the text tables print it, to VALUE_DIGITS
+    significant digits: a cable at one of its bounds rounded to the largest
+    tension (round-off of a zero bound prints as 0), a cable strictly inside
+    its bounds (taut) to its own digits, so that it never prints as 0
+    (``3.5e-09``: a taut cable shown as 0 would contradict its state).
+
+    Args:
+        tensions: the cables' tensions [N], shape (m,).
+        at_bound: True where the cable is at a tension bound (slack, at its
+            least or greatest tension), shape (m,).
+    """
+    tensions = np.asarray(tensions, dtype=float).reshape(-1)
+    rounded = round_to_scale(tensions, largest_magnitude(tensions))
+    shown = np.where(np.asarray(at_bound, dtype=bool).reshape(-1), rounded, tensions + 0.0)
+    return [f"{f:.{VALUE_DIGITS}g}" for f in shown]
+
+
+def tension_table(
+    names, lengths, tensions, states, last: list[str], last_head: str, at_bound=None
+) -> list[str]:
+    """The cable table: name, length [m], tension [N] (:func:`tension_texts`:
+    a taut cable never as 0), state (``taut`` or a bound, as
+    :meth:`~cdpm.dynamics.equilibrium.EquilibriumResult.cable_states`) and a
+    last column. ``at_bound`` (m,): the cables at a tension bound (default:
+    every cable whose state is not ``taut``)."""
+    if at_bound is None:
+        at_bound = [state != "taut" for state in states]
+    texts = tension_texts(tensions, at_bound)
     lines = [f"  {'name':<12} {'length [m]':>11} {'tension [N]':>12}  {'state':<7} {last_head}"]
-    for name, length, f, state, extra in zip(names, lengths, tensions, states, last, strict=True):
-        lines.append(f"  {name:<12} {length:>11.6f} {f:>12.6g}  {state:<7} {extra}".rstrip())
+    for name, length, f, state, extra in zip(names, lengths, texts, states, last, strict=True):
+        lines.append(f"  {name:<12} {length:>11.6f} {f:>12}  {state:<7} {extra}".rstrip())
     return lines
 
 
-def pose_head(report: Any, output, output_names, outputs=()) -> list[str]:
+def _rank(matrix: np.ndarray) -> int:
+    """Numerical rank: singular values above RANK_RTOL times max(1, the largest)."""
+    if matrix.size == 0:
+        return 0
+    s = np.linalg.svd(np.asarray(matrix, dtype=float), compute_uv=False)
+    return int(np.count_nonzero(s > RANK_RTOL * max(1.0, float(s.max()))))
+
+
+def singular_pose_notes(output_jacobian, cable_jacobian) -> tuple[str, ...]:
+    """Whether a pose is singular, in words: one sentence for an output
+    Jacobian dy/dq (p, nv) or a cable Jacobian L (m, nv) whose rank drops
+    below the most its shape allows (a robot with fewer cables than
+    coordinates is not singular at every pose); none at a regular pose.
+    ``cdpm analyze`` and the viewer's panel print these."""
+    notes = []
+    p, nv = np.shape(output_jacobian)
+    rank = _rank(np.asarray(output_jacobian))
+    if rank < min(p, nv):
+        notes.append(
+            f"singular pose: the output Jacobian dy/dq has rank {rank} < {_bound(p, 'p', nv)}, "
+            "so to first order the outputs cannot move in some direction"
+        )
+    m = np.shape(cable_jacobian)[0]
+    rank = _rank(np.asarray(cable_jacobian))
+    if rank < min(m, nv):
+        notes.append(
+            f"singular pose: the cable Jacobian L has rank {rank} < {_bound(m, 'm', nv)}, "
+            "so the cables cannot act on every coordinate"
+        )
+    return tuple(notes)
+
+
+def _bound(rows: int, name: str, nv: int) -> str:
+    """``p = 1`` or ``nv = 2``: the largest rank of a (rows, nv) matrix, named."""
+    return f"{name} = {rows}" if rows <= nv else f"nv = {nv}"
+
+
+def pose_words(pose_name: str | None) -> str:
+    """``"pose 'nominal'"``, or ``"the given q"`` for a pose without a name."""
+    return f"pose {pose_name!r}" if pose_name else "the given q"
+
+
+def pose_head(report: Any, output, output_names, outputs=(), notes=()) -> list[str]:
     """The report's first lines: model, pose, coordinates, the outputs with
-    their units and the formula of each output that is not one component
-    of a frame (a joint, a cable length, a weighted sum)."""
-    where = f"pose {report.pose_name!r}" if report.pose_name else "the given q"
+    their units, the formula of each output that is not one component of a
+    frame (a joint, a cable length, a weighted sum) and ``notes`` (e.g.
+    :func:`singular_pose_notes`), one line each."""
+    where = pose_words(report.pose_name)
     units = units_of_outputs(outputs, len(output_names))
     values = values_with_units(output_names, output, units, report.length_scale or 0.0)
     lines = [
@@ -206,4 +275,5 @@ def pose_head(report: Any, output, output_names, outputs=()) -> list[str]:
     ]
     if formulas:
         lines.append(f"  where:       {'; '.join(formulas)}")
+    lines += [f"  note:        {note}" for note in notes]
     return [*lines, ""]

@@ -47,11 +47,8 @@ def neighbourhood_lines(nb: Neighbourhood) -> list[str]:
         out = [f"radius 0 {grid}: the pose is YES, but {nb.reason}"]
     out[0] = "POC neighbourhood: " + out[0]
     if not nb.whole_box_yes:
-        out.append(
-            f"  box radius in [{lo:.4g}, {hi:.4g}] {u}: it stops at the nearest non-YES pose "
-            "or where r_T comes within one step's change of 0, where a NO set thinner than "
-            "the grid may pass (the region may end between the two)"
-        )
+        why = f": it stops there: {nb.reason}" if lo > 0 else ""  # radius 0: said above
+        out.append(f"  box radius in [{lo:.4g}, {hi:.4g}] {u}{why}")
     names, varied, near = nb.coordinate_names, nb.coordinates, nb.nearest
     if near is not None:
         where = f"{near.describe()} at ({_where(near, names, varied)})"
@@ -64,6 +61,17 @@ def neighbourhood_lines(nb: Neighbourhood) -> list[str]:
             f"({_where(b, names, varied)}), {a.distance_box:.4g} and {b.distance_box:.4g} "
             f"{u} away ({nb.suspect_edges} suspect edges in all)"
         )
+        least = nb.suspect_least
+        if least is not None:
+            what = (
+                f"a {least.describe()} pose"
+                if least.verdict != YES
+                else f"r_T down to {least.margin:.3g} {nb.margin_unit}"
+            )
+            out.append(
+                f"    resampled along it: {what} at ({_where(least, names, varied)}), "
+                f"{least.distance_box:.4g} {u} away"
+            )
     ball, end = nb.ball_bracket
     out.append(
         f"  ball (2-norm): every sampled pose within {R:.4g} {u} {clear}"
@@ -71,11 +79,9 @@ def neighbourhood_lines(nb: Neighbourhood) -> list[str]:
         else f"  ball (2-norm): radius {ball:.4g} {u}, the region may end at {end:.4g}"
     )
     out.append("  " + _sampled_text(nb))
-    out.append(
-        f"  r_T: T {nb.reach.horizon:.3g} s, budget {nb.reach.tension_budget:.3g} N; "
-        f"suspect: r(a) + r(b) <= {SUSPECT_LIPSCHITZ_SAFETY:g} L h, L the largest slope of "
-        "r_T sampled at a or b (a heuristic)"
-    )
+    out.append(f"  r_T: T {nb.reach.horizon:.3g} s, budget {nb.reach.tension_budget:.3g} N")
+    if nb.suspect_edges or nb.suspect_cleared:
+        out.append("  " + _thin_no_set_text(nb))
     if u == "m or rad":
         out.append("  mixed units: 1 m of translation counts as 1 rad (set scale= to change)")
     elif u == "scaled units":
@@ -91,6 +97,23 @@ def neighbourhood_lines(nb: Neighbourhood) -> list[str]:
             "(evaluated anyway)" + ("; the nearest non-YES pose is one of them" if also else "")
         )
     return out
+
+
+def _thin_no_set_text(nb: Neighbourhood) -> str:
+    """How the steps where a thin NO set may pass were found: the estimate,
+    said to be one, and what resampling them did."""
+    text = (
+        "thin NO sets: a step from a to b is suspect when r(a) + r(b) <= "
+        f"{SUSPECT_LIPSCHITZ_SAFETY:g} L h, L the largest slope of r_T sampled at a or b "
+        "(an estimate of how fast r_T can fall, not a proof)"
+    )
+    flagged = nb.suspect_edges + nb.suspect_cleared
+    if nb.refined_poses:
+        text += (
+            f"; {flagged} step(s) flagged, resampled at {nb.refined_poses} more poses: "
+            f"{nb.suspect_cleared} cleared, {nb.suspect_edges} still suspect"
+        )
+    return text
 
 
 def neighbourhood_text(nb: Neighbourhood) -> str:
@@ -190,7 +213,8 @@ def path_warnings(path: POCPath) -> list[str]:
             f"between waypoints {i} and {i + 1} ({moves}): their reach margins "
             f"{path.margins[i]:.4g} and {path.margins[i + 1]:.4g} are within one step's "
             f"change of 0 ({SUSPECT_LIPSCHITZ_SAFETY:g} times the largest slope of r_T "
-            "sampled nearby)"
+            "sampled nearby: an estimate, not a proof; `cdpm analyze --q` at poses between "
+            "them tells)"
         )
     return out
 

@@ -2,7 +2,8 @@
 
 :func:`analyze_pose` linearises the robot at a pose and runs the analysis
 layer on the result; :class:`PoseReport` prints it for people (``str``),
-notebooks (``_repr_html_``) and programs (``as_dict`` -> JSON). At a pose
+notebooks (``_repr_html_`` and IPython's ``_repr_pretty_``: the same
+text; ``repr`` is one line) and programs (``as_dict`` -> JSON). At a pose
 that no tension within the cable bounds holds there is nothing to linearise:
 ``analyze_pose(..., infeasible="report")`` then returns an
 :class:`InfeasiblePoseReport` (the pose, the outputs, the cables, the
@@ -38,18 +39,38 @@ from cdpm.text.format import (
     indent,
     labelled,
     pose_head,
+    pose_words,
+    singular_pose_notes,
     tension_table,
     units_of_outputs,
     without_negative_zeros,
     without_round_off,
 )
 from cdpm.text.regions import neighbourhood_json, neighbourhood_lines
+from cdpm.verdicts import STATUS_CODES
 
 if TYPE_CHECKING:  # pragma: no cover
     from cdpm.dynamics.equilibrium import EquilibriumResult
     from cdpm.model.robot import CableRobot
 
-__all__ = ["PoseReport", "InfeasiblePoseReport", "analyze_pose"]
+__all__ = [
+    "PoseReport",
+    "InfeasiblePoseReport",
+    "analyze_pose",
+    "SINGULAR_MASS_MATRIX",
+    "SINGULAR_MASS_MATRIX_FIX",
+]
+
+#: why a pose with a singular mass matrix has no linearisation ...
+SINGULAR_MASS_MATRIX = (
+    "the mass matrix is singular at this pose: a body has zero inertia about an axis that "
+    "a joint turns it about, so the robot's accelerations and its linearisation are not "
+    "defined"
+)
+#: ... and what to change
+SINGULAR_MASS_MATRIX_FIX = (
+    "give that body inertia about every axis in the URDF (e.g. izz > 0 in its <inertia>)"
+)
 
 
 @dataclass(frozen=True)
@@ -133,6 +154,14 @@ class PoseReport(TextRepr):
             float(self.criteria.get("reach_margin_error", np.nan)),
         )
 
+    @property
+    def singular_notes(self) -> tuple[str, ...]:
+        """Whether the pose is singular, one sentence per Jacobian whose rank
+        drops (the outputs' dy/dq, the cables' L); empty at a regular pose
+        (:func:`cdpm.text.format.singular_pose_notes`)."""
+        lin = self.linearisation
+        return singular_pose_notes(lin.output_jacobian, lin.cable_jacobian)
+
     def _reach_lines(self) -> list[str]:
         if self.reach is None:
             return []
@@ -168,7 +197,8 @@ class PoseReport(TextRepr):
         ]
 
     def as_dict(self) -> dict:
-        """JSON-serialisable content of the report (``"feasible": true``)."""
+        """JSON-serialisable content of the report (``"feasible": true``;
+        ``"notes"``: :attr:`singular_notes`)."""
         lin = self.linearisation
         return {
             "model": self.model_name,
@@ -178,6 +208,7 @@ class PoseReport(TextRepr):
             "coordinates": dict(zip(self.coordinate_names, self.natural.tolist(), strict=True)),
             "output": dict(zip(lin.output_names, lin.output.tolist(), strict=True)),
             "output_units": dict(zip(lin.output_names, self.output_units, strict=True)),
+            "notes": list(self.singular_notes),
             "cables": [
                 {
                     "name": name,
@@ -217,7 +248,7 @@ class PoseReport(TextRepr):
     def __str__(self) -> str:
         lin = self.linearisation
         lines = [
-            *pose_head(self, lin.output, lin.output_names, self.outputs),
+            *pose_head(self, lin.output, lin.output_names, self.outputs, self.singular_notes),
             *self._equilibrium_lines(),
         ]
         lines += [
@@ -269,6 +300,18 @@ class PoseReport(TextRepr):
             ]
         return without_negative_zeros("\n".join(lines))
 
+    def __repr__(self) -> str:
+        """One line: model, pose and the POC verdict (``str`` is the report)."""
+        poc = f"POC {self.poc.verdict.value.upper()} ({self.poc.method})"
+        r = self.reach_margin[0]
+        if self.reach is not None and np.isfinite(r):
+            poc += f", r_T = {r + 0.0:.4g} {self.reach_unit}"
+        return f"<PoseReport {self.model_name}, {pose_words(self.pose_name)}: {poc}>"
+
+    def _repr_pretty_(self, printer: Any, cycle: bool) -> None:
+        """IPython's text of the report: its ``str`` (the notebook's html is too)."""
+        printer.text(repr(self) if cycle else str(self))
+
     def _more_outputs_than_dof(self) -> str:
         """A note when p > nv: the outputs move only through the nv
         coordinates, so their rank is at most nv whatever the cables do."""
@@ -296,7 +339,13 @@ class PoseReport(TextRepr):
         signs = lin.input_sign if lin.input_sign is not None else lin.sign_constrained.astype(int)
         words = [inputs[int(sign)] for sign in signs]
         return head + tension_table(
-            lin.cable_names, self.cable_lengths, lin.tension, states, words, "input"
+            lin.cable_names,
+            self.cable_lengths,
+            lin.tension,
+            states,
+            words,
+            "input",
+            at_bound=lin.sign_constrained,
         )
 
 
@@ -359,15 +408,32 @@ class InfeasiblePoseReport(TextRepr):
         return units_of_outputs(self.outputs, len(self.output_names))
 
     @property
+    def singular_mass_matrix(self) -> bool:
+        """True: the mass matrix is singular at this pose (the map status
+        ``singular_mass_matrix``, which a map gives the pose before asking
+        for an equilibrium): even tensions that held the pose would give no
+        linearisation."""
+        return self.criteria.get("status") == STATUS_CODES["singular_mass_matrix"]
+
+    @property
     def reason(self) -> str:
         """Why there is no linearisation and no verdict, in one sentence."""
         eq = self.equilibrium
+        undefined = (
+            "positive output controllability, positive controllability, output and Kalman "
+            "controllability and the reach margin are not defined here"
+        )
+        if self.singular_mass_matrix:
+            return (
+                f"{SINGULAR_MASS_MATRIX}, and so {undefined}. To fix: "
+                f"{SINGULAR_MASS_MATRIX_FIX}. Besides, no tension within the cable bounds holds "
+                f"this pose by method {eq.method!r} (the closest tensions leave a statics "
+                f"residual of {eq.residual:.3g} N or N m)"
+            )
         text = (
             "the linearisation is taken at an equilibrium (q*, q' = 0, f*), and no tension "
             f"within the cable bounds holds this pose by method {eq.method!r} (the closest "
-            f"tensions leave a statics residual of {eq.residual:.3g} N or N m), so positive "
-            "output controllability, positive controllability, output and Kalman "
-            "controllability and the reach margin are not defined here"
+            f"tensions leave a statics residual of {eq.residual:.3g} N or N m), so {undefined}"
         )
         if self.criteria.get("static_feasible") == 1 and eq.method != "min_norm":
             text += (
@@ -388,6 +454,7 @@ class InfeasiblePoseReport(TextRepr):
             "coordinates": dict(zip(self.coordinate_names, self.natural.tolist(), strict=True)),
             "output": dict(zip(self.output_names, self.output.tolist(), strict=True)),
             "output_units": dict(zip(self.output_names, self.output_units, strict=True)),
+            "notes": None,  # singular poses are noted with the linearisation
             "cables": [
                 {
                     "name": name,
@@ -467,6 +534,20 @@ class InfeasiblePoseReport(TextRepr):
                 )
             ]
         return without_negative_zeros("\n".join(lines))
+
+    def __repr__(self) -> str:
+        """One line: model, pose and why there are no verdicts (``str`` is the report)."""
+        why = (
+            "singular mass matrix"
+            if self.singular_mass_matrix
+            else f"no equilibrium by method {self.equilibrium.method!r}"
+        )
+        where = pose_words(self.pose_name)
+        return f"<InfeasiblePoseReport {self.model_name}, {where}: {why}, no verdicts>"
+
+    def _repr_pretty_(self, printer: Any, cycle: bool) -> None:
+        """IPython's text of the report: its ``str`` (the notebook's html is too)."""
+        printer.text(repr(self) if cycle else str(self))
 
 
 def _closest_words(eq: EquilibriumResult) -> str:

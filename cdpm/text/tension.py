@@ -11,7 +11,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from cdpm.dynamics.tension_choice.best import EXACT_AND_SAMPLED
-from cdpm.printing import named_values, strict
+from cdpm.printing import strict
+from cdpm.text.format import tension_texts
 from cdpm.verdicts import NOT_ANALYSED, VERDICT_LABELS, YES
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -134,10 +135,18 @@ def best_tension_lines(best: BestTension) -> list[str]:
         f"  chosen tension: {best.found_by}; r_T = {_margin(r, best.margin_unit)} "
         f"({exact}); POC "
         f"{best.poc.verdict.value.upper()} ({best.poc.method})",
-        f"  tension [N]: {named_values(best.cable_names, best.tension)}",
+        f"  tension [N]: {_tensions(best)}",
         f"  {best.n_candidates} tensions evaluated, {best.n_yes} of them POC; {best.method}",
         f"  {EXACT_AND_SAMPLED}",
     ]
+
+
+def _tensions(best: BestTension) -> str:
+    """``"c1 = 31.0921, c2 = 3.5e-09"``: the chosen tension [N] as the
+    cable tables print it (a taut cable never as 0)."""
+    at_bound = best.linearisation.sign_constrained
+    texts = tension_texts(best.tension, at_bound)
+    return ", ".join(f"{n} = {t}" for n, t in zip(best.cable_names, texts, strict=True))
 
 
 def best_tension_text(best: BestTension) -> str:

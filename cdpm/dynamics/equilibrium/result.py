@@ -161,7 +161,9 @@ class NotAnEquilibriumError(InputError):
         self.result = result
         self.methods = tuple(methods)
         named = ", ".join(method_option.format(m) for m in self.methods)
-        near = result.residual <= ROUNDED_RESIDUAL_RTOL * max(1.0, float(np.max(result.tension)))
+        # the statics' own scale without the robot: the load or the tensions
+        scale = max(float(np.linalg.norm(result.load)), float(np.max(np.abs(result.tension))))
+        near = result.residual <= ROUNDED_RESIDUAL_RTOL * scale
         hint = (
             f"; the statics hold to a relative {STATICS_RTOL:g}, which tensions copied from "
             "printed output or held in float32 miss by round-off: give them to full "
@@ -292,3 +294,16 @@ class EquilibriumResult(TextRepr):
         for name, f, state in zip(self._names(), self.tension, self.cable_states(), strict=True):
             lines.append(f"  {name:<12} {f:>12.6g} N  {state}")
         return "\n".join(lines)
+
+    def __repr__(self) -> str:
+        """One line: method, feasibility, residual, taut cables (``str`` has the table)."""
+        state = "feasible" if self.feasible else "INFEASIBLE"
+        taut = int(np.count_nonzero(self.taut))
+        return (
+            f"<EquilibriumResult ({self.method}): {state}, statics residual "
+            f"{self.residual:.3g}, {taut} of {self.tension.shape[0]} cables taut>"
+        )
+
+    def _repr_pretty_(self, printer, cycle: bool) -> None:
+        """IPython's text of the result: its ``str`` (the notebook's html is too)."""
+        printer.text(repr(self) if cycle else str(self))
