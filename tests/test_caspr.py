@@ -444,6 +444,62 @@ def test_degenerate_initial_pose_is_replaced(tmp_path):
     assert np.all(np.abs(result.pose) > 0) and np.all(np.abs(result.pose) <= 1)
 
 
+def _zero_izz_model(tmp_path: Path, izz: str = "0", ixx: str = "0.3"):
+    """One link on an R_Z joint, its centre of mass on the joint axis: with
+    Izz = 0 nothing resists turning it."""
+    bodies, cables = _write_model(tmp_path, ["R_Z"], overrides={1: {"com": "0 0 -0.13"}})
+    bodies.write_text(
+        bodies.read_text()
+        .replace("<Izz>0.25</Izz>", f"<Izz>{izz}</Izz>")
+        .replace("<Ixx>0.3</Ixx>", f"<Ixx>{ixx}</Ixx>")
+        .replace(
+            "<Ixy>0.01</Ixy><Ixz>-0.02</Ixz><Iyz>0.005</Iyz>",
+            "<Ixy>0</Ixy><Ixz>0</Ixz><Iyz>0</Iyz>",
+        )
+    )
+    return bodies, cables
+
+
+def test_body_without_inertia_about_its_joint_axis_is_named(tmp_path):
+    bodies, cables = _zero_izz_model(tmp_path)
+    with pytest.warns(CasprWarning) as caught:
+        result = import_caspr(bodies, cables, tmp_path / "out")
+    (message,) = [w for w in result.warnings if "mass matrix is singular" in w]
+    assert message in [str(w.message) for w in caught]
+    assert str(bodies) in message  # the file
+    assert "link 1 'L1' turns about its z axis with no inertia about it" in message  # body, axis
+    assert "principal moments 0, 0.2, 0.3 kg m^2" in message  # the principal values
+    assert "cannot analyse this pose" in message  # the consequence
+    assert "a nonzero Izz in its <inertia>" in message  # the fix
+    # and it is so: the pipeline finds the mass matrix singular at that pose
+    robot = cdpm.load_robot(result.spec_path)
+    assert np.linalg.eigvalsh(robot.mass_matrix(robot.poses["initial"]))[0] < 1e-12
+
+
+def test_zero_moment_about_an_axis_no_joint_turns_is_not_a_problem(tmp_path):
+    # zero Ixx, but the R_Z joint turns the body about z (Izz > 0): M is regular
+    bodies, cables = _zero_izz_model(tmp_path, izz="0.25", ixx="0")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        result = import_caspr(bodies, cables, tmp_path / "out")
+    assert not any("mass matrix" in w for w in result.warnings)
+    assert not any("mass matrix" in str(w.message) for w in caught)
+
+
+@needs_library
+def test_carex_bodies_without_inertia_about_the_arm_are_named(tmp_path):
+    with pytest.warns(CasprWarning, match="mass matrix is singular"):
+        result = import_caspr(
+            CASPR / "MCDM/CAREX/CAREX_bodies.xml",
+            CASPR / "MCDM/CAREX/CAREX_cables.xml",
+            tmp_path / "CAREX",
+        )
+    (message,) = [w for w in result.warnings if "mass matrix is singular" in w]
+    assert "link 1 'Upper Arm' turns about its z axis with no inertia about it" in message
+    assert "principal moments 0, 0.0225, 0.0225 kg m^2" in message
+    assert "Izz" in message
+
+
 def test_cli_import_then_analyze(tmp_path, capsys):
     bodies, cables = _write_model(tmp_path, ["U_XY", "R_Z"])
     out = tmp_path / "M"
@@ -558,7 +614,7 @@ def test_whole_library(tmp_path):
         print("  {:<28} {:<9} {}".format(*row))
     print(f"worst |L - FD| = {worst_fd:.2e}; worst |l - l_CASPR| = {worst_caspr:.2e} (relative)")
 
-    analysed: dict[str, list[str]] = {"gravity": [], "no-equilibrium": []}
+    analysed: dict[str, list[str]] = {"gravity": [], "no-equilibrium": [], "singular-mass": []}
     for label, (result, _bodies, _cables) in imported.items():
         how, detail = _analyze(result.spec_path)
         analysed[how].append(label)
@@ -568,6 +624,14 @@ def test_whole_library(tmp_path):
     # these are the models whose CASPR q_initial has none (cable bounds too
     # tight for the load, or loads no cable reaches)
     assert set(analysed["no-equilibrium"]) <= NO_EQUILIBRIUM_AT_INITIAL
+    # the import warned of the models whose pose has a singular mass matrix
+    # (CAREX's also has no equilibrium: `cdpm analyze` may say either first)
+    warned = {
+        label
+        for label, (result, _b, _c) in imported.items()
+        if any("mass matrix is singular" in w for w in result.warnings)
+    }
+    assert warned == {"CAREX"} and set(analysed["singular-mass"]) <= warned
     assert sum(len(v) for v in analysed.values()) == len(imported)
 
     assert set(refused) == set(EXPECTED_REFUSED)
@@ -596,15 +660,19 @@ def _analyze(spec_path: Path) -> tuple[str, str]:
     """Run ``cdpm analyze`` on an imported model at its named pose.
 
     Returns (how, detail): how is 'gravity' when the imported spec (CASPR's
-    gravity and force bounds) was analysed, 'no-equilibrium' when no tension
-    within the bounds holds the pose (a fact about the pose, reported by the
-    CLI with exit code 1).
+    gravity and force bounds) was analysed, 'singular-mass' when the mass
+    matrix is singular there (a body without inertia about an axis it turns
+    about: the import warned), 'no-equilibrium' when no tension within the
+    bounds holds the pose (facts about the pose, reported by the CLI with
+    exit code 1).
     """
     code, out, err = _analyze_cli(spec_path)
     if code == 0:
         assert "Positive output controllability (Theorem 1)" in out
         verdict = next(line for line in out.splitlines() if "Theorem 1" in line)
         return "gravity", verdict.strip()
+    if "mass matrix is singular" in err:
+        return "singular-mass", err.strip().splitlines()[0][:120]
     if "no equilibrium at this pose" in err:
         return "no-equilibrium", err.strip().splitlines()[0][:120]
     raise AssertionError(f"analysis of {spec_path} failed: {err}")

@@ -43,16 +43,23 @@ def test_paper_nominal_pose_lies_in_a_ball_of_poc_poses(nominal, paper_robot):
     assert nb.verdict == YES and nb.pose_name == "nominal"
     assert (nb.points, nb.n_poses, nb.axis_rays) == (101, 101**2, 0)
     np.testing.assert_allclose(nb.step, [0.02, 0.02])
-    # the radius stops at a suspect edge from 0.16 to 0.18 rad (a diagonal NO
-    # line passes between its ends), far before the first NO grid pose at 0.94
+    # the radius stops at a suspect edge on the 0.18 rad shell (a diagonal NO
+    # line passes between its ends: resampled, r_T falls to 2e-4 m along it),
+    # far before the first NO grid pose at 0.94. The edge from 0.16 to 0.18
+    # that stopped it before resampling is cleared: r_T falls monotonically
+    # along it, to 9e-4 m at its far end
     assert nb.box_bracket == pytest.approx((0.16, 0.18), abs=1e-12)
     near, far = nb.nearest_suspect
-    assert (near.distance_box, far.distance_box) == pytest.approx((0.16, 0.18), abs=1e-12)
+    assert (near.distance_box, far.distance_box) == pytest.approx((0.18, 0.18), abs=1e-12)
     assert near.verdict == far.verdict == YES and 0 < far.margin < near.margin < 0.02
+    least = nb.suspect_least
+    assert least.verdict == YES and 0 < least.margin < 0.1 * far.margin
+    assert nb.suspect_cleared > 0 and nb.refined_poses > 0
     assert not nb.whole_box_yes and nb.suspect_edges > 0
     assert nb.nearest.verdict == NO and nb.nearest.distance_box == pytest.approx(0.94)
     np.testing.assert_allclose(nb.nearest.natural, [1.4636, 1.6072], atol=1e-4)
-    assert nb.ball_bracket == pytest.approx((math.hypot(0.2, 0.08), math.hypot(0.2, 0.1)))
+    # the NO line is 0.234 rad away in the 2-norm (0.1745 in the inf-norm)
+    assert nb.ball_bracket == pytest.approx((math.hypot(0.2, 0.1), math.hypot(0.22, 0.1)))
     assert nb.counts["yes"] + nb.counts["no"] == nb.n_poses and nb.counts["no"] > 0
     assert neighbourhood_lines(nb)[0] == (
         "POC neighbourhood: radius 0.16 rad (box, inf-norm) on a 101x101 grid of half-width 1 "
@@ -60,8 +67,9 @@ def test_paper_nominal_pose_lies_in_a_ball_of_poc_poses(nominal, paper_robot):
         "samples"
     )
     assert (
-        "or where r_T comes within one step's change of 0, where a NO set thinner than the "
-        "grid may pass" in neighbourhood_lines(nb)[1]
+        "r_T falls to 0.000217 m, still within one step's change of 0, between the sampled "
+        "poses at 0.18 and 0.18 (inf-norm), where a NO set thinner than the grid may pass (an "
+        "estimate from r_T's sampled slopes, not a proof)" in neighbourhood_lines(nb)[1]
     )
 
 
@@ -93,7 +101,7 @@ def test_a_no_line_between_grid_poses_stops_the_radius(paper_robot):
     # the three boxes agree on the radius up to their grid steps
     values = [r for r, _ in radii.values()]
     assert max(values) - min(values) <= max(h for _, h in radii.values()) + 1e-12
-    assert radii[0.5][0] == pytest.approx(0.16) and radii["pi/6"][0] == pytest.approx(
+    assert radii[0.5][0] == pytest.approx(0.17) and radii["pi/6"][0] == pytest.approx(
         0.1676, abs=1e-4
     )
 
@@ -118,7 +126,7 @@ def test_growing_the_box_beyond_the_region_keeps_the_radius(paper_robot):
     small = poc_neighbourhood(paper_robot, "nominal", 1.2, points=61)
     large = poc_neighbourhood(paper_robot, "nominal", 2.0, points=101)
     assert small.box_bracket == pytest.approx(large.box_bracket, abs=1e-12)
-    assert small.box_bracket == pytest.approx((0.12, 0.16), abs=1e-12)
+    assert small.box_bracket == pytest.approx((0.16, 0.2), abs=1e-12)  # the line: 0.1745
     np.testing.assert_allclose(small.nearest.natural, large.nearest.natural, atol=1e-12)
     for a, b in zip(small.nearest_suspect, large.nearest_suspect, strict=True):
         np.testing.assert_allclose(a.natural, b.natural, atol=1e-12)
@@ -127,7 +135,8 @@ def test_growing_the_box_beyond_the_region_keeps_the_radius(paper_robot):
 
 def test_refining_narrows_the_bracket(paper_robot):
     fine = poc_neighbourhood(paper_robot, "nominal", 1.0, points=201)
-    assert fine.box_bracket == pytest.approx((0.16, 0.17), abs=1e-12)
+    # the NO line's nearest pose is 0.1745 rad away (inf-norm), within the bracket
+    assert fine.box_bracket == pytest.approx((0.17, 0.18), abs=1e-12)
 
 
 def test_pose_at_the_edge_of_a_region_has_a_small_radius(two_cables):
@@ -135,7 +144,8 @@ def test_pose_at_the_edge_of_a_region_has_a_small_radius(two_cables):
     nb = poc_neighbourhood(two_cables, [0.0, -0.70], 0.2)
     assert nb.verdict == YES
     # r_T nearly 0 on the last YES poses: the radius stops a step before them
-    assert nb.box_bracket == pytest.approx((0.008, 0.012), abs=1e-12)
+    # (a grid of step 1e-4 finds the first NO pose 0.013 away)
+    assert nb.box_bracket == pytest.approx((0.012, 0.016), abs=1e-12)
     assert nb.nearest.distance_box == pytest.approx(0.016, abs=1e-12)
     assert nb.nearest.verdict == NO
     assert _poc(two_cables, nb.nearest.natural) == cdpm.Verdict.NO
@@ -199,13 +209,18 @@ def test_coordinates_scale_and_rays(paper_robot):
     nb = poc_neighbourhood(paper_robot, "nominal", 1.0, coordinates=["q2"], points=11, rays=False)
     assert nb.coordinates == ("q2",) and nb.n_poses == 11
     # every sampled pose is YES, but r_T falls from 0.15 to 0.03 over the first
-    # step and to about 7e-5 at dq2 = 0.262 (a NO line passes): radius 0
+    # step and to about 7e-5 at dq2 = 0.262 (a NO line passes). Resampled, the
+    # first step clears (r_T falls steeply but stays clear of 0); the second
+    # keeps its dip, to 2.4e-4 at dq2 = 0.2625: radius 0.2 (it was 0)
     assert nb.counts["yes"] == 11 and nb.nearest is None and not nb.whole_box_yes
-    assert nb.box_bracket == pytest.approx((0.0, 0.2), abs=1e-12)
-    assert [p.distance_box for p in nb.nearest_suspect] == pytest.approx([0.0, 0.2])
-    assert neighbourhood_lines(nb)[0].startswith(
-        "POC neighbourhood: radius 0 on a 11-point grid of half-width 1 rad: the pose is YES, "
-        "but r_T comes within one step's change of 0 between sampled poses at 0 and 0.2"
+    assert nb.box_bracket == pytest.approx((0.2, 0.4), abs=1e-12)
+    assert [p.distance_box for p in nb.nearest_suspect] == pytest.approx([0.2, 0.4])
+    assert nb.suspect_least.offset[0] == pytest.approx(0.2625)
+    assert neighbourhood_lines(nb)[1] == (
+        "  box radius in [0.2, 0.4] rad: it stops there: r_T falls to 0.00024 m, still within "
+        "one step's change of 0, between the sampled poses at 0.2 and 0.4 (inf-norm), where a "
+        "NO set thinner than the grid may pass (an estimate from r_T's sampled slopes, not a "
+        "proof; every sampled pose is YES)"
     )
     scaled = poc_neighbourhood(paper_robot, "nominal", 1.0, scale={"q2": 0.5})
     np.testing.assert_allclose(scaled.step, [0.02, 0.01])
@@ -278,7 +293,7 @@ def test_radius_as_expression(paper_robot):
     assert nb.radius == pytest.approx(math.pi / 8)
     assert nb.pose_name is None and neighbourhood_json(nb)["pose"] is None
     # the axis rays (step pi/80) refine the grid steps along the axes through q
-    assert nb.box_bracket == pytest.approx((3 * math.pi / 80, 4 * math.pi / 80), abs=1e-12)
+    assert nb.box_bracket == pytest.approx((4 * math.pi / 80, 5 * math.pi / 80), abs=1e-12)
 
 
 def test_pose_name_and_reach_settings_reach_the_result(paper_robot):

@@ -351,3 +351,66 @@ def test_spectral_abscissae_of_undamped_systems_from_half_the_eigenproblem():
     np.testing.assert_array_equal(spectral_abscissae(odd), np.linalg.eigvals(odd).real.max(axis=1))
     assert spectral_abscissae(np.zeros((0, 4, 4))).shape == (0,)
     assert spectral_abscissae(np.zeros((2, 0, 0))).tolist() == [-np.inf, -np.inf]
+
+
+# --------------------------------------------------------------------------
+# a default horizon that resolves
+
+
+def test_default_horizon_is_shortened_for_a_fast_growing_mode(monkeypatch):
+    """two_link_vertical's pose 'nominal' (its first) has a mode growing at
+    5.15 1/s: e^{5.15 * 0.247} = 3.6 within the default T. With the default
+    growth capped at 2 (here), T is shortened to ln 2 / 5.15 s and says so;
+    a given horizon is kept."""
+    import cdpm.dynamics.reach as reach
+
+    monkeypatch.setattr(reach, "REACH_DEFAULT_GROWTH", 2.0)
+    robot = cdpm.load_robot(VERTICAL)
+    s = reach_settings(robot)
+    assert s.shortened_from == 0.247 and s.growth_pose == "nominal"
+    assert s.growth_rate == pytest.approx(5.148, abs=1e-3)
+    assert s.horizon == 0.134  # ln 2 / 5.148 = 0.1346, rounded down
+    assert "model default, shortened from 0.247 s" in s.describe()
+    assert s.as_dict()["horizon_shortened_from"] == 0.247
+    given = reach_settings(robot, 0.247)
+    assert given.horizon == 0.247 and given.shortened_from is None
+    assert "shortened" not in given.describe()
+
+
+def test_repository_models_keep_their_default_horizons():
+    # no mode of their first poses grows by REACH_DEFAULT_GROWTH in T
+    robot = cdpm.load_robot(VERTICAL)
+    s = reach_settings(robot)
+    assert s.horizon == 0.247 and s.shortened_from is None
+    assert reach_settings(cdpm.load_robot(PAPER_SPEC)).horizon == 0.775
+
+
+@pytest.mark.slow
+def test_sjtusnake_default_horizon_resolves(tmp_path):
+    """SJTUSnake (CASPR) at its pose 'initial': a mode grows at 229 1/s, by
+    e^{229 * 0.143} = 2e14 within the model's first T, past the 1e8 a
+    margin resolves. The default T is shortened until it resolves; a given
+    horizon keeps today's answer, NaN with the reason."""
+    import warnings
+
+    from cdpm.caspr import CasprWarning, import_caspr
+    from tests.conftest import caspr_models
+
+    library, missing = caspr_models()
+    if missing:
+        pytest.skip(missing)
+    folder = library / "MCDM" / "SJTUSnake"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", CasprWarning)
+        result = import_caspr(
+            folder / "SJTUSnake_bodies.xml", folder / "SJTUSnake_cables.xml", tmp_path / "s"
+        )
+    robot = cdpm.load_robot(result.spec_path)
+    report = cdpm.analyze_pose(robot, "initial")
+    r, err = report.reach_margin
+    assert np.isfinite(r) and r > 0 and np.isfinite(err)
+    assert report.reach.shortened_from == 0.143
+    assert report.reach.horizon == pytest.approx(np.log(1e4) / 229.1, rel=1e-2)
+    assert "shortened from 0.143 s" in str(report)
+    given = cdpm.analyze_pose(robot, "initial", horizon=0.143)
+    assert np.isnan(given.reach_margin[0]) and "not resolvable" in str(given)

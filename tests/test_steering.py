@@ -450,3 +450,59 @@ def test_verify_and_steer_take_the_equilibrium_options(capsys):
     assert "no equilibrium at this pose with method 'zero'" in err and "--tension min_norm" in err
     assert main(["verify", spec, "--pose", "nominal", "--pretension", "5"]) == 1
     assert "--pretension 5 only applies to --tension pretension" in capsys.readouterr().err
+
+
+# --------------------------------------------------------------------------
+# targets beyond the output's range
+
+
+def test_output_range_bounds_every_pose():
+    """The paper's arm reaches tip_x in [-2, 2] m (two 1 m links), exactly;
+    for every model, random poses within the joint limits stay inside."""
+    from cdpm.model.coordinates import default_ranges
+    from cdpm.steering.output_range import output_range
+
+    lower, upper = output_range(cdpm.load_robot(PAPER_SPEC))
+    np.testing.assert_allclose([lower[0], upper[0]], [-2.0, 2.0], atol=1e-12)
+    rng = np.random.default_rng(5)
+    for spec in (
+        PAPER_SPEC,
+        VERTICAL,
+        MULTILINK,
+        MODELS / "spatial_8cable" / "spatial_8cable_pose.yaml",
+    ):
+        robot = cdpm.load_robot(spec)
+        lower, upper = output_range(robot)
+        box = default_ranges(robot)
+        for _ in range(50):
+            y = robot.output(robot.from_natural(rng.uniform(box.low, box.high)))
+            assert np.all(y >= lower - 1e-12) and np.all(y <= upper + 1e-12), (spec, y)
+
+
+def test_a_target_beyond_the_range_is_refused_without_simulating(monkeypatch, capsys):
+    """`cdpm steer --by 5` on the 2 m arm targets tip_x = 5.87 m: said at once
+    (exit 1, as for a target not reached), with no simulation run (it used
+    to run 12, up to 4,048 N, before NOT REACHED)."""
+    import cdpm.steering.shooting as shooting
+
+    def no_simulation(*args, **kwargs):
+        raise AssertionError("simulated a target no pose has")
+
+    monkeypatch.setattr(shooting, "simulate", no_simulation)
+    code = main(["steer", str(PAPER_SPEC), "--pose", "nominal", "--by", "5"])
+    err = capsys.readouterr().err
+    assert code == 1
+    assert "tip_x = 5.866 m lies outside the range it can take, [-2, 2] m" in err
+    assert "nothing was simulated" in err and "Traceback" not in err
+    robot = cdpm.load_robot(PAPER_SPEC)
+    with pytest.raises(shooting.TargetOutOfRangeError, match="out of reach"):
+        cdpm.steer(robot, "nominal", [-2.5])
+
+
+def test_verify_names_the_largest_radius_within_the_range():
+    # the arm stretched along x: tip_x = 2 cos 0.1 = 1.99 m, so a radius of 0.1 m leaves the range
+    robot = cdpm.load_robot(PAPER_SPEC)
+    with pytest.raises(
+        cdpm.InputError, match=r"radius 0.1 puts a target out of reach.*at most 0.009992"
+    ):
+        cdpm.verify_pose(robot, [0.1, 0.0], radius=0.1)

@@ -61,6 +61,7 @@ from cdpm.caspr._spec import (
     _moving_components,
     _output_rank_deficit,
     _point_entry,
+    _singular_mass_matrix,
 )
 from cdpm.caspr._urdf import _build_urdf, _op_slugs
 from cdpm.caspr._xml import (
@@ -339,6 +340,9 @@ def import_caspr(
     deficit = _output_rank_deficit(robot, natural, lower, upper, seed, links)
     if deficit:
         warn(f"{spec_path}: {deficit}")
+    singular = _singular_mass_matrix(robot, natural, pose_name, links)
+    if singular:
+        warn(f"{bodies_path}: {singular}")
 
     coordinates = tuple(
         f"{d.joint_name} <- link {d.link.num} {d.link.name!r} ({d.link.joint_type}) q[{d.index}]"

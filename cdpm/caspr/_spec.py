@@ -12,11 +12,13 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from cdpm.caspr._xml import _Attachment, _Cable, _Link
+from cdpm.dynamics.linearisation import mass_inverse
 from cdpm.errors import ModelError
 from cdpm.numerics import (
     CASPR_LIMIT_TOL,
     CASPR_MIN_SEGMENT,
     CASPR_MOVING_OUTPUT_ATOL,
+    CASPR_NULL_MOTION_RTOL,
     CASPR_OUTPUT_RANK_RTOL,
 )
 
@@ -164,4 +166,73 @@ def _output_rank_deficit(robot: CableRobot, natural, lower, upper, seed, links) 
         f"is NO at every pose. Keep {rank} output(s) that move independently in the spec's "
         f"outputs (e.g. {', '.join(names[i] for i in keep)}), or give an operational space "
         f"(<name>_operational_spaces.xml) with at most {rank} independent components"
+    )
+
+
+def _axis_words(axis: np.ndarray) -> tuple[str, str]:
+    """(``"its z axis"``, ``"Izz"``) for a unit axis along a link axis, else
+    (``"the axis (0.6, 0.8, 0) of its frame"``, "")."""
+    k = int(np.argmax(np.abs(axis)))
+    if abs(axis[k]) > 1.0 - CASPR_NULL_MOTION_RTOL:
+        letter = "xyz"[k]
+        return f"its {letter} axis", f"I{letter}{letter}"
+    return f"the axis ({', '.join(f'{a:.3g}' for a in axis + 0.0)}) of its frame", ""
+
+
+def _singular_mass_matrix(robot: CableRobot, natural, pose_name: str, links) -> str | None:
+    """Why the mass matrix is singular at the written pose (bodies that move
+    with its null motion without inertia against it), or None when it is
+    regular there (:func:`cdpm.dynamics.linearisation.mass_inverse`, the
+    pipeline's rule).
+
+    A body with a zero principal moment of inertia is harmless unless the
+    joints turn it about that axis with nothing else moving: then M q' = 0
+    for that q', M is singular and no pose where that happens can be
+    analysed (the pipeline flags it ``singular_mass_matrix``).
+    """
+    # pinocchio: loaded on first use
+    import pinocchio as pin
+
+    q = robot.from_natural(natural)
+    mass_matrix = robot.mass_matrix(q)
+    if mass_inverse(mass_matrix[None])[1][0]:
+        return None
+    motion = np.linalg.eigh(mass_matrix)[1][:, 0]  # unit q' with M q' ~ 0
+    model = robot.model
+    data = model.createData()
+    pin.forwardKinematics(model, data, q, motion)
+    speeds = []
+    for link in links:
+        frame = model.getFrameId(f"link{link.num}")
+        velocity = pin.getFrameVelocity(model, data, frame, pin.LOCAL)  # in link axes
+        turn = np.array(velocity.angular)
+        com_speed = float(np.linalg.norm(velocity.linear + np.cross(turn, link.com)))
+        speeds.append((link, turn, max(float(np.linalg.norm(turn)), com_speed / robot.size)))
+    fastest = max((s for _l, _t, s in speeds), default=0.0)
+    parts, fixes = [], []
+    for link, turn, speed in speeds:
+        if speed <= CASPR_NULL_MOTION_RTOL * fastest:
+            continue
+        moments = np.linalg.eigvalsh(link.inertia_com)
+        listed = ", ".join(f"{m + 0.0:.3g}" for m in moments)
+        who = f"link {link.num} {link.name!r}"
+        if link.mass == 0 and not moments.any():
+            parts.append(f"{who} moves with no mass or inertia")
+            fixes.append(f"{who} a mass and inertia")
+            continue
+        axis, entry = _axis_words(turn / np.linalg.norm(turn))
+        parts.append(
+            f"{who} turns about {axis} with no inertia about it (principal moments {listed} "
+            "kg m^2 about its centre of mass)"
+        )
+        fixes.append(
+            f"{who} inertia about {axis}"
+            + (f" (a nonzero {entry} in its <inertia>)" if entry else "")
+        )
+    what = "; ".join(parts) or "a joint motion moves no body with mass"
+    fix = " or ".join(fixes) or "the bodies mass and inertia"
+    return (
+        f"the mass matrix is singular at pose {pose_name!r}: {what}. Nothing resists that "
+        "motion, so cdpm cannot analyse this pose, nor any other where it happens (they are "
+        f"reported as having a singular mass matrix). To analyse them, give {fix}"
     )

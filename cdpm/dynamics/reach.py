@@ -15,7 +15,14 @@ the acceleration scale is ``a = max(g, 1 m/s^2)``, the budget
 ``F = m a`` (the robot's weight under gravity) and the horizon
 ``T = sqrt(2 (l / 10) / a)``: the time in which the budget's acceleration
 moves the robot by a tenth of its size (a linearisation is a local model),
-each to 3 significant digits.
+each to 3 significant digits. Where a mode of the linearisation at the
+robot's reference pose (the spec's first named pose, as for l) grows fast,
+so that e^{Re(lambda) T} would exceed REACH_DEFAULT_GROWTH, the default T
+is shortened to the time in which it grows by that much (rounded down to 3
+digits; :attr:`ReachSettings.shortened_from` keeps the first value), so
+that r_T resolves there (a mode growing by more than REACH_GROWTH_MAX
+within T leaves it NaN, "not resolvable"). A horizon the user gives is
+kept as given.
 
 Units: r_T is a radius in output space, in the outputs' common unit
 (:func:`reach_unit`): metres for positions and lengths, radians for
@@ -28,15 +35,18 @@ exchange rate scales its outputs with a weighted sum (docs/outputs.md).
 from __future__ import annotations
 
 import math
+import warnings
+import weakref
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from cdpm.errors import positive_number
+from cdpm.errors import CdpmError, positive_number, round_down
 from cdpm.numerics import (
     MAX_TENSION_BUDGET,
     MAX_TIME_SPAN,
+    REACH_DEFAULT_GROWTH,
     REACH_MIN_ACCELERATION,
     REACH_SIZE_FRACTION,
     REACH_ZERO_RTOL,
@@ -67,6 +77,11 @@ class ReachSettings:
         budget_default: the budget is the model's default.
         budget_used: some cable has no upper bound (else the budget plays
             no part).
+        shortened_from: the model's default T [s] before it was shortened
+            for a fast-growing mode (module docstring), else None.
+        growth_rate: that mode's rate Re(lambda) [1/s] at ``growth_pose``
+            (when shortened), else None.
+        growth_pose: the reference pose whose mode shortened T, else None.
     """
 
     horizon: float
@@ -74,12 +89,22 @@ class ReachSettings:
     horizon_default: bool = True
     budget_default: bool = True
     budget_used: bool = True
+    shortened_from: float | None = None
+    growth_rate: float | None = None
+    growth_pose: str | None = None
 
     def describe(self) -> str:
         """One line: ``T = 0.775 s (model default); tension changes ...``;
         the budget is left out when every cable has an upper bound (it then
-        plays no part)."""
+        plays no part). A default T shortened for a fast-growing mode says
+        so: ``T = 0.0402 s (model default, shortened from 0.143 s: ...)``."""
         T = "model default" if self.horizon_default else "set"
+        if self.horizon_default and self.shortened_from is not None:
+            T += (
+                f", shortened from {self.shortened_from:.3g} s: within it a mode of pose "
+                f"{self.growth_pose!r} (Re lambda = {self.growth_rate:.3g} 1/s) grows by at "
+                f"most {REACH_DEFAULT_GROWTH:g}, so that r_T resolves"
+            )
         F = "model default" if self.budget_default else "set"
         text = f"T = {self.horizon:.3g} s ({T}); tension changes within the cables' bounds"
         if not self.budget_used:
@@ -92,6 +117,7 @@ class ReachSettings:
             "tension_budget": self.tension_budget,
             "horizon_default": self.horizon_default,
             "budget_default": self.budget_default,
+            "horizon_shortened_from": self.shortened_from,
         }
 
 
@@ -122,12 +148,49 @@ def reach_settings(
         T = _positive("the reach horizon", horizon, "s", MAX_TIME_SPAN)
     if tension_budget is not None:
         F = _positive("the tension budget", tension_budget, "N", MAX_TENSION_BUDGET)
+    shortened: dict[str, Any] = {}
     if T is None or F is None:
         T0, F0 = _model_scales(robot)[:2]
-        T = T0 if T is None else T
         F = F0 if F is None else F
+        if T is None:
+            T = T0
+            rate, pose = _reference_growth(robot)
+            if rate > 0 and rate * T0 > math.log(REACH_DEFAULT_GROWTH):
+                T = round_down(math.log(REACH_DEFAULT_GROWTH) / rate, 3)
+                shortened = {"shortened_from": T0, "growth_rate": rate, "growth_pose": pose}
     unbounded = bool(np.any(~np.isfinite(robot.tension_max)))
-    return ReachSettings(float(T), float(F), horizon is None, tension_budget is None, unbounded)
+    return ReachSettings(
+        float(T), float(F), horizon is None, tension_budget is None, unbounded, **shortened
+    )
+
+
+#: robot -> (rate, pose) of :func:`_reference_growth` (one linearisation per robot)
+_GROWTH: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _reference_growth(robot: CableRobot) -> tuple[float, str | None]:
+    """(Re(lambda) [1/s] of the fastest-growing mode, 0 when none grows;
+    the pose's name) of the linearisation at the robot's reference pose:
+    the spec's first named pose (None, rate 0, without one or where that
+    pose has no equilibrium: the default horizon then stays as derived)."""
+    if robot in _GROWTH:
+        return _GROWTH[robot]
+    found: tuple[float, str | None] = (0.0, None)
+    if robot.poses:
+        # pinocchio: loaded on first use
+        from cdpm.dynamics.linearisation import linearise
+
+        pose = next(iter(robot.poses))
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")  # the pose's own analysis warns
+                A = linearise(robot, pose).A
+        except CdpmError:
+            A = None
+        if A is not None and A.size and np.all(np.isfinite(A)):
+            found = (max(float(np.linalg.eigvals(A).real.max()), 0.0), pose)
+    _GROWTH[robot] = found
+    return found
 
 
 def _model_scales(robot: CableRobot) -> tuple[float, float, float, float]:
@@ -137,9 +200,9 @@ def _model_scales(robot: CableRobot) -> tuple[float, float, float, float]:
     g = float(np.linalg.norm(robot.gravity))
     a = max(g, REACH_MIN_ACCELERATION)
     size = robot.size
-    budget = mass * a if mass > 0 else 1.0
     T = _round3(math.sqrt(2 * REACH_SIZE_FRACTION * size / a))
-    return (T, _round3(budget), size, mass if mass > 0 else 1.0)
+    # the budget is the robot's force scale (its weight, or mass times a)
+    return (T, _round3(robot.force_scale), size, mass if mass > 0 else 1.0)
 
 
 def _round3(x: float) -> float:

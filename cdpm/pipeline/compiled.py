@@ -32,14 +32,10 @@ from cdpm.pipeline.evaluate import resolve_tension, zero_equilibrium
 
 __all__ = [
     "KERNEL_MODULES",
-    "COMPILE_NOTICE_SECONDS",
     "load_kernels",
     "load_kernels_for",
     "notice_on_stderr",
 ]
-
-#: loading the kernels longer than this [s] means compiling: the user is told
-COMPILE_NOTICE_SECONDS = 3.0
 
 #: the modules holding compiled kernels (the worker fork server imports them)
 KERNEL_MODULES = (
@@ -63,27 +59,18 @@ def load_kernels(notice: Callable[[str], None] | None = None) -> None:
     kernel again cost 0.6 ms a map).
 
     Args:
-        notice: called once with a sentence for the user when this takes
-            longer than COMPILE_NOTICE_SECONDS (it is compiling), from a
-            timer thread; None: say nothing.
+        notice: called once with a sentence for the user when numba
+            compiles a kernel (not when it loads it from its disk cache:
+            :func:`cdpm.jit.compile_notice`); None: say nothing.
     """
     if _LOADED.is_set():
         return
-    timer = None
-    if notice is not None:
-        timer = threading.Timer(
-            COMPILE_NOTICE_SECONDS,
-            notice,
-            ("compiling cdpm's numba kernels: once after installing, about half a minute",),
-        )
-        timer.daemon = True
-        timer.start()
-    try:
+    # numba: loaded on first use
+    from cdpm.jit import compile_notice
+
+    with compile_notice(notice):
         _load_kernels()
-        _LOADED.set()
-    finally:
-        if timer is not None:
-            timer.cancel()
+    _LOADED.set()
 
 
 def _load_kernels() -> None:
@@ -98,7 +85,7 @@ def _load_kernels() -> None:
     positively_spanning(simplex)  # (1, 3, 4): d >= 3 goes to the kernel
     zonotope_inradii(simplex, np.zeros((1, 3)), group=2)
     lt = np.array([[[1.0, -1.0]]])  # one joint, two opposed cables
-    min_norm_tensions(lt, np.array([[0.5]]), np.zeros(2), np.full(2, np.inf))
+    min_norm_tensions(lt, np.array([[0.5]]), np.zeros(2), np.full(2, np.inf), 1.0)
     # a double integrator with one free input
     A, B = np.array([[[0.0, 1.0], [0.0, 0.0]]]), np.array([[[0.0], [1.0]]])
     free_controllable(A, B, np.zeros((1, 1), dtype=bool))

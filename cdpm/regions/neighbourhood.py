@@ -6,7 +6,10 @@ in a POC region because a ball of POC equilibria surrounds it.
 the reach margin r_T on a grid around q with the map pipeline
 (:func:`cdpm.pipeline.evaluate.evaluate_batch`) and reports the largest radius
 within which every sampled pose is YES and r_T stays clear of 0 between
-neighbouring samples (:func:`cdpm.regions.paths.suspect_edges`). Distances are in
+neighbouring samples (:func:`cdpm.regions.paths.suspect_edges`: an estimate
+from r_T's sampled slopes, not a proof; each suspect step is resampled at
+NEIGHBOURHOOD_REFINE_POINTS poses and judged again on the finer steps, which
+clears the steps where r_T only looked steep). Distances are in
 scaled natural coordinates ``s = dq / scale`` (rad for angles, m for
 lengths at scale 1); the box is ``|s|_inf <= R``. docs/analysis.md, "The
 POC neighbourhood", gives the sampling rules, the defaults and examples.
@@ -31,7 +34,7 @@ from cdpm.errors import InputError, is_integer
 from cdpm.expressions import parse_number
 from cdpm.model.coordinates import coordinate_limits, coordinate_units
 from cdpm.model.robot import CableRobot, load_robot
-from cdpm.numerics import SPAN_TOL
+from cdpm.numerics import NEIGHBOURHOOD_REFINE_POINTS, SPAN_TOL
 from cdpm.pipeline.criteria import CRITERIA
 from cdpm.pipeline.evaluate import (
     check_tol,
@@ -63,6 +66,8 @@ RAY_POINTS = 21
 MAX_CORNER_RAY_COORDINATES = 10
 #: poses per call of the pipeline
 _CHUNK = 4096
+#: suspect edges resampled at least, however few poses the grid has
+_MIN_RESAMPLED_EDGES = 16
 
 
 @dataclass(frozen=True)
@@ -129,8 +134,9 @@ class Neighbourhood(TextRepr):
             (the radii are then R: at least R, as far as the samples show).
         nearest: the non-YES pose nearest in the inf-norm (ties: 2-norm), or
             None; nearest_ball: the nearest in the 2-norm inside the ball.
-        suspect_edges: number of suspect edges sampled; nearest_suspect:
-            the ends (nearer first) of the one whose nearer end is nearest.
+        suspect_edges: number of suspect edges (still suspect after
+            resampling); nearest_suspect: the ends (nearer first) of the one
+            whose nearer end is nearest.
         reach: the reach margin's horizon and tension budget.
         counts, status_counts: verdict and status name -> sampled poses.
         outside_limits: sampled poses outside the URDF joint limits.
@@ -138,6 +144,11 @@ class Neighbourhood(TextRepr):
             or tensions [N]) and the pretension [N] passed (None: the spec's).
         tol: the span tolerance [rad]; seconds: wall time [s]; reason: what
             limits the radius, in words.
+        refined_poses: poses evaluated along suspect edges (besides n_poses),
+            NEIGHBOURHOOD_REFINE_POINTS per edge resampled.
+        suspect_cleared: suspect edges whose finer steps all cleared them.
+        suspect_least: along the nearest suspect edge, the resampled pose
+            of least r_T (or its first non-YES one), or None.
     """
 
     model_name: str
@@ -175,6 +186,9 @@ class Neighbourhood(TextRepr):
     seconds: float
     reason: str
     margin_unit: str = "m"
+    refined_poses: int = 0
+    suspect_cleared: int = 0
+    suspect_least: SampledPose | None = None
 
     @property
     def unit(self) -> str:
@@ -363,6 +377,45 @@ def _evaluate(robot, natural, setting, pretension, tol, reach):
     return poc, status, margin
 
 
+def _resample_edges(robot, poses, edges, lengths, margin, args, budget: int):
+    """Resample the suspect edges (2, E) (nearest first) at
+    NEIGHBOURHOOD_REFINE_POINTS poses each, as many as ``budget`` poses
+    allow, and judge each edge's finer steps by the same rule
+    (:func:`~cdpm.regions.paths.suspect_edges`; the slopes now sampled
+    along the edge): an edge stays suspect when a finer step is suspect or
+    a resampled pose is not YES; edges not resampled stay suspect.
+
+    Returns:
+        (still (E,) bool; for the resampled edges, (natural (E', nv) of the
+        pose of least r_T along each, or of its first non-YES pose;
+        verdict and status codes (E', 2); that r_T (E',))).
+    """
+    k = NEIGHBOURHOOD_REFINE_POINTS
+    count = min(edges.shape[1], budget // k)
+    still = np.ones(edges.shape[1], dtype=bool)
+    nv = poses.shape[1]
+    if count == 0:
+        return still, (np.zeros((0, nv)), np.zeros((0, 2), dtype=int), np.zeros(0))
+    a, b = edges[:, :count]
+    t = np.arange(1, k + 1) / (k + 1)
+    chain = poses[a][:, None, :] + t[None, :, None] * (poses[b] - poses[a])[:, None, :]
+    poc, status, r = (x.reshape(count, k) for x in _evaluate(robot, chain.reshape(-1, nv), *args))
+    # each edge as a chain a, its k poses, b: k + 1 steps of a (k+1)-th of its length
+    nodes = np.arange(count * (k + 2)).reshape(count, k + 2)
+    steps = np.stack([nodes[:, :-1].reshape(-1), nodes[:, 1:].reshape(-1)])
+    step_lengths = np.repeat(lengths[:count] / (k + 1), k + 1)
+    r_chain = np.concatenate([margin[a][:, None], r, margin[b][:, None]], axis=1)
+    finer = suspect_edges(steps, step_lengths, r_chain.reshape(-1), np.ones(steps.shape[1], bool))
+    bad = poc != YES
+    still[:count] = finer.reshape(count, k + 1).any(axis=1) | bad.any(axis=1)
+    rows = np.arange(count)
+    pick = np.where(
+        bad.any(axis=1), bad.argmax(axis=1), np.nanargmin(np.where(bad, np.inf, r), axis=1)
+    )
+    codes = np.stack([poc[rows, pick], status[rows, pick]], axis=1)
+    return still, (chain[rows, pick], codes, r[rows, pick])
+
+
 def _radius(distance, within, bad, ends, unit: float, root: bool):
     """(radius, where the region may end) from integer distances (squared
     when ``root``) times ``unit``: the largest sampled distance ``within``
@@ -479,7 +532,8 @@ def poc_neighbourhood(
         codes = int(poc[i]), int(status_all[i]), bool(outside[i]), float(margin[i])
         return SampledPose(poses[i].copy(), offsets[i, columns].copy(), *d, *codes)
 
-    nearest = nearest_ball = nearest_suspect = None
+    nearest = nearest_ball = nearest_suspect = suspect_least = None
+    refined_poses = suspect_cleared = 0
     edges = np.zeros((2, 0), dtype=np.intp)
     if verdict != YES:
         box = ball = (0.0, 0.0)
@@ -488,12 +542,35 @@ def poc_neighbourhood(
     else:
         edges = _edges(U, steps, L // ((n - 1) // 2) if n_axis and 1 < n < RAY_POINTS else 0)
         lengths = np.linalg.norm(U[edges[1]] - U[edges[0]], axis=1) * (R / L)
-        edges = edges[:, suspect_edges(edges, lengths, margin, good[edges].all(axis=0))]
+        flagged = suspect_edges(edges, lengths, margin, good[edges].all(axis=0))
+        edges, lengths = edges[:, flagged], lengths[flagged]
         ends = [sq_int[edges].min(0), inf_int[edges].max(0), inf_int[edges].min(0)]
-        edges = edges[:, np.lexsort(ends)]  # nearest first; on a shell before across one
+        order = np.lexsort(ends)  # nearest first; on a shell before across one
+        edges, lengths = edges[:, order], lengths[order]
+        with single_threaded_blas(), warnings.catch_warnings():
+            warnings.simplefilter("ignore", EquilibriumWarning)
+            budget = max(poc.size, _MIN_RESAMPLED_EDGES * NEIGHBOURHOOD_REFINE_POINTS)
+            still, least = _resample_edges(robot, poses, edges, lengths, margin, args, budget)
+        refined_poses = int(least[0].shape[0] * NEIGHBOURHOOD_REFINE_POINTS)
+        suspect_cleared = int(np.count_nonzero(~still))
+        edges = edges[:, still]
         if edges.size:
             pair = sorted(edges[:, 0], key=lambda i: (inf_int[i], sq_int[i]))
             nearest_suspect = (pose_at(pair[0]), pose_at(pair[1]))
+            first = int(np.flatnonzero(still)[0])
+            if first < least[0].shape[0]:  # resampled: its least r_T, or a non-YES pose
+                where, codes, r = least[0][first], least[1][first], least[2][first]
+                dq = (where - natural)[columns]
+                suspect_least = SampledPose(
+                    where,
+                    dq,
+                    float(np.abs(dq / scale_k).max()),
+                    float(np.linalg.norm(dq / scale_k)),
+                    int(codes[0]),
+                    int(codes[1]),
+                    bool(np.any((where < lower - 1e-12) | (where > upper + 1e-12))),
+                    float(r),
+                )
         box, ball = (
             _radius(d, w, ~good, d[edges][:, w[edges].all(axis=0)], R / L, root)
             for d, w, root in ((inf_int, np.ones_like(good), False), (sq_int, in_ball, True))
@@ -514,10 +591,20 @@ def poc_neighbourhood(
                 f"{nearest.distance_box:.3g} (inf-norm)"
             )
         else:
+            every = "; every sampled pose is YES" if good.all() else ""
+            falls = "r_T comes within one step's change of 0"
+            if suspect_least is not None and suspect_least.verdict != YES:
+                falls = f"a {suspect_least.describe()} pose lies"
+            elif suspect_least is not None:
+                falls = (
+                    f"r_T falls to {suspect_least.margin:.3g} "
+                    f"{reach_unit(robot.output_units)}, still within one step's change of 0,"
+                )
             reason = (
-                "r_T comes within one step's change of 0 between sampled poses at "
+                f"{falls} between the sampled poses at "
                 + " and ".join(f"{p.distance_box:.3g}" for p in nearest_suspect)
-                + " (inf-norm), where a NO set thinner than the grid may pass"
+                + " (inf-norm), where a NO set thinner than the grid may pass (an estimate "
+                f"from r_T's sampled slopes, not a proof{every})"
             )
     codes = status_all.tolist()
     return Neighbourhood(
@@ -558,4 +645,7 @@ def poc_neighbourhood(
         seconds=time.perf_counter() - started,
         reason=reason,
         margin_unit=reach_unit(robot.output_units),
+        refined_poses=refined_poses,
+        suspect_cleared=suspect_cleared,
+        suspect_least=suspect_least,
     )

@@ -43,12 +43,13 @@ from cdpm.errors import (
 from cdpm.model.coordinates import MAX_COORDINATE
 from cdpm.numerics import HORIZON_BOUND_RTOL, HORIZON_GIVEN_MAX_UNITS
 from cdpm.printing import TextRepr
+from cdpm.steering.output_range import outside_range
 
 if TYPE_CHECKING:  # pragma: no cover
     from cdpm.dynamics.linearisation import Linearisation
     from cdpm.model.robot import CableRobot
 
-__all__ = ["SteerResult", "steer", "plan_profile", "default_duration"]
+__all__ = ["SteerResult", "TargetOutOfRangeError", "steer", "plan_profile", "default_duration"]
 
 #: default number of piecewise-constant intervals of a steering profile
 STEER_INTERVALS = 20
@@ -64,6 +65,11 @@ STEER_DURATION = 1.0
 #: time: beyond, the plan's entries span more than double precision's 16
 #: digits (over 1000 s on two_link_vertical, numpy overflowed and the LP failed)
 STEER_MAX_GROWTH = 1e16
+
+
+class TargetOutOfRangeError(InputError):
+    """A steering target that no pose of the robot has: an output past the
+    bound of its range (:func:`~cdpm.steering.output_range.output_range`)."""
 
 
 @dataclass(frozen=True)
@@ -316,6 +322,9 @@ def steer(
     Raises:
         InputError: a target of the wrong size or not finite, bad duration,
             intervals or tolerance.
+        TargetOutOfRangeError: a target outside the outputs' range
+            (:func:`~cdpm.steering.output_range.output_range`): no pose has
+            that output, so nothing is simulated.
         InfeasibleEquilibriumError: no equilibrium at q.
     """
 
@@ -331,6 +340,13 @@ def steer(
         raise InputError(
             f"target must be finite numbers of at most {MAX_COORDINATE:g} in magnitude (m or "
             f"rad), one per output ({', '.join(robot.output_names)}); got {short_repr(target)}"
+        )
+    beyond = outside_range(robot, goal)
+    if beyond is not None:
+        raise TargetOutOfRangeError(
+            f"target out of reach: {beyond} (a bound from the links' lengths and the joints' "
+            "limits that no pose goes past), so no tension reaches it and nothing was "
+            "simulated; give a target within that range"
         )
     if not (is_integer(intervals) and 1 <= intervals <= STEER_MAX_INTERVALS):
         raise InputError(

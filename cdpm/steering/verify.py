@@ -20,6 +20,7 @@ from cdpm.dynamics.linearisation import linearise
 from cdpm.dynamics.reach import reach_unit
 from cdpm.errors import InputError, checked_seed, is_integer, positive_number
 from cdpm.printing import TextRepr
+from cdpm.steering.output_range import output_range, outside_range
 from cdpm.steering.shooting import SteerResult, steer
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -204,6 +205,7 @@ def verify_pose(
         if random_directions:
             extra = np.random.default_rng(seed).standard_normal((random_directions, p))
             directions = np.vstack([directions, extra / np.linalg.norm(extra, axis=1)[:, None]])
+    _check_targets_in_range(robot, y0, R, directions)
     runs = [
         steer(
             robot,
@@ -227,3 +229,22 @@ def verify_pose(
         robot_size=size,
         radius_given=radius is not None,
     )
+
+
+def _check_targets_in_range(robot, y0: np.ndarray, R: float, directions: np.ndarray) -> None:
+    """Raise when a target y0 + R d lies outside the outputs' range (no pose
+    has it: :func:`~cdpm.steering.output_range.output_range`), naming the
+    largest radius that keeps every target inside."""
+    for d in directions:
+        beyond = outside_range(robot, y0 + R * d)
+        if beyond is None:
+            continue
+        lower, upper = output_range(robot)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            room = np.where(directions > 0, (upper - y0) / directions, np.inf)
+            room = np.minimum(room, np.where(directions < 0, (lower - y0) / directions, np.inf))
+        largest = max(float(room.min()), 0.0)
+        raise InputError(
+            f"radius {R:.4g} puts a target out of reach: {beyond} (no pose goes past it); "
+            f"give a radius of at most {largest:.4g}"
+        )
