@@ -74,6 +74,9 @@ _EXPORTS: dict[str, str] = {
     "poc_path": "cdpm.regions.paths",
     "POCPath": "cdpm.regions.paths",
     "NotConnectedError": "cdpm.regions.paths",
+    # certified boxes: POC proven on a whole box of poses
+    "certify_box": "cdpm.certify.box",
+    "BoxCertificate": "cdpm.certify.box",
     # margins with units and POC neighbourhoods
     "ReachSettings": "cdpm.dynamics.reach",
     "reach_settings": "cdpm.dynamics.reach",
@@ -196,6 +199,7 @@ if TYPE_CHECKING:  # pragma: no cover - for static type checkers only
         SpecError,
         UnsupportedError,
     )
+    from cdpm.certify.box import BoxCertificate, certify_box  # noqa: F401
     from cdpm.expressions import parse_number  # noqa: F401
     from cdpm.maps import (  # noqa: F401
         SampledAxes,

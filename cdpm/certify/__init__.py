@@ -1,0 +1,16 @@
+"""Certified boxes: enclosures, over boxes of poses, of what the POC test
+needs, with round-off accounted for (shared THEORY.md section 6).
+
+Modules: :mod:`~cdpm.certify.interval` (interval arithmetic on numpy
+arrays, rounded outward), :mod:`~cdpm.certify.jet` (intervals with their
+derivatives, for mean-value forms), :mod:`~cdpm.certify.kinematics`
+(enclosures of a robot's joint placements, cable points, L, outputs, C_q
+and mass matrix over a box), :mod:`~cdpm.certify.box` (:func:`certify_box`:
+a POC verdict proven on a whole box, and its certificate).
+"""
+
+from cdpm.certify.box import BoxCertificate, certify_box
+from cdpm.certify.interval import Interval
+from cdpm.certify.kinematics import BoxKinematics, box_kinematics
+
+__all__ = ["Interval", "BoxKinematics", "box_kinematics", "BoxCertificate", "certify_box"]

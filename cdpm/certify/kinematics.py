@@ -1,0 +1,481 @@
+"""Enclosures of a robot's kinematics and mass matrix over boxes of poses.
+
+A box ``Q = [lower, upper]`` of natural coordinates (nv,) holds every pose
+q with ``lower <= q <= upper``. :func:`box_kinematics` returns intervals
+(:class:`cdpm.certify.interval.Interval`) that hold, for every q in Q, the
+values :class:`cdpm.model.robot.CableRobot` computes at q: joint placements,
+cable route points and their Jacobians, cable lengths and the cable
+Jacobian L(q), the outputs and their Jacobian C_q, and the mass matrix
+M(q), round-off included. These are what the zero-load POC test
+(``G(q) = C_q M(q)^-1 (-L(q)^T)``, shared THEORY.md section 6) needs.
+
+Two forms:
+
+- ``"naive"``: interval evaluation of the forward kinematics, joint by
+  joint from the base (sin and cos of each coordinate's interval, products
+  of interval rotation matrices);
+- ``"mean_value"``: ``f(Q) in f(q_c) + sum_k df/dq_k(Q) [-h_k, h_k]``, with
+  f(q_c) the naive evaluation at the box's centre q_c (a point box: round-off
+  wide) and the derivatives' enclosures over Q by the same chain rule in
+  intervals (:class:`_Jet`), intersected with the naive enclosure. Tighter
+  on small boxes, where the naive form's overestimation (the same
+  coordinate entering many factors) dominates.
+
+Frames and units: every vector is in the world frame; lengths in m,
+angles in rad; Jacobians map the tangent velocity (nv,) [rad/s or m/s] to
+the rate of the quantity, as cdpm's (a revolute or prismatic joint's
+natural coordinate is its configuration entry and its tangent coordinate).
+
+Supported joints: revolute (Pinocchio's RX, RY, RZ and RevoluteUnaligned)
+and prismatic (PX, PY, PZ, PrismaticUnaligned); fixed joints are frames
+merged into their parent link. Other joints (free-flyer, spherical, planar,
+continuous, ...) raise :class:`cdpm.errors.InputError`.
+"""
+
+from __future__ import annotations
+
+import math
+import weakref
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from cdpm.certify.interval import Interval
+from cdpm.certify.jet import Jet, jet_cos, jet_sin, jet_stack, jet_where, mean_value, variables
+from cdpm.errors import InputError, float_array
+from cdpm.model.coordinates import MAX_COORDINATE
+from cdpm.model.outputs import anchor_in_joint, joint_support
+
+__all__ = ["BoxKinematics", "box_kinematics", "box_jets", "FORMS"]
+
+#: the evaluation forms of :func:`box_kinematics`
+FORMS = ("naive", "mean_value")
+
+_REVOLUTE = {
+    "JointModelRX": 0,
+    "JointModelRY": 1,
+    "JointModelRZ": 2,
+    "JointModelRevoluteUnaligned": -1,
+}
+_PRISMATIC = {
+    "JointModelPX": 0,
+    "JointModelPY": 1,
+    "JointModelPZ": 2,
+    "JointModelPrismaticUnaligned": -1,
+}
+
+
+@dataclass(frozen=True)
+class BoxKinematics:
+    """Enclosures over a box of poses (or B boxes: a leading axis B on every
+    array when ``lower`` was (B, nv)).
+
+    Attributes:
+        lower, upper: the box, natural coordinates [rad or m], (nv,) or (B, nv).
+        form: ``"naive"`` or ``"mean_value"``.
+        joint_rotation: world rotation of each joint frame, (..., njoints, 3, 3)
+            (joint 0 is the world).
+        joint_translation: world position of each joint frame [m], (..., njoints, 3).
+        point_positions: the cable route points, cable by cable in route
+            order (``CableRobot.route_point_slices``) [m], (..., n_route, 3).
+        point_jacobians: their translational Jacobians, (..., n_route, 3, nv).
+        segment_lengths: straight segment lengths [m], (..., n_segments).
+        lengths: cable lengths l [m], (..., m).
+        jacobian: cable Jacobian L = dl/dq, (..., m, nv) (seed paper eq 16).
+        output: outputs y in their units, (..., p). A rotation component is
+            only known to lie in [-pi, pi].
+        output_jacobian: C_q = dy/dv, (..., p, nv).
+        mass_matrix: M(q) [kg, kg m, kg m^2], (..., nv, nv) (seed paper eq 14).
+        segment_may_vanish: per box, whether some segment's length may be 0
+            in it, (...,) bool. Its unit vector is then only bounded by
+            [-1, 1] per component, and L's enclosure holds where L exists.
+    """
+
+    lower: np.ndarray
+    upper: np.ndarray
+    form: str
+    joint_rotation: Interval
+    joint_translation: Interval
+    point_positions: Interval
+    point_jacobians: Interval
+    segment_lengths: Interval
+    lengths: Interval
+    jacobian: Interval
+    output: Interval
+    output_jacobian: Interval
+    mass_matrix: Interval
+    segment_may_vanish: np.ndarray
+
+    def __str__(self) -> str:
+        boxes = 1 if self.lower.ndim == 1 else self.lower.shape[0]
+
+        def widest(x: Interval) -> str:
+            return f"{np.max(x.width, initial=0.0):.3g}"
+
+        return (
+            f"BoxKinematics ({self.form}, {boxes} box{'es' if boxes != 1 else ''}): widest "
+            f"enclosure of L {widest(self.jacobian)}, C_q {widest(self.output_jacobian)}, "
+            f"M {widest(self.mass_matrix)}"
+        )
+
+
+def box_kinematics(robot: Any, lower: Any, upper: Any, form: str = "naive") -> BoxKinematics:
+    """Enclosures of the kinematics and the mass matrix over a box of poses.
+
+    Args:
+        robot: a :class:`cdpm.model.robot.CableRobot` with revolute and
+            prismatic joints only.
+        lower, upper: the box's corners in natural coordinates [rad or m],
+            shape (nv,), or (B, nv) for B boxes at once (one vectorised pass).
+        form: ``"naive"`` or ``"mean_value"`` (see the module docstring).
+
+    Returns:
+        :class:`BoxKinematics`; each of its intervals holds the robot's value
+        at every pose of the box.
+
+    Raises:
+        InputError: a joint type other than revolute or prismatic; corners
+            of the wrong shape, not finite, or lower > upper; an unknown form.
+    """
+    if form not in FORMS:
+        raise InputError(f"form must be one of {', '.join(FORMS)}; got {form!r}")
+    chain = _chain(robot)
+    lo, hi, single = _check_box(robot, lower, upper)
+    if form == "naive":
+        values = chain.evaluate(Interval(lo, hi))
+    else:
+        values = chain.mean_value(lo, hi)
+    if single:
+        values = {k: v[0] for k, v in values.items()}
+        lo, hi = lo[0], hi[0]
+    return BoxKinematics(lower=lo, upper=hi, form=form, **values)
+
+
+def box_jets(robot: Any, lower: Any, upper: Any) -> tuple[dict, dict, np.ndarray]:
+    """What a mean-value form of a quantity built from the kinematics needs:
+    the enclosures at the boxes' centres (point boxes: round-off wide), the
+    jets over the boxes (value and derivative enclosures) and the boxes'
+    half-widths.
+
+    Args:
+        robot, lower, upper: as :func:`box_kinematics` (boxes (B, nv) or one (nv,)).
+
+    Returns:
+        (at_centre, over_box, radius): two dicts keyed like
+        :class:`BoxKinematics`'s fields (Intervals at the centre; Jets, or
+        Intervals for what is constant, over the box), each with a leading
+        axis B, and the half-widths (B, nv) [rad or m].
+    """
+    chain = _chain(robot)
+    lo, hi, _ = _check_box(robot, lower, upper)
+    centre = np.clip(0.5 * lo + 0.5 * hi, lo, hi)
+    radius = np.maximum(np.nextafter(centre - lo, np.inf), np.nextafter(hi - centre, np.inf))
+    return chain.evaluate(Interval(centre)), chain.evaluate(variables(lo, hi)), radius
+
+
+def _check_box(robot: Any, lower: Any, upper: Any) -> tuple[np.ndarray, np.ndarray, bool]:
+    """The corners as (B, nv) float arrays, and whether one box was given."""
+    nv = robot.nv
+    names = ", ".join(robot.coordinate_names)
+    arrays = []
+    for name, value in (("lower", lower), ("upper", upper)):
+        try:
+            arr = float_array(value, copy=True)
+        except (TypeError, ValueError) as exc:
+            raise InputError(
+                f"{name} must be numbers, one per coordinate ({names}): {exc}"
+            ) from exc
+        if arr.ndim not in (1, 2) or arr.shape[-1] != nv:
+            raise InputError(
+                f"{name} has shape {arr.shape}, expected ({nv},) or (B, {nv}): one value per "
+                f"coordinate ({names})"
+            )
+        if not np.all(np.abs(arr) <= MAX_COORDINATE):
+            raise InputError(
+                f"{name} holds values that are not finite numbers of at most "
+                f"{MAX_COORDINATE:g} (rad or m)"
+            )
+        arrays.append(arr)
+    lo, hi = arrays
+    if lo.shape != hi.shape:
+        raise InputError(f"lower has shape {lo.shape} and upper {hi.shape}; give them alike")
+    if np.any(lo > hi):
+        k = np.argwhere(lo > hi)[0]
+        raise InputError(
+            f"lower > upper for coordinate {robot.coordinate_names[k[-1]]!r} "
+            f"({lo[tuple(k)]:g} > {hi[tuple(k)]:g}); swap them"
+        )
+    single = lo.ndim == 1
+    return lo.reshape(-1, nv), hi.reshape(-1, nv), single
+
+
+# one chain per robot, built on first use
+_CHAINS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _chain(robot: Any) -> _Chain:
+    chain = _CHAINS.get(robot)
+    if chain is None:
+        chain = _Chain(robot)
+        _CHAINS[robot] = chain
+    return chain
+
+
+def _axis_matrices(axis: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Rodrigues' rotation by q about the unit ``axis``:
+    ``R(q) = a a^T + cos q (I - a a^T) + sin q [a]_x``; returns the three
+    constant matrices (for an axis along x, y or z each entry has one
+    nonzero term, so no coordinate enters an entry twice)."""
+    a = np.asarray(axis, dtype=float)
+    outer = np.outer(a, a)
+    skew = np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
+    return outer, np.eye(3) - outer, skew
+
+
+class _Chain:
+    """The robot's kinematic tree as constants: joints (parent, placement,
+    kind, axis), tracked points (joint, position in the joint frame),
+    segments, output terms and bodies."""
+
+    def __init__(self, robot: Any) -> None:
+        model = robot.model
+        spec = robot.spec
+        self.nv, self.nj = int(model.nv), int(model.njoints)
+        self.parent = [int(model.parents[j]) for j in range(self.nj)]
+        self.placement_rotation = [
+            np.array(model.jointPlacements[j].rotation) for j in range(self.nj)
+        ]
+        self.placement_translation = [
+            np.array(model.jointPlacements[j].translation) for j in range(self.nj)
+        ]
+        self.revolute = np.zeros(self.nv, dtype=bool)
+        self.dof_joint = np.zeros(self.nv, dtype=int)
+        self.joint_dof = [-1] * self.nj
+        self.axis = [np.zeros(3)] * self.nj
+        for j in range(1, self.nj):
+            joint = model.joints[j]
+            short = joint.shortname()
+            code = _REVOLUTE.get(short, _PRISMATIC.get(short))
+            if code is None:
+                raise InputError(
+                    f"joint {model.names[j]!r} ({short.removeprefix('JointModel')}) is not "
+                    "supported by certified boxes yet: they handle revolute joints (about any "
+                    "axis) and prismatic joints, and fixed joints; continuous (unbounded), "
+                    "spherical, planar and free-flyer joints are not"
+                )
+            axis = np.eye(3)[code] if code >= 0 else np.array(joint.extract().axis, dtype=float)
+            self.axis[j] = axis / np.linalg.norm(axis)
+            self.revolute[joint.idx_v] = short in _REVOLUTE
+            self.dof_joint[joint.idx_v] = j
+            self.joint_dof[j] = joint.idx_v
+        self.support = joint_support(model)  # (nj, nv)
+
+        # tracked points: route points, then the points of position outputs,
+        # then the bodies' centres of mass
+        joints: list[int] = []
+        local: list[np.ndarray] = []
+        seg_a: list[int] = []
+        self.segment_cable: list[int] = []
+        for ci, cable in enumerate(spec.cables):
+            start = len(joints)
+            for point in cable.route:
+                joint, p_joint = anchor_in_joint(model, point.frame, np.array(point.point_in_frame))
+                joints.append(joint)
+                local.append(p_joint)
+            for k in range(len(cable.route) - 1):
+                seg_a.append(start + k)
+                self.segment_cable.append(ci)
+        self.n_route = len(joints)
+        self.segments = np.array([[a, a + 1] for a in seg_a], dtype=int).reshape(-1, 2)
+        n_cables = len(spec.cables)
+        self.to_cable = np.zeros((n_cables, len(seg_a)))
+        self.to_cable[self.segment_cable, np.arange(len(seg_a))] = 1.0
+        self.cable_names = [c.name for c in spec.cables]
+
+        cable_index = {name: k for k, name in enumerate(self.cable_names)}
+        self.outputs: list[list[tuple[float, str, Any]]] = []
+        for out in spec.outputs:
+            terms = []
+            for term in out.terms:
+                if term.kind == "position":
+                    joint, p_joint = anchor_in_joint(
+                        model, term.frame, np.array(term.point_in_frame)
+                    )
+                    terms.append((term.weight, "position", (term.axis, len(joints))))
+                    joints.append(joint)
+                    local.append(p_joint)
+                elif term.kind == "rotation":
+                    joint = anchor_in_joint(model, term.frame, np.zeros(3))[0]
+                    terms.append((term.weight, "rotation", (term.axis, joint)))
+                elif term.kind == "joint":
+                    terms.append(
+                        (term.weight, "joint", model.joints[model.getJointId(term.joint)].idx_v)
+                    )
+                else:
+                    terms.append((term.weight, "cable", cable_index[term.cable]))
+            self.outputs.append(terms)
+
+        self.first_com = len(joints)
+        self.body_mass = np.array([float(model.inertias[j].mass) for j in range(1, self.nj)])
+        self.body_inertia = np.array(
+            [np.array(model.inertias[j].inertia) for j in range(1, self.nj)]
+        )
+        for j in range(1, self.nj):
+            joints.append(j)
+            local.append(np.array(model.inertias[j].lever, dtype=float))
+        self.point_joint = np.array(joints, dtype=int)
+        self.point_local = np.array(local, dtype=float).reshape(-1, 3)
+        self.armature = np.array(model.armature, dtype=float).reshape(-1)
+
+    # ----------------------------------------------------------- evaluation
+
+    def evaluate(self, q: Interval | Jet) -> dict[str, Any]:
+        """Interval evaluation over boxes q (B, nv): naive for an Interval,
+        with the derivatives' enclosures for a Jet."""
+        n_boxes = q.shape[0]
+        s, c = jet_sin(q), jet_cos(q)
+        rot: list[Any] = [Interval(np.broadcast_to(np.eye(3), (n_boxes, 3, 3)))]
+        pos: list[Any] = [Interval(np.zeros((n_boxes, 3)))]
+        axis_world: list[Any] = [Interval(np.zeros((n_boxes, 3)))]
+        for j in range(1, self.nj):
+            par, k = self.parent[j], self.joint_dof[j]
+            r_pre = rot[par] @ self.placement_rotation[j]
+            origin = pos[par] + rot[par] @ self.placement_translation[j]
+            a = r_pre @ self.axis[j]
+            if self.revolute[k]:
+                outer, perp, skew = _axis_matrices(self.axis[j])
+                r_joint = (c[:, k, None, None] * perp + s[:, k, None, None] * skew) + outer
+                rot.append(r_pre @ r_joint)
+                pos.append(origin)
+            else:
+                rot.append(r_pre)
+                pos.append(origin + a * q[:, k, None])
+            axis_world.append(a)
+        rot_all = jet_stack(rot, axis=1)  # (B, nj, 3, 3)
+        pos_all = jet_stack(pos, axis=1)  # (B, nj, 3)
+        axis_all = jet_stack(axis_world, axis=1)  # (B, nj, 3)
+        return self._assemble(q, rot_all, pos_all, axis_all)
+
+    def _assemble(self, q: Any, rot: Any, pos: Any, axis: Any) -> dict[str, Any]:
+        """Points, Jacobians, L, outputs and M from the joint placements."""
+        pj = self.point_joint
+        points = pos[:, pj] + (rot[:, pj] * self.point_local[None, :, None, :]).sum(axis=-1)
+        dof_axis = axis[:, self.dof_joint]  # (B, nv, 3)
+        dof_origin = pos[:, self.dof_joint]
+        arm = points[:, :, None, :] - dof_origin[:, None, :, :]  # (B, P, nv, 3)
+        linear = _cross(dof_axis[:, None], arm)
+        linear = jet_where(self.revolute[None, :, None], linear, dof_axis[:, None])
+        mask = self.support[pj][:, :, None]  # (P, nv, 1)
+        point_jac = jet_where(mask, linear, 0.0).swapaxes(-1, -2)  # (B, P, 3, nv)
+
+        a, b = self.segments[:, 0], self.segments[:, 1]
+        diff = points[:, b] - points[:, a]  # (B, S, 3)
+        squared = diff.square().sum(axis=-1)  # (B, S)
+        may_vanish = _value(squared).lo <= 0
+        # segments that may vanish get a stand-in length of 1 for their
+        # direction, which is then only known to lie in [-1, 1]^3
+        safe = jet_where(may_vanish, 1.0, squared).sqrt()
+        seg_len = jet_where(may_vanish, _value(squared).sqrt(), safe)
+        units = (diff * safe.reciprocal()[..., None]).intersect(-1.0, 1.0)
+        units = jet_where(may_vanish[..., None], Interval(-1.0, 1.0), units)
+        seg_rows = (units[..., None] * (point_jac[:, b] - point_jac[:, a])).sum(axis=-2)
+        lengths = (self.to_cable[:, :, None] * seg_len[:, None, :, None]).sum(axis=-2)[..., 0]
+        rows = (self.to_cable[:, :, None] * seg_rows[:, None, :, :]).sum(axis=-2)
+
+        n_boxes = q.shape[0]
+        values, rates = [], []
+        for terms in self.outputs:
+            value = Interval(np.zeros(n_boxes))
+            rate = Interval(np.zeros((n_boxes, self.nv)))
+            for weight, kind, where in terms:
+                if kind == "position":
+                    axis_k, point = where
+                    v, r = points[:, point, axis_k], point_jac[:, point, axis_k]
+                elif kind == "rotation":
+                    axis_k, joint = where
+                    v = Interval(np.full(n_boxes, -math.pi), np.full(n_boxes, math.pi))
+                    v = Interval._raw(np.nextafter(v.lo, -np.inf), np.nextafter(v.hi, np.inf))
+                    angular = dof_axis[:, :, axis_k]  # (B, nv)
+                    r = jet_where(self.revolute & self.support[joint], angular, 0.0)
+                elif kind == "joint":
+                    v = q[:, where]
+                    r = Interval(np.broadcast_to(np.eye(self.nv)[where], (n_boxes, self.nv)))
+                else:
+                    v, r = lengths[:, where], rows[:, where]
+                value = value + v * weight
+                rate = rate + r * weight
+            values.append(value)
+            rates.append(rate)
+        output = jet_stack(values, axis=1) if values else Interval(np.zeros((n_boxes, 0)))
+        output_jac = (
+            jet_stack(rates, axis=1) if rates else Interval(np.zeros((n_boxes, 0, self.nv)))
+        )
+
+        mass = self._mass_matrix(rot, dof_axis, point_jac[:, self.first_com :])
+        return {
+            "joint_rotation": rot,
+            "joint_translation": pos,
+            "point_positions": points[:, : self.n_route],
+            "point_jacobians": point_jac[:, : self.n_route],
+            "segment_lengths": seg_len,
+            "lengths": lengths,
+            "jacobian": rows,
+            "output": output,
+            "output_jacobian": output_jac,
+            "mass_matrix": mass,
+            "segment_may_vanish": may_vanish.any(axis=-1),
+        }
+
+    def _mass_matrix(self, rot: Any, dof_axis: Any, com_jac: Any) -> Any:
+        """``M = sum_bodies m Jv^T Jv + (R^T Jw)^T I_c (R^T Jw)``: Jv the
+        Jacobian of the body's centre of mass (B, nb, 3, nv), Jw its world
+        angular Jacobian, R its joint's world rotation, I_c its inertia about
+        the centre of mass in the joint frame; plus the joints' armature."""
+        linear = (com_jac.mT @ com_jac * self.body_mass[:, None, None]).sum(axis=1)
+        body_support = self.support[1:] & self.revolute[None, :]  # (nb, nv)
+        angular = jet_where(body_support[:, None, :], dof_axis.mT[:, None], 0.0)  # (B, nb, 3, nv)
+        in_body = rot[:, 1:].mT @ angular  # (B, nb, 3, nv)
+        rotational = (in_body.mT @ (self.body_inertia @ in_body)).sum(axis=1)
+        return linear + rotational + np.diag(self.armature)
+
+    # ------------------------------------------------------- mean-value form
+
+    def mean_value(self, lo: np.ndarray, hi: np.ndarray) -> dict[str, Any]:
+        """The mean-value form over boxes (B, nv): the naive enclosure at
+        each box's centre plus the derivatives' enclosures over the box times
+        its half-widths, cut to the naive enclosure over the box. Boxes
+        where a segment may vanish keep the naive enclosures."""
+        centre = np.clip(0.5 * lo + 0.5 * hi, lo, hi)
+        radius = np.maximum(np.nextafter(centre - lo, np.inf), np.nextafter(hi - centre, np.inf))
+        at_centre = self.evaluate(Interval(centre))
+        over_box = self.evaluate(variables(lo, hi))
+        naive = over_box["segment_may_vanish"]
+        out: dict[str, Any] = {"segment_may_vanish": naive}
+        for name, value in over_box.items():
+            if name == "segment_may_vanish":
+                continue
+            if not isinstance(value, Jet):  # constant over the box
+                out[name] = value
+                continue
+            mv = mean_value(at_centre[name], value, radius)
+            keep = naive.reshape(naive.shape + (1,) * (len(mv.shape) - 1))
+            out[name] = jet_where(keep, value.val, mv)
+        return out
+
+
+def _value(x: Any) -> Interval:
+    """The enclosure of the values of a jet or an interval."""
+    return x.val if isinstance(x, Jet) else x
+
+
+def _cross(a: Any, b: Any) -> Any:
+    """Cross product over the last axis (length 3) of intervals or jets."""
+    return jet_stack(
+        [
+            a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1],
+            a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2],
+            a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0],
+        ],
+        axis=-1,
+    )
