@@ -16,6 +16,7 @@ import os
 import signal
 import sys
 import threading
+from typing import Any
 
 from cdpm import __version__
 from cdpm.errors import CdpmError
@@ -107,9 +108,24 @@ def _protect_negative_numbers(argv: list[str]) -> list[str]:
             except ValueError:
                 pass
             else:
-                token = " " + token
+                token = _PROTECTED + token
         out.append(token)
     return out
+
+
+#: the prefix that hides a negative number from argparse's option matching
+_PROTECTED = " "
+
+
+def _unprotect(value: Any) -> Any:
+    """A parsed value without the prefix :func:`_protect_negative_numbers`
+    added (numbers parse either way; a name such as a pose ``-1`` must not
+    keep it), in lists too."""
+    if isinstance(value, str) and value.startswith(_PROTECTED + "-"):
+        return value[len(_PROTECTED) :]
+    if isinstance(value, list):
+        return [_unprotect(v) for v in value]
+    return value
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -123,6 +139,8 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     parser = build_parser()
     args = parser.parse_args(_protect_negative_numbers(argv))
+    for name, value in vars(args).items():
+        setattr(args, name, _unprotect(value))
     if not getattr(args, "_run", None):
         parser.print_help()
         return 2
