@@ -191,3 +191,14 @@ def test_tension_range_and_best_tension_scale(tmp_path, point_mass):
                 assert r.cable_states() == ref.cable_states()
                 got_best.append(cdpm.best_tension(robot, scaled_pose(robot, q, length)).verdict)
         assert got_best == best, (mass, length)
+
+
+def test_a_pretension_below_a_heavy_robots_resolution_stays_as_asked(tmp_path):
+    """A 2e9 kg arm with a 10 N pretension: 10 N is within the bound test's
+    round-off of 0 (1e-9 of the 2e10 N force scale), so those cables count
+    as on their lower bound, but their tension stays the 10 N asked for."""
+    spec, urdf = _arm()
+    heavy = cdpm.load_robot(scaled_copy(spec, urdf, tmp_path / "heavy", 1e9, 1.0))
+    eq = cdpm.equilibrium_tension(heavy, [0.2, 0.4], method="pretension", pretension=10.0)
+    assert eq.feasible and np.all(eq.tension >= 10.0)
+    assert np.any(eq.tension == 10.0)

@@ -137,7 +137,9 @@ def solve_equilibria(
     if np.any(lower > upper):
         f = np.tile(np.minimum(lower, upper), (k, 1))
         how[:] = HOW["bound_conflict"]
-        return _batch(LT, load, f, np.zeros(k, bool), how, fmin, fmax, method, used, force)
+        return _batch(
+            LT, load, f, np.zeros(k, bool), how, fmin, fmax, method, used, force, (lower, upper)
+        )
     if not np.any(lower) and not np.any(load):
         # no load and a box with corner 0: f = 0 holds every pose exactly
         how[:] = HOW["box_corner"]
@@ -161,15 +163,24 @@ def solve_equilibria(
             f[i] = x
             feasible[i] = bool(holds(LT[i : i + 1], load[i : i + 1], x[None], force)[0])
             how[i] = HOW["solved"] if feasible[i] else HOW["infeasible"]
-    return _batch(LT, load, f, feasible, how, fmin, fmax, method, used, force)
+    return _batch(LT, load, f, feasible, how, fmin, fmax, method, used, force, (lower, upper))
 
 
-def _batch(LT, load, f, feasible, how, fmin, fmax, method, pretension, force) -> EquilibriumBatch:
+def _batch(
+    LT, load, f, feasible, how, fmin, fmax, method, pretension, force, box=None
+) -> EquilibriumBatch:
     at_lower, at_upper, _ = classify(f, fmin, fmax, force)
     if method != "given":
         # a solved cable on a bound sits exactly on it (round-off apart,
-        # the solvers leave it within STATICS_RTOL)
-        f = np.where(at_lower, fmin, np.where(at_upper, fmax, f))
+        # the solvers leave it within STATICS_RTOL), never outside the
+        # method's own box: a pretension below the bound test's resolution
+        # (STATICS_RTOL times a huge robot's force scale) stays as asked
+        low, high = (
+            (fmin, fmax)
+            if box is None
+            else (np.clip(fmin, box[0], box[1]), np.clip(fmax, box[0], box[1]))
+        )
+        f = np.where(at_lower, low, np.where(at_upper, high, f))
     taut = f > 0
     exact = not np.any(f) and not np.any(load)  # nothing to balance, nothing pulling
     return EquilibriumBatch(
