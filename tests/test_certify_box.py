@@ -108,7 +108,7 @@ def test_the_nominal_box_is_yes_with_a_margin_bound(planar):
     assert cert.verdict == YES and cert.verify(planar)
     r = cdpm.analyze_pose(planar, "nominal").reach_margin
     assert 0.5 * r[0] < cert.margin_lower <= r[0] + r[1]
-    assert "certified YES" in str(cert)
+    assert "certified YES" in str(cert) and "m within T" in str(cert)
 
 
 def test_corrupted_certificates_are_rejected(planar_xy, two_cables):

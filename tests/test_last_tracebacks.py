@@ -115,7 +115,7 @@ def test_caspr_crossed_joint_limits_are_refused(tmp_path, overrides, drop, match
 @pytest.mark.parametrize(
     ("option", "value", "match"),
     [
-        ("--dpi", "0.01", "dpi=0.01 is too low for a picture.* at least 20 dots per inch"),
+        ("--dpi", "0.01", "dpi=0.01 is too low for a picture.* give 20 to 1200 dots per inch"),
         ("--dpi", "5", "dpi=5 is too low for a picture"),
         ("--title", "x" * 10_000, "the title has 10,000 characters, more than the 1,000"),
         ("--title", "word " * 2_000, "the title has 9,999 characters, more than the 1,000"),

@@ -234,3 +234,13 @@ def test_reports_show_in_a_notebook_as_their_text():
         "<InfeasiblePoseReport two_link_vertical.yaml, pose 'nominal': no equilibrium by "
         "method 'zero', no verdicts>"
     )
+
+
+def test_a_zero_reach_margin_says_what_cannot_be_reached(capsys):
+    """At a NO pose r_T = 0: the sentence says the cables cannot move the
+    outputs in some direction, not that they move them 0 m everywhere."""
+    spec = ROOT / "models" / "two_link_two_cables" / "two_link_two_cables.yaml"
+    main(["analyze", str(spec), "--pose", "nominal"])
+    out = capsys.readouterr().out
+    assert "cannot move tip_x in some direction of output space" in out
+    assert "0 m in every direction" not in out

@@ -482,3 +482,14 @@ def test_headless_screenshot_of_the_page_shows_the_robot(tmp_path):
             assert len(np.unique(scene.reshape(-1, 3), axis=0)) > 200
         ports, server = [page.port, page.scene_port], page.viewer.server_pid
     _closed(ports, server, before)
+
+
+def test_one_port_for_page_and_scene_is_a_clear_error(capsys):
+    from cdpm.cli import main
+    from tests.conftest import PAPER_SPEC
+
+    ports = ["--port", "7345", "--scene-port", "7345"]
+    code = main(["view", str(PAPER_SPEC), *ports, "--seconds", "1"])
+    err = capsys.readouterr().err
+    assert code == 1 and "Traceback" not in err
+    assert "--port and --scene-port are both 7345" in err

@@ -88,6 +88,7 @@ class BoxCertificate:
             (lower, upper), dyadic fractions of [-1, 1].
         columns: YES: the cable proving each patch, (P,) int.
         separator: NO: the vector v (p,) with ``v . g_j < 0`` on the box.
+        margin_unit: the unit of ``margin_lower`` (the outputs' common unit).
     """
 
     lower: np.ndarray
@@ -101,6 +102,7 @@ class BoxCertificate:
     patches: np.ndarray = field(default_factory=lambda: np.zeros((0, 0, 2)))
     columns: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
     separator: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    margin_unit: str = "m"
 
     def __bool__(self) -> bool:
         return self.verdict == YES
@@ -140,13 +142,16 @@ class BoxCertificate:
         return bool(self.margin_lower <= bound)
 
     def __str__(self) -> str:
-        word = {YES: "YES", NO: "NO", MARGINAL: "MARGINAL"}[self.verdict]
         box = ", ".join(f"[{a:.6g}, {b:.6g}]" for a, b in zip(self.lower, self.upper, strict=True))
-        margin = (
-            f"; r_T >= {self.margin_lower:.4g} within T = {self.horizon:.3g} s"
-            if (self.verdict == YES)
-            else ""
-        )
+        if self.verdict == MARGINAL:
+            return f"not certified (MARGINAL) on the box {box}: {self.reason}"
+        word = "YES" if self.verdict == YES else "NO"
+        margin = ""
+        if self.verdict == YES:
+            margin = (
+                f"; r_T >= {self.margin_lower:.4g} {self.margin_unit} within "
+                f"T = {self.horizon:.3g} s"
+            )
         return f"certified {word} on the box {box}{margin}: {self.reason}"
 
 
@@ -447,7 +452,7 @@ def certify_box(
             support (named).
     """
     # loaded on first use: the model and the reach settings
-    from cdpm.dynamics.reach import reach_settings
+    from cdpm.dynamics.reach import reach_settings, reach_unit
     from cdpm.model.robot import load_robot
 
     if not hasattr(robot, "spec"):
@@ -455,6 +460,7 @@ def certify_box(
     lo, hi = _checked_box(robot, lower, upper)
     reach = reach_settings(robot, horizon, tension_budget)
     T, F = reach.horizon, reach.tension_budget
+    unit = reach_unit(robot.output_units)
     reason = zero_load_reason(robot)
     if reason:
         box_kinematics(robot, lo, hi)  # unsupported joints are an error all the same
@@ -476,6 +482,7 @@ def certify_box(
             f"every output direction has a cable that moves the outputs into it at every pose "
             f"of the box ({faces.size} direction patches)",
             margin_lower=bound,
+            margin_unit=unit,
             horizon=T,
             tension_budget=F,
             faces=faces,

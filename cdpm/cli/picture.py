@@ -68,7 +68,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--title",
         default=None,
         type=argument_type(_picture_title),
-        help="figure title (default: pose and verdict)",
+        help="figure title, drawn as written ($ is no maths) (default: pose and verdict)",
     )
     parser.add_argument(
         "--dpi", type=argument_type(_picture_dpi), default=110, help="resolution (default 110)"

@@ -155,11 +155,17 @@ def map_settings_note(dataset, robot) -> str | None:
 
 def run(args: argparse.Namespace) -> int:
     # loaded when the command runs (cdpm --help stays fast)
+    from cdpm.errors import InputError
     from cdpm.model.robot import load_robot
     from cdpm.viewer import check_map_spec
     from cdpm.viewer.page import InspectionPage
     from cdpm.viewer.scene import _import_meshcat
 
+    if args.port and args.port == args.scene_port:
+        raise InputError(
+            f"--port and --scene-port are both {args.port}: the page and the scene need two "
+            "ports (give another --scene-port, or 0 for any free one)"
+        )
     # a plain `kill` also closes the page (and stops the meshcat server process)
     signal.signal(signal.SIGTERM, _exit_on_sigterm)
     robot = load_robot(args.spec)
@@ -211,6 +217,8 @@ def run(args: argparse.Namespace) -> int:
             # an hour at a time: one long sleep past the clock's range fails
             while (left := deadline - time.monotonic()) > 0:
                 time.sleep(min(left, 3600.0))
+            if args.seconds is not None:
+                print(f"stopped after {args.seconds:g} s", file=sys.stderr)
         except KeyboardInterrupt:
             print("stopped", file=sys.stderr)
             return 130

@@ -27,6 +27,7 @@ import numpy as np
 from cdpm.errors import InputError, short_str
 from cdpm.plotting import check_dpi, check_image_path
 from cdpm.plotting._common import matplotlib_parts
+from cdpm.plotting.map_plot import MAX_DPI
 from cdpm.viewer.state import (
     AXIS_RGB,
     COLORS,
@@ -441,7 +442,7 @@ def check_picture_dpi(dpi: Any) -> float:
         raise InputError(
             f"dpi={short_str(dpi, 40)} is too low for a picture: its text would be under three "
             "pixels tall; "
-            f"use at least {MIN_PICTURE_DPI} dots per inch (the default is 110)"
+            f"give {MIN_PICTURE_DPI} to {MAX_DPI} dots per inch (the default is 110)"
         )
     return value
 

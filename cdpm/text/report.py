@@ -190,6 +190,12 @@ class PoseReport(TextRepr):
         else:
             head = f"Reach margin r_T = {r + 0.0:.4g} {unit} ({exact})"
             moved = f"{r + 0.0:.4g} {unit} in every direction"
+        if r == 0:  # not POC within T: some direction of output space is not reached
+            return [
+                f"{head}: within T = {self.reach.horizon:.3g} s, on the linearisation, the "
+                f"cables cannot move {names} in some direction of output space",
+                f"  {self.reach.describe()}",
+            ]
         return [
             f"{head}: within T = {self.reach.horizon:.3g} s, on the linearisation, the cables "
             f"can move {names} {moved}",
