@@ -499,6 +499,20 @@ def test_a_target_beyond_the_range_is_refused_without_simulating(monkeypatch, ca
         cdpm.steer(robot, "nominal", [-2.5])
 
 
+def test_a_point_beyond_reach_is_refused_though_each_coordinate_is_in_range(monkeypatch):
+    """tip (1.8, 1.8) on the 2 m gravity arm: each coordinate lies in [-2, 2]
+    but the point is 2.55 m from the shoulder; refused without simulating."""
+    import cdpm.steering.shooting as shooting
+
+    def no_simulation(*args, **kwargs):
+        raise AssertionError("simulated a target no pose has")
+
+    monkeypatch.setattr(shooting, "simulate", no_simulation)
+    robot = cdpm.load_robot(MODELS / "two_link_vertical" / "two_link_vertical.yaml")
+    with pytest.raises(shooting.TargetOutOfRangeError, match=r"lies 2.546 m from .*\(2 m\)"):
+        cdpm.steer(robot, "nominal", [1.8, 1.8])
+
+
 def test_verify_names_the_largest_radius_within_the_range():
     # the arm stretched along x: tip_x = 2 cos 0.1 = 1.99 m, so a radius of 0.1 m leaves the range
     robot = cdpm.load_robot(PAPER_SPEC)

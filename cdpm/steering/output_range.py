@@ -15,7 +15,9 @@ not every value inside is reached), from the kinematic chain alone:
 - a joint output lies within the joint's limits;
 - a cable length is at most the sum over its segments of the distance
   between their ends' centres plus their radii;
-- a weighted sum adds its terms' intervals.
+- a weighted sum adds its terms' intervals;
+- outputs that are coordinates of one point must together lie in that
+  point's ball (each may be in range while the point is not).
 """
 
 from __future__ import annotations
@@ -126,15 +128,47 @@ def output_range(robot: CableRobot) -> tuple[np.ndarray, np.ndarray]:
     return lower, upper
 
 
+def _beyond_reach(robot: CableRobot, target: np.ndarray) -> str | None:
+    """Outputs that are coordinates of one point (single position terms of
+    one frame and point): their target together must lie in the ball that
+    holds the point (each alone may be in range while the point is not)."""
+    groups: dict[tuple, list[tuple[int, int, float]]] = {}
+    for i, out in enumerate(robot.spec.outputs):
+        if len(out.terms) == 1 and out.terms[0].kind == "position" and out.terms[0].weight:
+            t = out.terms[0]
+            key = (t.frame, tuple(np.round(np.asarray(t.point_in_frame, dtype=float), 12)))
+            groups.setdefault(key, []).append((i, t.axis, t.weight))
+    for (frame, point), members in groups.items():
+        axes = [a for _, a, _ in members]
+        if len(members) < 2 or len(set(axes)) != len(axes):
+            continue
+        centre, radius = _point_ball(robot, frame, point)
+        if not math.isfinite(radius):
+            continue
+        at = np.array([target[i] / w for i, _, w in members])
+        distance = float(np.linalg.norm(at - centre[axes]))
+        slack = STEER_RANGE_RTOL * max(radius, 1.0)
+        if distance > radius + slack:
+            names = ", ".join(robot.output_names[i] for i, _, _ in members)
+            values = ", ".join(f"{target[i]:.4g}" for i, _, _ in members)
+            return (
+                f"({names}) = ({values}) lies {distance:.4g} m from "
+                f"({', '.join(f'{c:.4g}' for c in centre[axes])}), farther than the point can "
+                f"reach from there ({radius:.4g} m)"
+            )
+    return None
+
+
 def outside_range(robot: CableRobot, target: np.ndarray) -> str | None:
     """Which outputs of ``target`` (p,) lie outside :func:`output_range`
-    (by more than STEER_RANGE_RTOL of the output's scale), in words, or None
-    when every one lies within it."""
+    (by more than STEER_RANGE_RTOL of the output's scale), or, for outputs
+    that are coordinates of one point, where that point lies farther than
+    it can reach; in words, or None when the target lies within both."""
     lower, upper = output_range(robot)
     slack = STEER_RANGE_RTOL * np.maximum(robot.output_scales, 1.0)
     outside = (target < lower - slack) | (target > upper + slack)
     if not outside.any():
-        return None
+        return _beyond_reach(robot, target)
     return "; ".join(
         f"{robot.output_names[i]} = {target[i]:.4g} {robot.output_units[i]} lies outside the "
         f"range it can take, [{lower[i]:.4g}, {upper[i]:.4g}] {robot.output_units[i]}"
