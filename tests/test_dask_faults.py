@@ -197,6 +197,75 @@ def test_lost_scheduler_is_one_error_and_the_map_resumes(tmp_path, reference):
     assert not _marked(marker)
 
 
+_LOST_SCHEDULER_SCRIPT = """
+import os, signal, sys
+import numpy as np
+import cdpm
+from cdpm.errors import InputError
+
+address, scheduler, store = sys.argv[1], int(sys.argv[2]), sys.argv[3]
+axes = {{"q1": np.linspace(-np.pi, np.pi, 41), "q2": np.linspace(-np.pi, np.pi, 41)}}
+
+def progress(done, total, index):
+    if index >= 0:
+        try:
+            os.killpg(scheduler, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+
+try:
+    cdpm.workspace_map({spec!r}, axes, scheduler=address, chunk_size=128, store=store,
+                       progress=progress)
+except InputError as exc:
+    print(exc, file=sys.stderr)
+    sys.exit(1)
+"""
+
+
+@pytest.mark.slow
+def test_lost_scheduler_prints_only_cdpms_message(tmp_path, reference):
+    """What Dask's client logs while it tries to reconnect to the lost
+    scheduler is not printed: the map's stderr is its one message. Before,
+    its ERROR lines came first: one, or about 38 with two tracebacks."""
+    marker = uuid.uuid4().hex
+    store = tmp_path / "q.zarr"
+    cluster = Cluster(marker)
+    try:
+        script = tmp_path / "lost.py"
+        script.write_text(_LOST_SCHEDULER_SCRIPT.format(spec=str(VERTICAL)))
+        root = str(Path(__file__).resolve().parents[1])
+        done = subprocess.run(
+            [sys.executable, str(script), cluster.address, str(cluster.scheduler.pid), str(store)],
+            env={**os.environ, "CDPM_TEST_MARK": marker, "PYTHONPATH": root},
+            capture_output=True,
+            text=True,
+            timeout=300,
+        )
+    finally:
+        cluster.stop()
+    assert done.returncode == 1, done.stderr
+    assert "Traceback" not in done.stderr
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1, done.stderr  # no "distributed.client - ERROR - ..."
+    assert lines[-1].startswith("lost the Dask scheduler at ")
+    assert "re-run the same command to resume" in lines[-1]
+    import logging
+
+    assert not logging.getLogger("distributed.client").filters  # as before the map
+    second = Cluster(marker)
+    try:
+        ds = cdpm.workspace_map(
+            VERTICAL, AXES, scheduler=second.address, chunk_size=128, store=store
+        )
+        _same(ds, reference)
+    finally:
+        second.stop()
+    end = time.monotonic() + 10
+    while _marked(marker) and time.monotonic() < end:
+        time.sleep(0.1)
+    assert not _marked(marker)
+
+
 @pytest.mark.parametrize(
     ("address", "match"),
     [

@@ -28,7 +28,7 @@ from cdpm.errors import InputError, is_integer
 from cdpm.maps._dask import check_scheduler_address
 from cdpm.maps._lock import store_lock
 from cdpm.maps._progress import MapRunInfo, ProgressPrinter
-from cdpm.maps._runner import run_chunks
+from cdpm.maps._runner import interrupts_held, run_chunks
 from cdpm.maps._store import (
     RESULT_IN_MEMORY_MAX,
     MemorySink,
@@ -75,6 +75,7 @@ __all__ = [
     "RESULT_IN_MEMORY_MAX",
     "store_path_problem",
     "check_scheduler_address",
+    "interrupts_held",
 ]
 
 
@@ -159,7 +160,10 @@ def workspace_map(
         workers: local processes computing chunks, this one included
             (``workers - 1`` worker processes are started); default one per
             CPU this process may use, at most DEFAULT_MAX_WORKERS = 16 (and at
-            most one per chunk); 1 runs in this process only.
+            most one per chunk); 1 runs in this process only. Worker
+            processes run the main script again, so a script calling this
+            outside ``if __name__ == "__main__":`` (or piped on stdin) runs
+            the map in this process only, with a warning saying so.
         scheduler: address ``"tcp://host:port"`` of a Dask distributed
             scheduler (or a ``distributed.Client``) to run the chunks on
             (its workers compute them: give no ``workers`` with it).
@@ -236,77 +240,85 @@ def workspace_map(
             f"zarr directory: name it e.g. {os.path.splitext(name)[0]}.zarr, and draw an image "
             "from the map with cdpm.plotting.save_map_plot(ds, path)"
         )
-    if not isinstance(robot, CableRobot):
-        robot = load_robot(robot)
-    if pretension is not None:
-        _check_pretension_method(robot, tension, pretension)
-        robot = override_robot(robot, pretension=pretension)
-    if samples is not None:
-        if isinstance(axes, SampledAxes):
-            raise InputError("give either samples=N with ranges, or sample_axes(...), not both")
-        axes = sample_axes(axes, samples, seed)
-    n_poses = _n_poses(axes)
-    if n_poses > MAX_MAP_POSES:
-        raise InputError(
-            f"a map of {n_poses:,} poses is more than the {MAX_MAP_POSES:,} one map may have; "
-            "use fewer points per axis, or split the map into several"
+    # set-up: loading the model and the imports a map needs; an interrupt
+    # waits for it (one inside an import broke it: interrupts_held)
+    with interrupts_held():
+        if not isinstance(robot, CableRobot):
+            robot = load_robot(robot)
+        if pretension is not None:
+            _check_pretension_method(robot, tension, pretension)
+            robot = override_robot(robot, pretension=pretension)
+        if samples is not None:
+            if isinstance(axes, SampledAxes):
+                raise InputError("give either samples=N with ranges, or sample_axes(...), not both")
+            axes = sample_axes(axes, samples, seed)
+        n_poses = _n_poses(axes)
+        if n_poses > MAX_MAP_POSES:
+            raise InputError(
+                f"a map of {n_poses:,} poses is more than the {MAX_MAP_POSES:,} one map may have; "
+                "use fewer points per axis, or split the map into several"
+            )
+        search = None
+        if isinstance(tension, str) and tension == "best":
+            search = tension_search(tension_objective)
+            tension = None
+        elif tension_objective != "poc":
+            raise InputError(
+                f"tension_objective={tension_objective!r} applies to the tension search: pass "
+                "tension='best', or leave out tension_objective"
+            )
+        setting = resolve_tension(robot, tension)
+        if chunk_size is None and search is not None:
+            chunk_size = TENSION_SEARCH_CHUNK_SIZE
+        loaded = not zero_equilibrium(robot, setting)  # poses go through the analyser
+        if chunk_size is None:
+            chunk_size = _per_pose_chunk_size(_n_poses(axes)) if loaded else DEFAULT_CHUNK_SIZE
+        tol = check_tol(tol)
+        reach = reach_settings(robot, horizon, tension_budget) if margin else None
+        source = RobotSource.from_robot(robot)  # with the robot's departures from its spec
+        searched = None
+        if search is not None:
+            used = reach_settings(robot, horizon, tension_budget)
+            searched = {
+                **search.as_dict(),
+                "reach_horizon": used.horizon,
+                "tension_budget": used.tension_budget,
+            }
+        plan = make_plan(
+            robot,
+            axes,
+            base,
+            setting,
+            chunk_size,
+            __version__,
+            margin,
+            tol,
+            reach,
+            source.overrides,
+            tension_search=searched,
         )
-    search = None
-    if isinstance(tension, str) and tension == "best":
-        search = tension_search(tension_objective)
-        tension = None
-    elif tension_objective != "poc":
-        raise InputError(
-            f"tension_objective={tension_objective!r} applies to the tension search: pass "
-            "tension='best', or leave out tension_objective"
-        )
-    setting = resolve_tension(robot, tension)
-    if chunk_size is None and search is not None:
-        chunk_size = TENSION_SEARCH_CHUNK_SIZE
-    loaded = not zero_equilibrium(robot, setting)  # poses go through the analyser
-    if chunk_size is None:
-        chunk_size = _per_pose_chunk_size(_n_poses(axes)) if loaded else DEFAULT_CHUNK_SIZE
-    tol = check_tol(tol)
-    reach = reach_settings(robot, horizon, tension_budget) if margin else None
-    source = RobotSource.from_robot(robot)  # with the robot's departures from its spec
-    searched = None
-    if search is not None:
-        used = reach_settings(robot, horizon, tension_budget)
-        searched = {
-            **search.as_dict(),
-            "reach_horizon": used.horizon,
-            "tension_budget": used.tension_budget,
-        }
-    plan = make_plan(
-        robot,
-        axes,
-        base,
-        setting,
-        chunk_size,
-        __version__,
-        margin,
-        tol,
-        reach,
-        source.overrides,
-        tension_search=searched,
-    )
-    if store is None:
-        _check_in_memory_size(robot, plan)
-    if workers is None:
-        workers = default_workers()
-    if not is_integer(workers) or workers < 1:
-        raise InputError(f"workers must be a positive integer, got {workers!r}")
-    if scheduler is None and workers > 1 and (why := unimportable_main()) is not None:
-        warnings.warn(f"workspace_map runs with workers=1, not {workers}: {why}", stacklevel=2)
-        workers = 1
-    if scheduler is None and workers > 1:
-        # their start-up overlaps the store's creation
-        prestart_workers(kernels=loaded)
+        if store is None:
+            _check_in_memory_size(robot, plan)
+        if workers is None:
+            workers = default_workers()
+        if not is_integer(workers) or workers < 1:
+            raise InputError(f"workers must be a positive integer, got {workers!r}")
+        if scheduler is None and workers > 1 and (why := unimportable_main()) is not None:
+            warnings.warn(f"workspace_map runs with workers=1, not {workers}: {why}", stacklevel=2)
+            workers = 1
+        if scheduler is None and workers > 1:
+            # their start-up overlaps the store's creation
+            prestart_workers(kernels=loaded)
     # one run per store: a second run on a busy store refuses before touching it
     owner = nullcontext() if store is None else store_lock(store)
     with owner:
-        sink = MemorySink(robot, plan) if store is None else ZarrSink(store, robot, plan, overwrite)
+        sink = None
         try:
+            with interrupts_held():  # zarr's import, the store's first files
+                if store is None:
+                    sink = MemorySink(robot, plan)
+                else:
+                    sink = ZarrSink(store, robot, plan, overwrite)
             done = sink.done()
             todo = [k for k in range(plan.n_chunks) if k not in done]
             if store is not None and scheduler is None and workers > 1 and len(todo) > 1:
@@ -334,11 +346,12 @@ def workspace_map(
         except KeyboardInterrupt as exc:
             if isinstance(progress, ProgressPrinter):
                 progress.stopped()
-            if store is not None:  # the store this run opened, its chunks kept
-                exc.map_store = str(sink.path)
+            if store is not None and sink is not None:  # the store this run opened
+                exc.map_store = str(sink.path)  # its chunks kept
             raise
         finally:
-            sink.close()  # the store's files written, under its lock
+            if sink is not None:
+                sink.close()  # the store's files written, under its lock
 
 
 def _print_to_stderr(info: MapRunInfo) -> None:

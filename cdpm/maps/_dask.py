@@ -10,12 +10,17 @@ Each Dask task gets its chunk's poses and the robot's spec and URDF bytes
 (:class:`~cdpm.maps._workers.RobotSource`) and returns the chunk's arrays;
 the driver writes them (remote workers may not see the store). A
 scheduler lost during a map is reported with the hint to resume: the
-finished chunks stay in the store.
+finished chunks stay in the store; what Dask's client logs meanwhile (its
+attempts to reconnect, with their tracebacks) is held back during the map
+and dropped, and printed only when the map fails otherwise.
 """
 
 from __future__ import annotations
 
+import contextlib
+import logging
 import socket
+from collections.abc import Iterator
 
 from cdpm.errors import InputError, MissingExtraError
 from cdpm.maps._workers import compute_chunk
@@ -138,6 +143,72 @@ def run_dask(plan, job, todo, finished, scheduler, source, started) -> None:
         raise MissingExtraError(
             "running a map on a Dask cluster needs dask.distributed: pip install 'cdpm[maps]'"
         ) from exc
+    with _dask_logs_held() as logs:
+        try:
+            _run_on_cluster(distributed, plan, job, todo, finished, scheduler, source, started)
+        except Exception as exc:
+            # a lost (or unreachable) scheduler is said in one message; any
+            # other failure comes with what Dask logged meanwhile
+            if not isinstance(exc, InputError):
+                logs.release()
+            raise
+
+
+#: the loggers whose messages a map on Dask holds back: those of
+#: dask.distributed's modules (its client logs each attempt to reconnect to a
+#: lost scheduler at ERROR level, with two tracebacks)
+_DASK_LOGGERS = ("distributed",)
+
+
+class _HeldLogs(logging.Filter):
+    """A filter that keeps the records of the loggers it is added to
+    instead of letting them through (:func:`_dask_logs_held`)."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.records: list[logging.LogRecord] = []
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        self.records.append(record)
+        return False
+
+    def clear(self) -> None:
+        self.records.clear()
+
+    def release(self) -> None:
+        """Pass the records held so far on, as they would have gone."""
+        records, self.records = self.records, []
+        for record in records:
+            logging.getLogger(record.name).handle(record)
+
+
+@contextlib.contextmanager
+def _dask_logs_held() -> Iterator[_HeldLogs]:
+    """Hold back, while the block runs, what dask.distributed's loggers
+    log (each keeps its own level and handlers); the records held are
+    dropped at the end unless the caller releases them, and the loggers
+    are as before."""
+    manager = logging.Logger.manager
+    names = [
+        name
+        for name, logger in list(manager.loggerDict.items())
+        if isinstance(logger, logging.Logger)
+        and any(name == root or name.startswith(root + ".") for root in _DASK_LOGGERS)
+    ]
+    loggers = [logging.getLogger(name) for name in names]
+    held = _HeldLogs()
+    for logger in loggers:
+        logger.addFilter(held)
+    try:
+        yield held
+    finally:
+        for logger in loggers:
+            logger.removeFilter(held)
+        held.clear()
+
+
+def _run_on_cluster(distributed, plan, job, todo, finished, scheduler, source, started) -> None:
+    """:func:`run_dask` with ``distributed`` imported."""
     own = isinstance(scheduler, str)
     if own:
         try:

@@ -12,8 +12,11 @@ bar and the run's sentences in :mod:`cdpm.maps._progress`.
 
 from __future__ import annotations
 
+import contextlib
 import importlib
-from collections.abc import Callable
+import signal
+import threading
+from collections.abc import Callable, Iterator
 from dataclasses import replace
 
 from cdpm.maps._dask import run_dask
@@ -22,7 +25,7 @@ from cdpm.maps._workers import EVALUATION_MODULES, RobotSource, run_processes
 from cdpm.pipeline.compiled import load_kernels, notice_on_stderr
 from cdpm.pipeline.evaluate import single_threaded_blas, zero_equilibrium
 
-__all__ = ["run_chunks"]
+__all__ = ["run_chunks", "interrupts_held"]
 
 
 def run_chunks(
@@ -77,24 +80,107 @@ def run_chunks(
         return
     source = source or RobotSource.from_robot(robot)
     kernels = not zero_equilibrium(robot, job.tension)
-    with single_threaded_blas():
-        if scheduler is None and kernels:
-            # compiled (first run after an install) or loaded here, once, and
-            # not counted in the progress rate or in every worker at once
-            load_kernels(notice_on_stderr if progress is not None else None)
-        if scheduler is None:
-            # what a chunk's evaluation imports on first use (the analysers
-            # and scipy: a quarter of a second) is imported before the first
-            # chunk, as the workers' fork server does: set-up, not a chunk
-            for name in EVALUATION_MODULES:
-                importlib.import_module(name)
-        if scheduler is not None:
-            run_dask(plan, job, todo, finished, scheduler, source, started)
-        elif workers <= 1 or len(todo) == 1:
-            started(executor="this process", processes=1)
-            for index in todo:
-                finished(index, job.evaluate(robot, plan.natural(index)))
-        else:
-            run_processes(
-                robot, plan, job, todo, finished, workers, sink.writer, source, started, kernels
+    with contextlib.ExitStack() as stack:
+        # set-up: imports and the kernels' loading, where an interrupt
+        # broke an import or was lost in numba's callbacks
+        with interrupts_held():
+            stack.enter_context(single_threaded_blas())  # imports SciPy's BLAS
+            if scheduler is None and kernels:
+                # compiled (first run after an install) or loaded here, once,
+                # and not counted in the progress rate or in every worker at once
+                load_kernels(notice_on_stderr if progress is not None else None)
+            if scheduler is None:
+                # what a chunk's evaluation imports on first use (the analysers
+                # and scipy: a quarter of a second) is imported before the first
+                # chunk, as the workers' fork server does: set-up, not a chunk
+                for name in EVALUATION_MODULES:
+                    importlib.import_module(name)
+        try:
+            _run(
+                robot, plan, job, todo, finished, workers, sink, scheduler, source, started, kernels
             )
+        except SystemError as exc:
+            if not _interrupt_in(exc):
+                raise
+            # Ctrl-C while a compiled kernel called back into Python (numba)
+            raise KeyboardInterrupt from None
+
+
+def _run(robot, plan, job, todo, finished, workers, sink, scheduler, source, started, kernels):
+    """The chunks ``todo`` on the executor the map asked for."""
+    if scheduler is not None:
+        run_dask(plan, job, todo, finished, scheduler, source, started)
+    elif workers <= 1 or len(todo) == 1:
+        started(executor="this process", processes=1)
+        for index in todo:
+            finished(index, job.evaluate(robot, plan.natural(index)))
+    else:
+        run_processes(
+            robot, plan, job, todo, finished, workers, sink.writer, source, started, kernels
+        )
+
+
+def _interrupt_in(exc: BaseException) -> bool:
+    """Whether a KeyboardInterrupt is among the causes of ``exc``: numba
+    turns one raised while a kernel called back into Python into a
+    SystemError, "returned a result with an exception set"."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return False
+
+
+#: the signals :func:`interrupts_held` holds: Ctrl-C, and SIGTERM, which
+#: cdpm's command line reads as Ctrl-C
+_HELD_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+
+@contextlib.contextmanager
+def interrupts_held() -> Iterator[None]:
+    """Hold Ctrl-C (and SIGTERM where Python handles it) while the block
+    runs, and let it go on once the block has ended.
+
+    Raised inside an import, a Ctrl-C can leave an error of the import
+    instead of itself ("initialization failed", "Error calling
+    __set_name__"), or make Python end with a signal instead of the
+    command's exit code (within an ``exec``), and raised in numba's
+    callbacks while kernels load it is lost ("Exception ignored"): the
+    block's imports and loading finish first (a few seconds at most; half
+    a minute when numba compiles after an install, which it says). A
+    second one goes through at once. Signals Python does not handle (the
+    default SIGTERM) and threads other than the main one are left alone.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = {}
+    held: list = []
+
+    def hold(signum, frame) -> None:
+        if held:  # a second one: at once
+            _restore(previous)
+            held.clear()
+            previous[signum](signum, frame)
+            return
+        held.append((signum, frame))
+
+    for signum in _HELD_SIGNALS:
+        handler = signal.getsignal(signum)
+        if callable(handler):
+            previous[signum] = handler
+            signal.signal(signum, hold)
+    try:
+        yield
+    finally:
+        _restore(previous)
+        if held:
+            signum, frame = held.pop()
+            previous[signum](signum, frame)
+
+
+def _restore(handlers: dict) -> None:
+    for signum, handler in handlers.items():
+        signal.signal(signum, handler)

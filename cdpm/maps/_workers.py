@@ -12,10 +12,11 @@ computes chunks too while none of theirs is ready; with a zarr store
 workers write their own chunks (region and done marker), so the driver
 does no serial I/O for them. The processes are forked from a fork server
 that imports the heavy modules once (:func:`prestart_workers` starts it
-early); it imports ``cdpm.forkserver.quiet`` first and
-``cdpm.forkserver.ready`` last, so that Ctrl-C does not interrupt its
-imports. Workers ignore Ctrl-C (the driver stops them) and end soon after
-the driver does, however it ends.
+early, with Ctrl-C blocked); it imports ``cdpm.forkserver.quiet`` first
+and ``cdpm.forkserver.ready`` last, so that Ctrl-C does not interrupt its
+imports. Workers ignore Ctrl-C (the driver stops them, and waits for the
+pool to have shut down) and end soon after the driver does, however it
+ends.
 """
 
 from __future__ import annotations
@@ -273,35 +274,127 @@ def _start_fork_server(ctx) -> threading.Thread | None:
         return None
     thread = _FORK_SERVER.get("thread")
     if thread is None:
-        # multiprocessing: loaded on first use
-        from multiprocessing import forkserver
-
-        thread = threading.Thread(target=forkserver.ensure_running, daemon=True)
+        thread = threading.Thread(target=_fork_server_started, daemon=True)
         thread.start()
         _FORK_SERVER["thread"] = thread
     return thread
+
+
+def _fork_server_started() -> None:
+    """Start the fork server with Ctrl-C blocked (:func:`_without_ctrl_c`);
+    its resource tracker first, whose start unblocks Ctrl-C in the calling
+    thread once it has started it."""
+    # multiprocessing: loaded on first use
+    from multiprocessing import forkserver, resource_tracker
+
+    resource_tracker.ensure_running()
+    _without_ctrl_c(forkserver.ensure_running)
+
+
+def _without_ctrl_c(start, *args) -> None:
+    """Call ``start`` (which starts Python processes) with Ctrl-C blocked
+    in this thread, as multiprocessing starts its resource tracker: a
+    process started here begins with Ctrl-C blocked, which Ctrl-C in the
+    first tenths of a second of its interpreter's start (its imports)
+    would otherwise stop with a traceback or "Fatal Python error" on
+    stderr. The fork server unblocks it once it is ready
+    (``cdpm.forkserver.ready``); worker processes ignore it anyway. Signals
+    reach this process through its main thread, which this does not
+    change."""
+    blocked = hasattr(signal, "pthread_sigmask")
+    if blocked:
+        signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        start(*args)
+    finally:
+        if blocked:
+            signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
 
 
 def unimportable_main() -> str | None:
     """Why worker processes could not start here, or None.
 
     Local workers start like Python's ``spawn``: each first runs the main
-    module again from its file (``__main__.__file__``). A script piped on
-    stdin (``python - < script``) has the file name ``<stdin>``, which does
-    not exist, so every worker would stop before computing anything.
-    (``python -c`` and an interactive session have no file: their workers
-    skip this step and start.)
+    module again (from its file, ``__main__.__file__``, or by its name
+    after ``python -m``), as a module named ``__mp_main__``. A script piped
+    on stdin (``python - < script``) has the file name ``<stdin>``, which
+    does not exist, so every worker would stop before computing anything;
+    a script that calls the map outside ``if __name__ == "__main__":`` would
+    start the map again in every worker. (``python -c``, an interactive
+    session and a package's ``__main__`` are not run again: their workers
+    start.)
     """
     main = sys.modules.get("__main__")
-    if main is None or getattr(main, "__spec__", None) is not None:
-        return None  # python -m: workers import it by name
+    if main is None:
+        return None
+    name = getattr(getattr(main, "__spec__", None), "name", None)
+    if name is not None and (name == "__main__" or name.endswith(".__main__")):
+        return None  # python -m package: workers do not run it again
     path = getattr(main, "__file__", None)
-    if path is None or os.path.isfile(path):
+    if path is None:
+        return None
+    if name is None and not os.path.isfile(path):
+        return (
+            f"the main script {path!r} is not a file that worker processes can run "
+            "(a script on stdin?); save it to a file to use several workers"
+        )
+    line = _unguarded_main_line(main, path)
+    if line is None:
         return None
     return (
-        f"the main script {path!r} is not a file that worker processes can run "
-        "(a script on stdin?); save it to a file to use several workers"
+        f"{os.path.basename(path)} calls it at line {line} outside "
+        '`if __name__ == "__main__":`, and every worker process runs the script again; '
+        "put the map under that guard to use several workers"
     )
+
+
+def _unguarded_main_line(main, path: str) -> int | None:
+    """The line of the main module's top-level code that the current call
+    comes from, when it is not under ``if __name__ == "__main__":``; None
+    when it is, when the call does not come from there (a function called
+    later, another module's code), or when the file cannot be read."""
+    frame = sys._getframe(1)
+    while frame is not None:
+        if frame.f_code.co_name == "<module>" and frame.f_globals is vars(main):
+            break
+        frame = frame.f_back
+    else:
+        return None
+    line = frame.f_lineno
+    try:
+        # ast: loaded on first use
+        import ast
+
+        tree = ast.parse(Path(path).read_bytes(), filename=path)
+    except (OSError, SyntaxError, ValueError):
+        return None
+    for node in tree.body:
+        if isinstance(node, ast.If) and node.end_lineno is not None:
+            guarded = _main_guard_branch(node)
+            if guarded and guarded[0].lineno <= line <= (guarded[-1].end_lineno or line):
+                return None
+    return line
+
+
+def _main_guard_branch(node) -> list:
+    """The statements of ``if __name__ == "__main__":`` (or the ``else`` of
+    ``!=``) that only the main process runs; [] for another ``if``."""
+    # ast: loaded on first use
+    import ast
+
+    test = node.test
+    if not (isinstance(test, ast.Compare) and len(test.ops) == 1):
+        return []
+    sides = [test.left, test.comparators[0]]
+    names = [isinstance(x, ast.Name) and x.id == "__name__" for x in sides]
+    mains = [isinstance(x, ast.Constant) and x.value == "__main__" for x in sides]
+    if not ((names[0] and mains[1]) or (names[1] and mains[0])):
+        return []
+    if isinstance(test.ops[0], ast.Eq):
+        return node.body
+    if isinstance(test.ops[0], ast.NotEq):
+        return node.orelse
+    return []
 
 
 def prestart_workers(kernels: bool = True) -> None:
@@ -335,7 +428,11 @@ def _start_worker_processes(executor, n: int, ready: list) -> threading.Thread:
             ready.append(Future())
             ready[-1].set_exception(exc)
 
-    thread = threading.Thread(target=start, name="cdpm-start-workers", daemon=True)
+    # with Ctrl-C blocked: the fork server, or with spawn each worker, may
+    # start here
+    thread = threading.Thread(
+        target=_without_ctrl_c, args=(start,), name="cdpm-start-workers", daemon=True
+    )
     thread.start()
     return thread
 
@@ -403,9 +500,9 @@ def run_processes(
         # that never answers is not waited for
         starting.join(timeout=WORKER_START_SECONDS)
         # stop the workers now rather than after their current chunk
-        for process in list(getattr(executor, "_processes", {}).values()):
+        for process in list((getattr(executor, "_processes", None) or {}).values()):
             process.terminate()
-        executor.shutdown(wait=False, cancel_futures=True)
+        _shut_down(executor)
         if isinstance(exc, BrokenProcessPool):
             raise CdpmError(
                 "a map worker process stopped unexpectedly (its message is above). If a script "
@@ -416,3 +513,16 @@ def run_processes(
             ) from exc
         raise
     executor.shutdown(wait=True)
+
+
+def _shut_down(executor) -> None:
+    """Shut the pool ``executor`` down, its workers stopped, and wait until
+    its thread that tends them has closed its pipes and ended.
+
+    Not waiting for it (``shutdown(wait=False)``) left that thread closing
+    the pool's wake-up pipe while Python's exit, in another thread, wrote to
+    it to wake the thread up: about one interrupted map in twenty ended
+    with "OSError: [Errno 9] Bad file descriptor" after its message. The
+    wait is short (the workers are stopped); a second Ctrl-C ends it, and
+    the thread is then waited for as before (by Python at exit)."""
+    executor.shutdown(wait=True, cancel_futures=True)
