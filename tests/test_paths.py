@@ -20,7 +20,13 @@ from cdpm import plotting
 from cdpm.cli import main
 from cdpm.errors import InputError
 from cdpm.maps.regions import attach_regions, label_regions
-from cdpm.regions.paths import NotConnectedError, POCPath, poc_path, suspect_region_steps
+from cdpm.regions.paths import (
+    NotConnectedError,
+    POCPath,
+    poc_path,
+    suspect_region_splits,
+    suspect_region_steps,
+)
 from cdpm.text import path_json, path_text
 from cdpm.verdicts import NO, NOT_ANALYSED, YES
 from tests.conftest import MODELS, PAPER_SPEC
@@ -480,6 +486,8 @@ def test_the_map_counts_the_steps_where_its_regions_may_be_split(stores, paper, 
     count = suspect_region_steps(paper)
     path = poc_path(paper, NOMINAL, [1.0, 0.5])
     assert 0 < len(path.suspect_steps) <= count
+    steps, extra = suspect_region_splits(paper)
+    assert steps == count and extra > 0  # without those steps the region falls apart
     no_margin = cdpm.workspace_map(PAPER_SPEC, {"q1": TURN, "q2": TURN}, workers=1, margin=False)
     assert suspect_region_steps(no_margin) is None  # r_T decides; without it, nothing to say
     store = stores["paper"].parent / "again.zarr"
@@ -489,6 +497,18 @@ def test_the_map_counts_the_steps_where_its_regions_may_be_split(stores, paper, 
         f"  {count} step(s) between neighbouring YES poses may cross a NO set thinner than the "
         "map's resolution" in capsys.readouterr().out
     )
+
+
+def test_the_map_says_nothing_of_suspect_steps_that_split_no_region(stores, monkeypatch, capsys):
+    """Suspect steps whose loss leaves every region whole cannot hide a
+    split: the map does not mention them (a 100 % YES map used to)."""
+    import cdpm.regions.paths as paths
+
+    monkeypatch.setattr(paths, "suspect_region_splits", lambda ds: (64, 0))
+    store = stores["paper"].parent / "quiet.zarr"
+    argv = ["map", str(PAPER_SPEC), "--axis", "q1=-pi:pi:11", "--axis", "q2=-pi:pi:11"]
+    assert main([*argv, "--out", str(store)]) == 0
+    assert "may cross a NO set" not in capsys.readouterr().out
 
 
 def test_path_command_warns_of_suspect_steps(stores, paper, capsys):

@@ -460,6 +460,12 @@ def _interrupted(args: argparse.Namespace, store: str | None) -> int:
     else:
         hint = "nothing was kept: add --out STORE to keep finished chunks and resume later"
     print(f"cdpm map: interrupted; {hint}", file=sys.stderr)
+    # Python remembers an interrupt that went through an exec() of a string
+    # (dataclasses and some lazy imports run one) even once it is handled,
+    # and `python -m cdpm` then ended by SIGINT instead of this exit code
+    # (now and then, when Ctrl-C or SIGTERM came in such a call); an exec
+    # that completes forgets it
+    exec("pass")
     return 130
 
 
@@ -495,20 +501,29 @@ def _regions_line(labels, seams: bool) -> str:
 
 def run(args: argparse.Namespace) -> int:
     # loaded when the command runs (cdpm --help stays fast)
-    from cdpm.maps import STATUS_CODES, VERDICT_CODES, StoreSettingsError, workspace_map
+    from cdpm.maps import (
+        STATUS_CODES,
+        VERDICT_CODES,
+        StoreSettingsError,
+        interrupts_held,
+        workspace_map,
+    )
 
-    axes = parse_axes(args.axis, args.samples is not None)
-    base = parse_base(args.base)
-    _check_outputs(args)
-    if args.plot:
-        _check_plot_path(args.plot)
-    robot, spec_robot, tension = robot_from_args(args)
-    if isinstance(base, list):
-        base = robot.configuration(base)
-    overrides = describe_robot(robot, spec_robot)
+    # the checks and the model's loading import Pinocchio and SciPy: an
+    # interrupt waits for them (one inside an import broke it)
+    with interrupts_held():
+        axes = parse_axes(args.axis, args.samples is not None)
+        base = parse_base(args.base)
+        _check_outputs(args)
+        if args.plot:
+            _check_plot_path(args.plot)
+        robot, spec_robot, tension = robot_from_args(args)
+        if isinstance(base, list):
+            base = robot.configuration(base)
+        overrides = describe_robot(robot, spec_robot)
+        reach = None if args.no_margin else reach_from_args(robot, args)
     if overrides:
         print(overrides)
-    reach = None if args.no_margin else reach_from_args(robot, args)
     if reach is not None:
         print(f"reach margin: {reach.describe()}")
     runs = []
@@ -558,15 +573,18 @@ def run(args: argparse.Namespace) -> int:
     if "poc_region" in ds:
         # loaded when the command runs (cdpm --help stays fast)
         from cdpm.maps.regions import map_layout
-        from cdpm.regions.paths import suspect_region_steps
+        from cdpm.regions.paths import suspect_region_splits
 
         print(_regions_line(ds["poc_region"], "closed" in map_layout(ds).wrap))
-        thin = suspect_region_steps(ds)
-        if thin:
+        thin = suspect_region_splits(ds)
+        # said only where it matters: steps whose loss would split a region
+        if thin and thin[1]:
             print(
-                f"  {thin} step(s) between neighbouring YES poses may cross a NO set thinner than "
-                "the map's resolution (r_T falls to 0 within a step's change): the regions may "
-                "be split there; `cdpm path` names such steps on a path"
+                f"  {thin[0]} step(s) between neighbouring YES poses may cross a NO set thinner "
+                "than the map's resolution (r_T comes within a step's change of 0: an estimate "
+                "from its sampled slopes, not a proof); without them the YES poses would form "
+                f"{thin[1]} more region(s), so the regions may be split there; `cdpm path` names "
+                "such steps on a path"
             )
     flagged = {n: int((status == c).sum()) for n, c in STATUS_CODES.items() if c > 0}
     flagged = {n: k for n, k in flagged.items() if k}

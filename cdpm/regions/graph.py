@@ -36,6 +36,7 @@ __all__ = [
     "shortest_route",
     "suspect_edges",
     "suspect_region_steps",
+    "suspect_region_splits",
 ]
 
 #: margin variables a path reads, in order of preference
@@ -125,6 +126,35 @@ def suspect_region_steps(map: Any) -> int | None:
     radius = neighbour_radius(layout, region_labels(ds)) if layout.mode == "sample" else None
     suspect = region_graph(ds, layout, radius, *margin_values(ds, layout.dims))[4]
     return None if suspect is None else int(np.count_nonzero(suspect))
+
+
+def suspect_region_splits(map: Any) -> tuple[int, int] | None:
+    """(suspect steps, regions they could add): how many steps between
+    neighbouring POC poses may cross a NO set thinner than the map's
+    resolution (:func:`suspect_region_steps`), and how many more connected
+    regions the YES poses would form without those steps. A thin NO set
+    can split a region only by crossing every step between its parts, so
+    when removing every suspect step splits nothing (0), the regions hold
+    whatever the suspect steps hide. None for a map without r_T."""
+    # scipy: loaded on first use
+    from scipy.sparse.csgraph import connected_components
+
+    ds = as_dataset(map)
+    layout = map_layout(ds)
+    radius = neighbour_radius(layout, region_labels(ds)) if layout.mode == "sample" else None
+    yes, edges, _, _, suspect = region_graph(ds, layout, radius, *margin_values(ds, layout.dims))
+    if suspect is None:
+        return None
+    n = yes.shape[0]
+
+    def regions(kept: np.ndarray) -> int:
+        graph = _csgraph(n, kept, np.ones(kept.shape[1]))
+        _, comp = connected_components(graph, directed=False)
+        return int(np.unique(comp[yes]).size)
+
+    steps = int(np.count_nonzero(suspect))
+    extra = regions(edges[:, ~suspect]) - regions(edges) if steps else 0
+    return steps, extra
 
 
 def suspect_edges(

@@ -59,6 +59,7 @@ from cdpm.regions.graph import (
     region_graph,
     shortest_route,
     suspect_edges,
+    suspect_region_splits,
     suspect_region_steps,
 )
 from cdpm.verdicts import STATUS_LABELS, VERDICT_LABELS, YES
@@ -69,6 +70,7 @@ __all__ = [
     "poc_path",
     "suspect_edges",
     "suspect_region_steps",
+    "suspect_region_splits",
     "MARGIN_VARIABLES",
 ]
 
