@@ -77,6 +77,8 @@ _EXPORTS: dict[str, str] = {
     # certified boxes: POC proven on a whole box of poses
     "certify_box": "cdpm.certify.box",
     "BoxCertificate": "cdpm.certify.box",
+    "certify_map": "cdpm.certify.map",
+    "CertifiedMap": "cdpm.certify.map",
     # margins with units and POC neighbourhoods
     "ReachSettings": "cdpm.dynamics.reach",
     "reach_settings": "cdpm.dynamics.reach",
@@ -200,6 +202,7 @@ if TYPE_CHECKING:  # pragma: no cover - for static type checkers only
         UnsupportedError,
     )
     from cdpm.certify.box import BoxCertificate, certify_box  # noqa: F401
+    from cdpm.certify.map import CertifiedMap, certify_map  # noqa: F401
     from cdpm.expressions import parse_number  # noqa: F401
     from cdpm.maps import (  # noqa: F401
         SampledAxes,
