@@ -176,6 +176,8 @@ if TYPE_CHECKING:  # pragma: no cover - for static type checkers only
         wrench_closure,
     )
     from cdpm.caspr import CasprImport, CasprWarning, cable_sets, import_caspr  # noqa: F401
+    from cdpm.certify.box import BoxCertificate, certify_box  # noqa: F401
+    from cdpm.certify.map import CertifiedMap, certify_map  # noqa: F401
     from cdpm.dynamics.equilibrium import (  # noqa: F401
         EquilibriumResult,
         EquilibriumWarning,
@@ -201,8 +203,6 @@ if TYPE_CHECKING:  # pragma: no cover - for static type checkers only
         SpecError,
         UnsupportedError,
     )
-    from cdpm.certify.box import BoxCertificate, certify_box  # noqa: F401
-    from cdpm.certify.map import CertifiedMap, certify_map  # noqa: F401
     from cdpm.expressions import parse_number  # noqa: F401
     from cdpm.maps import (  # noqa: F401
         SampledAxes,
