@@ -19,6 +19,7 @@ import pytest
 
 import cdpm
 from cdpm.errors import InputError
+from tests.processes import wait_gone
 
 pytest.importorskip("distributed")
 
@@ -46,19 +47,18 @@ def _children(pid: int) -> list[int]:
     return out
 
 
-def _marked(marker: str) -> list[int]:
-    needle = f"CDPM_TEST_MARK={marker}".encode()
-    found = []
-    for entry in Path("/proc").iterdir():
-        if entry.name.isdigit():
-            try:
-                if needle in (entry / "environ").read_bytes().split(b"\0"):
-                    state = (entry / "stat").read_bytes().rsplit(b")", 1)[1].split()[0]
-                    if state not in (b"Z", b"X"):
-                        found.append(int(entry.name))
-            except OSError:
-                continue
-    return found
+def _resume_exactly(marker: str, store: Path, reference) -> None:
+    """Resume the map on a new cluster: the same values as the reference,
+    and no marked process left afterwards."""
+    second = Cluster(marker)
+    try:
+        ds = cdpm.workspace_map(
+            VERTICAL, AXES, scheduler=second.address, chunk_size=128, store=store
+        )
+        _same(ds, reference)
+    finally:
+        second.stop()
+    assert not wait_gone(marker)
 
 
 class Cluster:
@@ -154,10 +154,7 @@ def test_killed_worker_is_restarted_and_the_map_completes(tmp_path, reference):
         _same(ds, reference)
     finally:
         cluster.stop()
-    end = time.monotonic() + 10
-    while _marked(marker) and time.monotonic() < end:
-        time.sleep(0.1)
-    assert not _marked(marker)
+    assert not wait_gone(marker)
 
 
 @pytest.mark.slow
@@ -183,18 +180,7 @@ def test_lost_scheduler_is_one_error_and_the_map_resumes(tmp_path, reference):
     finally:
         cluster.stop()
     assert any((store / ".cdpm" / "done").iterdir())
-    second = Cluster(marker)
-    try:
-        ds = cdpm.workspace_map(
-            VERTICAL, AXES, scheduler=second.address, chunk_size=128, store=store
-        )
-        _same(ds, reference)
-    finally:
-        second.stop()
-    end = time.monotonic() + 10
-    while _marked(marker) and time.monotonic() < end:
-        time.sleep(0.1)
-    assert not _marked(marker)
+    _resume_exactly(marker, store, reference)
 
 
 _LOST_SCHEDULER_SCRIPT = """
@@ -252,18 +238,7 @@ def test_lost_scheduler_prints_only_cdpms_message(tmp_path, reference):
     import logging
 
     assert not logging.getLogger("distributed.client").filters  # as before the map
-    second = Cluster(marker)
-    try:
-        ds = cdpm.workspace_map(
-            VERTICAL, AXES, scheduler=second.address, chunk_size=128, store=store
-        )
-        _same(ds, reference)
-    finally:
-        second.stop()
-    end = time.monotonic() + 10
-    while _marked(marker) and time.monotonic() < end:
-        time.sleep(0.1)
-    assert not _marked(marker)
+    _resume_exactly(marker, store, reference)
 
 
 @pytest.mark.parametrize(

@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 
 import cdpm
+from tests.processes import wait_gone
 
 VERTICAL = Path(__file__).parent.parent / "models" / "two_link_vertical"
 N = 81
@@ -27,34 +28,6 @@ def _command(out: Path) -> list[str]:
         "--axis", f"q1=-pi:pi:{N}", "--axis", f"q2=-pi:pi:{N}",
         "--out", str(out), "--workers", "2", "--chunk-size", "256", "--quiet",
     ]  # fmt: skip
-
-
-def _marked(marker: str) -> list[int]:
-    """Processes whose environment carries ``marker`` (a command and every
-    process it started)."""
-    found = []
-    needle = f"CDPM_TEST_MARK={marker}".encode()
-    for entry in Path("/proc").iterdir():
-        if not entry.name.isdigit():
-            continue
-        try:
-            environ = (entry / "environ").read_bytes()
-            state = (entry / "stat").read_bytes().rsplit(b")", 1)[1].split()[0]
-        except OSError:
-            continue
-        if needle in environ.split(b"\0") and state not in (b"Z", b"X"):
-            found.append(int(entry.name))
-    return found
-
-
-def _wait_gone(marker: str, seconds: float) -> list[int]:
-    end = time.monotonic() + seconds
-    while time.monotonic() < end:
-        left = _marked(marker)
-        if not left:
-            return []
-        time.sleep(0.1)
-    return _marked(marker)
 
 
 @pytest.fixture(scope="module")
@@ -86,11 +59,11 @@ def test_killed_map_leaves_no_process_and_resumes_exactly(tmp_path, reference, t
     if how == signal.SIGTERM and code != 0:
         assert code == 130, stderr
         assert "interrupted" in stderr and "Traceback" not in stderr
-    left = _wait_gone(marker, 5.0)
+    left = wait_gone(marker, 5.0)
     assert not left, f"processes left after {how.name}: {left}"
     again = subprocess.run(_command(out), env=env, capture_output=True, text=True, timeout=600)
     assert again.returncode == 0, again.stderr
-    assert not _wait_gone(marker, 5.0)
+    assert not wait_gone(marker, 5.0)
     resumed = cdpm.open_map(out)
     for name in ("poc", "status", "reach_margin", "y", "tension_max"):
         np.testing.assert_array_equal(resumed[name].values, reference[name].values, err_msg=name)

@@ -20,6 +20,7 @@ import numpy as np
 import pytest
 
 import cdpm
+from tests.processes import wait_gone
 
 ROOT = Path(__file__).resolve().parents[1]
 VERTICAL = ROOT / "models" / "two_link_vertical"
@@ -29,29 +30,6 @@ LINUX = pytest.mark.skipif(not Path("/proc/self/environ").exists(), reason="need
 
 #: what an interrupted map's stderr never holds
 NOISE = ("Traceback", "Errno", "EBADF", "Bad file descriptor", "Fatal Python", "Exception ignored")
-
-
-def _marked(marker: str) -> list[int]:
-    """Live processes whose environment holds ``CDPM_TEST_MARK=marker``."""
-    needle = f"CDPM_TEST_MARK={marker}".encode()
-    found = []
-    for entry in Path("/proc").iterdir():
-        if entry.name.isdigit():
-            try:
-                environ = (entry / "environ").read_bytes()
-                state = (entry / "stat").read_bytes().rsplit(b")", 1)[1].split()[0]
-            except OSError:
-                continue
-            if needle in environ.split(b"\0") and state not in (b"Z", b"X"):
-                found.append(int(entry.name))
-    return found
-
-
-def _wait_gone(marker: str, seconds: float = 10.0) -> list[int]:
-    end = time.monotonic() + seconds
-    while _marked(marker) and time.monotonic() < end:
-        time.sleep(0.1)
-    return _marked(marker)
 
 
 def _map_command(out: Path, quiet: bool) -> list[str]:
@@ -119,7 +97,7 @@ def test_maps_interrupted_at_any_moment_end_cleanly_and_resume_exactly(tmp_path,
         reader.join(timeout=10)
         results.append(code)
         assert not [word for word in NOISE if word in stderr], (trial, how.name, stderr)
-        assert not _wait_gone(marker), f"processes left after {how.name}"
+        assert not wait_gone(marker), f"processes left after {how.name}"
         again = subprocess.run(
             _map_command(out, True), env=env, cwd=tmp_path, capture_output=True, text=True
         )
@@ -136,7 +114,7 @@ def test_maps_interrupted_at_any_moment_end_cleanly_and_resume_exactly(tmp_path,
             np.testing.assert_array_equal(
                 resumed[name].values, reference[name].values, err_msg=name
             )
-    assert not _wait_gone(marker)
+    assert not wait_gone(marker)
     assert results.count(130) >= 12  # most runs were interrupted, not finished
 
 
@@ -294,7 +272,7 @@ def _run_script(tmp_path, guarded: bool):
         text=True,
         timeout=300,
     )
-    assert _wait_gone(marker) == [], "a worker or fork server was left behind"
+    assert wait_gone(marker) == [], "a worker or fork server was left behind"
     return done
 
 
