@@ -11,6 +11,8 @@ import time
 import warnings
 from pathlib import Path
 
+from cdpm.maps._interrupts import interrupts_held
+
 __all__ = [
     "INTERRUPT_SETTLE_SECONDS",
     "file_store",
@@ -58,8 +60,9 @@ def sync(make):
     return its result: the one ``make()`` returns (made in the loop), or
     ``make`` itself.
 
-    Interrupted while it runs (Ctrl-C, or SIGTERM, which cdpm reads as
-    Ctrl-C), it is cancelled and waited for (at most
+    An interrupt (Ctrl-C, or SIGTERM, which cdpm reads as Ctrl-C) waits
+    for the work to end (:func:`~cdpm.maps._interrupts.interrupts_held`).
+    A second one while it runs cancels it and waits for it (at most
     INTERRUPT_SETTLE_SECONDS) before the interrupt goes on: zarr's exit
     handler closes its loop, and printed a traceback ("Cannot close a
     running event loop") when a write was still running in it 0.2 s after
@@ -89,8 +92,11 @@ def sync(make):
 
     outer = tracked()
     try:
-        return zarr_sync.sync(outer)
-    except KeyboardInterrupt:
+        # an interrupt waits for the write (milliseconds): cancelled mid-way,
+        # zarr's gathered chunk writes could outlive its loop at exit
+        with interrupts_held():
+            return zarr_sync.sync(outer)
+    except KeyboardInterrupt:  # a second interrupt, which goes through at once
         with lock:
             task = state["task"]
             state["abandoned"] = task is None
