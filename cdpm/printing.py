@@ -150,14 +150,15 @@ def to_plain(x: Any) -> Any:
 def strict(value: Any) -> Any:
     """``value`` as plain Python (:func:`to_plain`) with every non-finite
     float (NaN, inf) replaced by None, through dicts, lists and tuples:
-    JSON has no NaN."""
+    JSON has no NaN. A negative zero is written 0.0 (``-0.0`` in a margin
+    reads as a sign that is not there)."""
     return _finite_or_none(to_plain(value))
 
 
 def _finite_or_none(value: Any) -> Any:
-    """Plain data (:func:`to_plain`'s) with NaN and inf as None."""
+    """Plain data (:func:`to_plain`'s) with NaN and inf as None, -0.0 as 0.0."""
     if isinstance(value, float):
-        return value if math.isfinite(value) else None
+        return value + 0.0 if math.isfinite(value) else None
     if isinstance(value, dict):
         return {k: _finite_or_none(v) for k, v in value.items()}
     if isinstance(value, list):

@@ -244,3 +244,16 @@ def test_a_zero_reach_margin_says_what_cannot_be_reached(capsys):
     out = capsys.readouterr().out
     assert "cannot move tip_x in some direction of output space" in out
     assert "0 m in every direction" not in out
+
+
+def test_json_has_no_negative_zero(capsys):
+    """At an output-rank NO pose the margin is 0, not -0.0, in JSON too."""
+    from cdpm.printing import json_text
+
+    assert json_text({"margin": -0.0, "bracket": [-0.0, 0.0]}, None) == (
+        '{"margin": 0.0, "bracket": [0.0, 0.0]}'
+    )
+    spec = VERTICAL / "two_link_vertical.yaml"
+    main(["analyze", str(spec), "--pose", "horizontal", "--json"])
+    out = capsys.readouterr().out
+    assert "-0.0," not in out and "-0.0]" not in out and "-0.0\n" not in out
