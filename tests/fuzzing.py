@@ -45,6 +45,7 @@ import cdpm
 from cdpm.errors import CdpmError, short_repr
 from cdpm.model.coordinates import coordinate_units
 from cdpm.verdicts import STATUS_CODES, STATUS_LABELS, VERDICT_LABELS
+from tests.scaled_models import scaled_copy
 
 ROOT = Path(__file__).resolve().parents[1]
 MODELS = sorted(p for p in (ROOT / "models").glob("*/*.yaml") if not p.name.startswith("_"))
@@ -428,64 +429,21 @@ class ScaleCase:
         return f"{self.model.stem} with masses x 1e{self.mass_exp}, lengths x 1e{self.length_exp}"
 
 
-def _scaled_numbers(text: str, factor: float) -> str:
-    return " ".join(repr(float(v) * factor) for v in text.split())
-
-
-def scale_urdf(text: str, mass: float, length: float) -> str:
-    """A URDF with every mass times ``mass``, every length (origins, shape
-    sizes, prismatic limits) times ``length`` and every inertia times
-    ``mass * length**2`` (inertia ~ m L^2)."""
-    root = ET.fromstring(text)
-    for origin in root.iter("origin"):
-        if "xyz" in origin.attrib:
-            origin.set("xyz", _scaled_numbers(origin.get("xyz"), length))
-    for element in root.iter("mass"):
-        element.set("value", repr(float(element.get("value")) * mass))
-    for element in root.iter("inertia"):
-        for key, value in element.attrib.items():
-            element.set(key, repr(float(value) * mass * length**2))
-    for shape in root.iter():
-        for key in ("radius", "length", "size"):
-            if key in shape.attrib and shape.tag in ("box", "cylinder", "sphere", "capsule"):
-                shape.set(key, _scaled_numbers(shape.get(key), length))
-    for joint in root.iter("joint"):
-        limit = joint.find("limit")
-        if joint.get("type") == "prismatic" and limit is not None:
-            for key in ("lower", "upper"):
-                if key in limit.attrib:
-                    limit.set(key, _scaled_numbers(limit.get(key), length))
-    return ET.tostring(root, encoding="unicode")
-
-
-def scaled_spec(data: dict, length: float, urdf_name: str) -> dict:
-    """A spec mapping for a scaled URDF: attachment and output points times
-    ``length``; every cable's tension within [0, inf) (no bounds given),
-    the least-norm equilibrium without pretension, no named poses."""
-    data = copy.deepcopy(data)
-    data["urdf"] = urdf_name
-    for cable in data["cables"]:
-        cable.pop("tension", None)
-        for point in cable["route"]:
-            point["point"] = [float(v) * length for v in point["point"]]
-    for output in data.get("outputs", []):
-        if "point" in output:
-            output["point"] = [float(v) * length for v in output["point"]]
-    data["equilibrium"] = {"method": "min_norm"}
-    data.pop("poses", None)
-    return data
-
-
 def write_scaled_model(model: Path, folder: Path, mass_exp: int, length_exp: int) -> Path:
-    """A copy of ``model`` in ``folder`` scaled as :func:`scale_urdf` and
-    :func:`scaled_spec` do; returns its spec path."""
+    """A copy of ``model`` in ``folder`` with masses times 10**mass_exp and
+    lengths times 10**length_exp (:func:`tests.scaled_models.scaled_copy`),
+    tension bounds [0, inf) and the least-norm equilibrium without
+    pretension; returns its spec path."""
     data = yaml.safe_load(model.read_text())
-    folder.mkdir(parents=True, exist_ok=True)
-    urdf = scale_urdf((model.parent / data["urdf"]).read_text(), 10.0**mass_exp, 10.0**length_exp)
-    (folder / "scaled.urdf").write_text(urdf)
-    spec = folder / model.name
-    spec.write_text(yaml.safe_dump(scaled_spec(data, 10.0**length_exp, "scaled.urdf")))
-    return spec
+    return scaled_copy(
+        model,
+        model.parent / data["urdf"],
+        folder,
+        10.0**mass_exp,
+        10.0**length_exp,
+        equilibrium={"method": "min_norm"},
+        unbounded=True,
+    )
 
 
 def make_scale_case(

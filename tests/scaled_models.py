@@ -14,13 +14,14 @@ do not: :func:`scaled_pose`.
 
 from __future__ import annotations
 
+import copy
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import numpy as np
 import yaml
 
-__all__ = ["scaled_copy", "scaled_pose"]
+__all__ = ["scaled_copy", "scaled_pose", "scaled_spec"]
 
 
 def _scale_attr(element, name: str, factor: float) -> None:
@@ -62,6 +63,34 @@ def _scaled_urdf(text: str, mass: float, length: float) -> str:
     return ET.tostring(root, encoding="unicode")
 
 
+def scaled_spec(
+    data: dict, mass: float, length: float, equilibrium: dict | None, unbounded: bool
+) -> dict:
+    """A spec mapping (a copy) for the scaled URDF ``robot.urdf``: cable
+    attachment and output points times ``length``; tension bounds times
+    ``mass``, or left out (bounds [0, inf)) when ``unbounded``; the
+    ``equilibrium`` mapping given (else the spec's) with its pretension times
+    ``mass``; no named poses (they may hold lengths: tests give poses)."""
+    spec = copy.deepcopy(data)
+    spec["urdf"] = "robot.urdf"
+    for cable in spec["cables"]:
+        for point in cable["route"]:
+            point["point"] = [float(x) * length for x in point["point"]]
+        if unbounded:
+            cable.pop("tension", None)
+        elif "tension" in cable:
+            cable["tension"] = [float(x) * mass for x in cable["tension"]]
+    for output in spec.get("outputs", []):
+        if "point" in output:
+            output["point"] = [float(x) * length for x in output["point"]]
+    eq = dict(equilibrium if equilibrium is not None else spec.get("equilibrium") or {})
+    if "pretension" in eq:
+        eq["pretension"] = float(eq["pretension"]) * mass
+    spec["equilibrium"] = eq
+    spec.pop("poses", None)
+    return spec
+
+
 def scaled_copy(
     spec_path: Path,
     urdf_path: Path,
@@ -69,6 +98,7 @@ def scaled_copy(
     mass: float,
     length: float,
     equilibrium: dict | None = None,
+    unbounded: bool = False,
 ) -> Path:
     """Write the scaled copy of a spec (and its URDF) into folder ``out``.
 
@@ -79,25 +109,16 @@ def scaled_copy(
         mass, length: the factors (dimensionless).
         equilibrium: the unit robot's ``equilibrium`` mapping to use instead
             of the spec's (its pretension [N] is scaled by ``mass``).
+        unbounded: leave the cables' tension bounds out ([0, inf)).
 
     Returns:
         The path of the scaled spec.
     """
     out.mkdir(parents=True, exist_ok=True)
-    spec = yaml.safe_load(Path(spec_path).read_text())
+    data = yaml.safe_load(Path(spec_path).read_text())
     (out / "robot.urdf").write_text(_scaled_urdf(Path(urdf_path).read_text(), mass, length))
-    spec["urdf"] = "robot.urdf"
-    for cable in spec["cables"]:
-        for point in cable["route"]:
-            point["point"] = [float(x) * length for x in point["point"]]
-        if "tension" in cable:
-            cable["tension"] = [float(x) * mass for x in cable["tension"]]
-    eq = dict(equilibrium if equilibrium is not None else spec.get("equilibrium") or {})
-    if "pretension" in eq:
-        eq["pretension"] = float(eq["pretension"]) * mass
-    spec["equilibrium"] = eq
-    spec.pop("poses", None)  # named poses may hold lengths; tests give poses
     path = out / "robot.yaml"
+    spec = scaled_spec(data, mass, length, equilibrium, unbounded)
     path.write_text(yaml.safe_dump(spec, sort_keys=False))
     return path
 

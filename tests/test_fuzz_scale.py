@@ -70,14 +70,14 @@ def test_scaled_copy_scales_mass_inertia_and_lengths(tmp_path):
 def test_a_scaled_model_that_differs_is_caught(tmp_path, monkeypatch):
     """The comparison can fail: scaling the URDF's lengths but not the
     spec's attachment points changes the robot, and the verdicts differ."""
-    import tests.fuzzing as fuzzing
+    import tests.scaled_models as scaled_models
 
-    unscaled_points = fuzzing.scaled_spec
+    unscaled_points = scaled_models.scaled_spec
 
-    def points_left_alone(data, length, urdf_name):
-        return unscaled_points(data, 1.0, urdf_name)
+    def points_left_alone(data, mass, length, equilibrium, unbounded):
+        return unscaled_points(data, mass, 1.0, equilibrium, unbounded)
 
-    monkeypatch.setattr(fuzzing, "scaled_spec", points_left_alone)
+    monkeypatch.setattr(scaled_models, "scaled_spec", points_left_alone)
     case = make_scale_case(_model("two_link_vertical"), seed=5, mass_exp=0, length_exp=1)
     with pytest.raises(AssertionError, match="verdicts differ|outputs|not equal"):
         run_scale_case(case, tmp_path)
