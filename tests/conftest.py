@@ -14,6 +14,22 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 MODELS = ROOT / "models"
 PAPER_SPEC = MODELS / "two_link_planar" / "two_link_planar.yaml"
+
+
+def paper_spec_copy(tmp_path: Path, text: str) -> Path:
+    """A spec of the paper arm with the given YAML ``text``, written as
+    ``spec.yaml`` in ``tmp_path`` beside a copy of the arm's URDF."""
+    shutil.copy(PAPER_SPEC.with_suffix(".urdf"), tmp_path)
+    path = tmp_path / "spec.yaml"
+    path.write_text(text)
+    return path
+
+
+def paper_spec_text() -> str:
+    """The paper arm's spec, as YAML text to edit."""
+    return PAPER_SPEC.read_text()
+
+
 #: environment variable naming the ``models`` folder of a CASPR checkout
 #: (https://github.com/darwinlau/CASPR, BSD-3-Clause), used by tests/test_caspr.py
 CASPR_MODELS_ENV = "CDPM_CASPR_MODELS"

@@ -9,7 +9,6 @@ from __future__ import annotations
 import os
 import socket
 from collections import Counter
-from pathlib import Path
 
 import pytest
 
@@ -20,17 +19,10 @@ from tests.fuzzing import (
     page_credentials,
     run_request_case,
 )
+from tests.processes import alive
 
 _JSON = {"Content-Type": "application/json"}
 _POSE = b'{"pose": "nominal"}'
-
-
-def _alive(pid: int) -> bool:
-    try:
-        stat = Path(f"/proc/{pid}/stat").read_text()
-    except OSError:
-        return False
-    return stat.rsplit(")", 1)[1].split()[0] != "Z"
 
 
 def _refused(port: int) -> bool:
@@ -53,7 +45,7 @@ def page(paper_robot):
         page.close()
     assert _refused(port), f"the page still listens on {port}"
     if os.path.isdir("/proc"):
-        assert not _alive(server), "the meshcat server still runs"
+        assert not alive(server), "the meshcat server still runs"
 
 
 def _case(what, body=_POSE, strict=True, **headers):

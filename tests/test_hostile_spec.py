@@ -14,60 +14,50 @@ import cdpm
 from cdpm.errors import MAX_LISTED_PROBLEMS, MAX_PROBLEM_CHARS, SpecError
 from cdpm.expressions import MAX_EXPRESSION_CHARS, parse_number
 from cdpm.model.yaml_loading import MAX_YAML_DEPTH
+from tests.conftest import paper_spec_copy, paper_spec_text
 
 MODEL = Path(__file__).parent.parent / "models" / "two_link_planar"
-
-
-def _spec(tmp_path: Path, text: str) -> Path:
-    shutil.copy(MODEL / "two_link_planar.urdf", tmp_path)
-    path = tmp_path / "spec.yaml"
-    path.write_text(text)
-    return path
-
-
-def _base() -> str:
-    return (MODEL / "two_link_planar.yaml").read_text()
 
 
 def test_alias_bomb_is_refused_quickly(tmp_path):
     anchors = "x0: &a0 [1, 1, 1, 1, 1, 1, 1, 1, 1]\n" + "".join(
         f"x{i}: &a{i} [{', '.join([f'*a{i - 1}'] * 9)}]\n" for i in range(1, 9)
     )
-    text = anchors + _base().replace("gravity: [", "description: *a8\ngravity: [", 1)
+    text = anchors + paper_spec_text().replace("gravity: [", "description: *a8\ngravity: [", 1)
     start = time.perf_counter()
     with pytest.raises(SpecError, match="expands to more than .* values through its aliases"):
-        cdpm.load_robot(_spec(tmp_path, text))
+        cdpm.load_robot(paper_spec_copy(tmp_path, text))
     assert time.perf_counter() - start < 5.0
 
 
 def test_deep_nesting_is_refused(tmp_path):
-    text = _base() + "description: " + "[" * 3000 + "]" * 3000 + "\n"
+    text = paper_spec_text() + "description: " + "[" * 3000 + "]" * 3000 + "\n"
     with pytest.raises(SpecError, match=f"nest more than {MAX_YAML_DEPTH} deep"):
-        cdpm.load_robot(_spec(tmp_path, text))
+        cdpm.load_robot(paper_spec_copy(tmp_path, text))
 
 
 def test_modest_anchors_still_load(tmp_path):
-    text = _base().replace("gravity: [0, 0, 0]", "gravity: &g [0, 0, 0]", 1)
+    text = paper_spec_text().replace("gravity: [0, 0, 0]", "gravity: &g [0, 0, 0]", 1)
     text = text.replace(
         "outputs:\n", "outputs:\n  - {name: extra, frame: tip, component: y, point: *g}\n"
     )
-    robot = cdpm.load_robot(_spec(tmp_path, text))
+    robot = cdpm.load_robot(paper_spec_copy(tmp_path, text))
     assert robot.output_names[0] == "extra"
 
 
 @pytest.mark.parametrize("value", [".nan", ".inf", "inf-inf", "(-1)**0.5"])
 def test_non_finite_or_complex_points_are_refused(tmp_path, value):
-    text = _base().replace("point: [0, 0.5, 0]", f"point: [{value}, 0.5, 0]", 1)
-    assert text != _base()
+    text = paper_spec_text().replace("point: [0, 0.5, 0]", f"point: [{value}, 0.5, 0]", 1)
+    assert text != paper_spec_text()
     with pytest.raises(SpecError, match=r"route\[0\]\.point"):
-        cdpm.load_robot(_spec(tmp_path, text))
+        cdpm.load_robot(paper_spec_copy(tmp_path, text))
 
 
 def test_many_problems_give_a_short_message(tmp_path):
     bad = "".join(f"  - {{name: o{i}, frame: nope{i}, component: x}}\n" for i in range(500))
-    text = _base().replace("outputs:\n", "outputs:\n" + bad, 1)
+    text = paper_spec_text().replace("outputs:\n", "outputs:\n" + bad, 1)
     with pytest.raises(SpecError) as info:
-        cdpm.load_robot(_spec(tmp_path, text))
+        cdpm.load_robot(paper_spec_copy(tmp_path, text))
     message = str(info.value)
     assert "500 problems" in message and "and 492 more" in message
     assert len(message) < 4000
@@ -162,11 +152,13 @@ def test_numbers_that_overflow_to_infinity_are_refused(tmp_path):
     """YAML reads a finite literal beyond the float range as infinity: a
     cable bound of 1.0e+400 N would silently mean no bound. It is refused
     with its line; .inf, infinity as meant, still loads."""
-    bounded = _base().replace("  - name: c1\n", "  - name: c1\n    tension: [0, 1.0e+400]\n")
+    bounded = paper_spec_text().replace(
+        "  - name: c1\n", "  - name: c1\n    tension: [0, 1.0e+400]\n"
+    )
     with pytest.raises(SpecError, match=r"line 10: 1.0e\+400 is too large for a number .* \.inf"):
-        cdpm.load_robot(_spec(tmp_path, bounded))
+        cdpm.load_robot(paper_spec_copy(tmp_path, bounded))
     unbounded = bounded.replace("1.0e+400", ".inf")
-    assert cdpm.load_robot(_spec(tmp_path, unbounded)).tension_max[0] == np.inf
+    assert cdpm.load_robot(paper_spec_copy(tmp_path, unbounded)).tension_max[0] == np.inf
     from cdpm.model.yaml_loading import load_yaml
 
     # infinity as meant, under an explicit tag too
@@ -174,11 +166,11 @@ def test_numbers_that_overflow_to_infinity_are_refused(tmp_path):
 
 
 def test_far_output_point_is_a_model_error(tmp_path):
-    text = _base().replace(
+    text = paper_spec_text().replace(
         "outputs:\n", "outputs:\n  - {name: far, frame: tip, component: x, point: [1e300, 0, 0]}\n"
     )
     with pytest.raises(cdpm.ModelError, match="lies 1e\\+300 m from its frame"):
-        cdpm.load_robot(_spec(tmp_path, text))
+        cdpm.load_robot(paper_spec_copy(tmp_path, text))
 
 
 def test_caspr_xml_with_entities_is_refused(tmp_path):
@@ -214,7 +206,7 @@ def test_libyaml_and_pyyaml_read_specs_alike():
     from cdpm.model.yaml_loading import _load_yaml, load_yaml
 
     texts = [p.read_text() for p in sorted(MODEL.parent.glob("*/*.yaml"))]
-    texts.append(_base() + "gravity: [0, 0, -9.81]\n")
+    texts.append(paper_spec_text() + "gravity: [0, 0, -9.81]\n")
     assert len(texts) >= 7
     for text in texts:
         assert _load_yaml(text, fast=True) == _load_yaml(text, fast=False) == load_yaml(text)

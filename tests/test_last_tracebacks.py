@@ -3,7 +3,6 @@ with a one-line cdpm error (or read as the user wrote them)."""
 
 from __future__ import annotations
 
-import os
 import re
 import shutil
 from pathlib import Path
@@ -14,31 +13,19 @@ import pytest
 import cdpm
 from cdpm.errors import SpecError
 from cdpm.model.yaml_loading import MAX_YAML_DEPTH, load_yaml
+from tests.conftest import paper_spec_copy, paper_spec_text
+from tests.processes import lock_held_elsewhere
 
 MODEL = Path(__file__).parent.parent / "models" / "two_link_planar"
 
 
-def _spec(tmp_path: Path, text: str) -> Path:
-    shutil.copy(MODEL / "two_link_planar.urdf", tmp_path)
-    path = tmp_path / "spec.yaml"
-    path.write_text(text)
-    return path
-
-
-def _base() -> str:
-    return (MODEL / "two_link_planar.yaml").read_text()
-
-
-# 1. integers beyond Python's 4,300-digit limit (or beyond float range)
-
-
 @pytest.mark.parametrize(("literal", "digits"), [("1" * 5000, "5,000"), ("0x" + "f" * 300, "300")])
 def test_huge_integer_is_a_spec_error(tmp_path, literal, digits):
-    text = _base().replace("gravity: [0, 0, 0]", f"gravity: [0, 0, {literal}]", 1)
+    text = paper_spec_text().replace("gravity: [0, 0, 0]", f"gravity: [0, 0, {literal}]", 1)
     with pytest.raises(
         SpecError, match=f"line 7: an integer of {digits} digits is too large for a number"
     ):
-        cdpm.load_robot(_spec(tmp_path, text))
+        cdpm.load_robot(paper_spec_copy(tmp_path, text))
 
 
 def test_long_but_sane_integer_still_loads():
@@ -53,11 +40,11 @@ def test_long_but_sane_integer_still_loads():
 def test_alias_chain_as_mapping_key_is_refused(tmp_path):
     n = 300
     chain = "a0: &a0 [1]\n" + "".join(f"a{i}: &a{i} [*a{i - 1}]\n" for i in range(1, n))
-    text = chain + f"? *a{n - 1}\n: 1\n" + _base()
+    text = chain + f"? *a{n - 1}\n: 1\n" + paper_spec_text()
     with pytest.raises(
         SpecError, match=f"nest more than {MAX_YAML_DEPTH} deep once its aliases .* are expanded"
     ):
-        cdpm.load_robot(_spec(tmp_path, text))
+        cdpm.load_robot(paper_spec_copy(tmp_path, text))
 
 
 def test_short_alias_chain_still_loads():
@@ -76,9 +63,9 @@ def test_sexagesimal_is_read_as_written():
 
 
 def test_sexagesimal_coordinate_is_refused_as_written(tmp_path):
-    text = _base().replace("poses:\n", "poses:\n  weird: [190:20:30, 1]\n", 1)
+    text = paper_spec_text().replace("poses:\n", "poses:\n  weird: [190:20:30, 1]\n", 1)
     with pytest.raises(SpecError, match=r"poses\.weird: \[0\]: '190:20:30' is not a number"):
-        cdpm.load_robot(_spec(tmp_path, text))
+        cdpm.load_robot(paper_spec_copy(tmp_path, text))
 
 
 # 4. CASPR joint limits with q_min > q_max
@@ -188,24 +175,6 @@ def test_caspr_indefinite_inertia_is_refused_at_import(tmp_path):
 # 7. the store lock through a symbolic link to the store
 
 
-def _lock_held_elsewhere(store: Path) -> bool:
-    """Whether a forked process finds ``store`` locked (a lock is per open file)."""
-    from cdpm.maps._lock import StoreBusyError, store_lock
-
-    pid = os.fork()
-    if pid == 0:  # child: try to take the lock
-        try:
-            with store_lock(store):
-                os._exit(0)
-        except StoreBusyError:
-            os._exit(7)
-        except BaseException:
-            os._exit(9)
-    _, status = os.waitpid(pid, 0)
-    assert os.WEXITSTATUS(status) in (0, 7)
-    return os.WEXITSTATUS(status) == 7
-
-
 @pytest.mark.parametrize("linked", ["store", "folder"])
 def test_store_lock_holds_through_a_symlink(tmp_path, linked):
     from cdpm.maps._lock import lock_path, store_lock
@@ -220,9 +189,9 @@ def test_store_lock_holds_through_a_symlink(tmp_path, linked):
         (tmp_path / "link").symlink_to(tmp_path / "real")
         alias = tmp_path / "link" / "m.zarr"
     with store_lock(store):
-        assert _lock_held_elsewhere(alias)
+        assert lock_held_elsewhere(alias)
     with store_lock(alias):
-        assert _lock_held_elsewhere(store)
+        assert lock_held_elsewhere(store)
     assert lock_path(alias) == lock_path(store)
     assert not lock_path(store).exists()
 

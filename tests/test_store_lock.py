@@ -17,6 +17,7 @@ import pytest
 import cdpm
 from cdpm.maps._lock import StoreBusyError, lock_path, store_lock
 from cdpm.verdicts import NOT_ANALYSED, STATUS_CODES
+from tests.processes import lock_held_elsewhere
 
 VERTICAL = Path(__file__).parent.parent / "models" / "two_link_vertical"
 
@@ -89,15 +90,7 @@ def test_lock_in_process(tmp_path):
         record = json.loads(lock_path(store).read_text())
         assert record["pid"] == os.getpid()
         # a lock is per open file: a second acquisition (as another run would) fails
-        pid = os.fork()
-        if pid == 0:  # child: try to take the lock
-            try:
-                with store_lock(store):
-                    os._exit(0)
-            except StoreBusyError:
-                os._exit(7)
-        _, status = os.waitpid(pid, 0)
-        assert os.WEXITSTATUS(status) == 7
+        assert lock_held_elsewhere(store)
     assert not lock_path(store).exists()
 
 

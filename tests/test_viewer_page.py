@@ -24,6 +24,7 @@ from cdpm.viewer import COLORS, CableState, coordinate_ranges, coordinate_slider
 from cdpm.viewer.panel import pose_panel, q_arguments
 from tests.conftest import MODELS
 from tests.output_kinds import EVERY_KIND_SPEC
+from tests.processes import alive
 
 NOMINAL = np.array([math.pi / 6, math.pi / 3])
 VERTICAL_SPEC = MODELS / "two_link_vertical" / "two_link_vertical.yaml"
@@ -202,15 +203,6 @@ def _listening(port: int) -> list[str]:
     return found
 
 
-def _alive(pid: int) -> bool:
-    """True while a process runs (a zombie is gone for this purpose)."""
-    try:
-        stat = Path(f"/proc/{pid}/stat").read_text()
-    except OSError:
-        return False
-    return stat.rsplit(")", 1)[1].split()[0] != "Z"
-
-
 def _scene_port(page) -> int:
     return int(page.viewer.url().split(":")[2].split("/")[0])
 
@@ -266,7 +258,7 @@ def test_page_endpoints_and_shutdown(paper_robot):
     for port in ports:
         assert _listening(port) == []
     if os.path.isdir("/proc"):
-        assert not _alive(server)
+        assert not alive(server)
 
 
 def test_page_port_in_use_is_refused(paper_robot):
@@ -364,7 +356,7 @@ def _profile_processes(profile: str) -> list[int]:
             argv = (proc / "cmdline").read_bytes().decode(errors="replace")
         except OSError:
             continue
-        if proc.name.isdigit() and profile in argv and _alive(int(proc.name)):
+        if proc.name.isdigit() and profile in argv and alive(int(proc.name)):
             found.append(int(proc.name))
     return found
 
@@ -586,7 +578,7 @@ def test_browser_sliders_picker_and_scene(browser, paper_robot, tmp_path):
     for port in ports:  # the page's server and the meshcat server are stopped
         assert _listening(port) == []
     if os.path.isdir("/proc"):
-        assert not _alive(server)
+        assert not alive(server)
 
 
 def test_page_legend_says_how_each_output_is_drawn(write_spec):
@@ -690,4 +682,4 @@ def test_browser_shows_the_reach_margin_as_a_lower_bound(browser):
     for port in ports:
         assert _listening(port) == []
     if os.path.isdir("/proc"):
-        assert not _alive(server)
+        assert not alive(server)
