@@ -289,16 +289,19 @@ def _face_points(faces: np.ndarray, p: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _patch_directions(faces: np.ndarray, patches: np.ndarray, p: int) -> Interval:
-    """The directions w of each patch, (P, p) intervals."""
-    k, s = _face_points(faces, p)
+    """The directions w of each patch, (P, p) intervals: +-1 on the face's
+    axis, the patch's t intervals on the others (in order)."""
+    k, sign = _face_points(faces, p)
     P = faces.shape[0]
     lo = np.empty((P, p))
     hi = np.empty((P, p))
-    for row in range(P):
-        others = [i for i in range(p) if i != k[row]]
-        lo[row, k[row]] = hi[row, k[row]] = s[row]
-        lo[row, others] = patches[row, :, 0]
-        hi[row, others] = patches[row, :, 1]
+    rows = np.arange(P)
+    lo[rows, k] = hi[rows, k] = sign
+    # the other axes of each row, in order: (P, p - 1)
+    others = np.sort(np.where(np.arange(p)[None, :] == k[:, None], p, np.arange(p)), axis=1)
+    others = others[:, : p - 1]
+    lo[rows[:, None], others] = patches[:, :, 0]
+    hi[rows[:, None], others] = patches[:, :, 1]
     return Interval(lo, hi)
 
 

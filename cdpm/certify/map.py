@@ -197,6 +197,7 @@ def certify_map(
             joint type certified boxes do not support.
     """
     # loaded on first use
+    from cdpm.dynamics.reach import reach_settings
     from cdpm.model.robot import load_robot
 
     if not hasattr(robot, "spec"):
@@ -224,13 +225,16 @@ def certify_map(
         for cell in cells
     ]
     structural = zero_load_reason(robot)
+    # the reach settings once for every box (the default horizon may need
+    # a linearisation of the robot)
+    reach = reach_settings(robot, horizon, tension_budget)
     done: list[BoxCertificate] = []
     box_lo, box_hi = [], []
     while queue:
         lo, hi = queue.pop()
         full_lo, full_hi = natural.copy(), natural.copy()
         full_lo[index], full_hi[index] = lo, hi
-        cert = certify_box(robot, full_lo, full_hi, horizon=horizon, tension_budget=tension_budget)
+        cert = certify_box(robot, full_lo, full_hi, horizon=reach)
         relative = (hi - lo) / widths
         if (
             cert.verdict == MARGINAL

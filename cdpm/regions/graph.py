@@ -121,11 +121,8 @@ def suspect_region_steps(map: Any) -> int | None:
     its regions and paths are made of) may cross a NO set thinner than the
     map's resolution (:func:`suspect_edges`): where its regions may really
     be split; None for a map without the reach margin r_T."""
-    ds = as_dataset(map)
-    layout = map_layout(ds)
-    radius = neighbour_radius(layout, region_labels(ds)) if layout.mode == "sample" else None
-    suspect = region_graph(ds, layout, radius, *margin_values(ds, layout.dims))[4]
-    return None if suspect is None else int(np.count_nonzero(suspect))
+    splits = suspect_region_splits(map)
+    return None if splits is None else splits[0]
 
 
 def suspect_region_splits(map: Any) -> tuple[int, int] | None:
