@@ -29,8 +29,9 @@ from cdpm.errors import ModelError
 from cdpm.viewer import COLORS
 from cdpm.viewer.state import meshes_outside
 from tests.conftest import MODELS
+from tests.processes import alive
 from tests.test_viewer import _server_scene, _viewer_servers
-from tests.test_viewer_page import _alive, _count_near, _listening, _profile_processes
+from tests.test_viewer_page import _count_near, _listening, _profile_processes
 
 PAPER_SPEC = MODELS / "two_link_planar" / "two_link_planar.yaml"
 
@@ -45,7 +46,7 @@ def _closed(ports: list[int], server: int | None, before: set[int]) -> None:
     for port in ports:
         assert _listening(port) == [], f"port {port} still listens"
     if server is not None and os.path.isdir("/proc"):
-        assert not _alive(server), "the meshcat server still runs"
+        assert not alive(server), "the meshcat server still runs"
     assert _viewer_servers(parent=os.getpid()) == before, "a meshcat server is still running"
 
 
