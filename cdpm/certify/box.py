@@ -65,7 +65,16 @@ from cdpm.numerics import (
 )
 from cdpm.verdicts import MARGINAL, NO, YES
 
-__all__ = ["BoxCertificate", "certify_box", "inverse_enclosure", "zero_load_reason"]
+__all__ = [
+    "BoxCertificate",
+    "CertifiedBoxes",
+    "certify_box",
+    "certify_boxes",
+    "concatenate_boxes",
+    "inverse_enclosure",
+    "inverse_enclosures",
+    "zero_load_reason",
+]
 
 
 @dataclass(frozen=True)
@@ -113,33 +122,40 @@ class BoxCertificate:
         face of the direction cube and each patch's column must point into
         every direction of it at every pose of the box, with the stated
         margin bound; (NO) the separator must have ``v . g_j < 0`` for
-        every column. A MARGINAL certificate proves nothing: False."""
-        if self.verdict not in (YES, NO):
+        every column. A MARGINAL certificate proves nothing: False.
+        (:meth:`CertifiedBoxes.verify` on a batch of one.)"""
+        p = len(robot.output_names)
+        try:
+            faces = np.asarray(self.faces, dtype=np.int64).reshape(-1)
+            patches = np.asarray(self.patches, dtype=float)
+            columns = np.asarray(self.columns, dtype=np.int64).reshape(-1)
+            sep = np.asarray(self.separator, dtype=float).reshape(-1)
+            lo = np.asarray(self.lower, dtype=float).reshape(1, -1)
+            hi = np.asarray(self.upper, dtype=float).reshape(1, -1)
+        except (TypeError, ValueError):
             return False
-        reason = zero_load_reason(robot)
-        if reason:
-            return False
-        enclosure = _g_enclosure(robot, self.lower, self.upper)
-        if isinstance(enclosure, str):
-            return False
-        G, _ = enclosure
-        p, m = G.shape
-        if self.verdict == NO:
-            v = np.asarray(self.separator, dtype=float)
-            return v.shape == (p,) and bool(np.all(matmul(v, G).hi < 0))
-        if not _tile_faces(self.faces, self.patches, p):
-            return False
-        cols = np.asarray(self.columns)
-        if cols.shape != self.faces.shape or np.any((cols < 0) | (cols >= m)):
-            return False
-        dots = _patch_dots(self.faces, self.patches, G)  # (P, m)
-        rows = np.arange(cols.shape[0])
-        if not np.all(dots.lo[rows, cols] > 0):
-            return False
-        bound = _margin_bound(
-            robot, self.faces, self.patches, dots, self.horizon, self.tension_budget
+        if patches.ndim != 3 and faces.size == 0:
+            patches = np.zeros((0, max(p - 1, 0), 2))
+        if sep.shape != (p,):
+            sep = np.full(p, np.nan) if self.verdict != NO else np.full(p, np.nan)
+            if self.verdict == NO:
+                return False
+        batch = CertifiedBoxes(
+            lo,
+            hi,
+            np.array([self.verdict], dtype=np.int8),
+            np.array([self.reason]),
+            np.array([self.margin_lower]),
+            self.horizon,
+            self.tension_budget,
+            self.margin_unit,
+            np.array([0, faces.size], dtype=np.int64),
+            faces,
+            patches,
+            columns,
+            sep[None, :],
         )
-        return bool(self.margin_lower <= bound)
+        return bool(batch.verify(robot)[0])
 
     def __str__(self) -> str:
         box = ", ".join(f"[{a:.6g}, {b:.6g}]" for a, b in zip(self.lower, self.upper, strict=True))
@@ -209,7 +225,16 @@ def _checked_box(robot: Any, lower: Any, upper: Any) -> tuple[np.ndarray, np.nda
 
 def inverse_enclosure(M: Interval) -> Interval | str:
     """An enclosure of M^-1 for every matrix in the interval matrix M
-    (..., n, n), or the reason there is none.
+    (n, n), or the reason there is none (:func:`inverse_enclosures` on a
+    batch of one)."""
+    inv, reason = inverse_enclosures(M[None])
+    return reason[0] if reason[0] else inv[0]
+
+
+def inverse_enclosures(M: Interval) -> tuple[Interval, np.ndarray]:
+    """Enclosures of M^-1 for every matrix in each interval matrix of a
+    batch M (B, n, n), and per matrix the reason there is none ("" where
+    there is one; that entry of the enclosure is then meaningless).
 
     With X the inverse of M's midpoint and E = I - M X (an interval
     matrix), ``M^-1 = X (I - E)^-1 = X + X E (I + E + E^2 + ...)``; when
@@ -218,68 +243,81 @@ def inverse_enclosure(M: Interval) -> Interval | str:
     every entry of ``sum_k |E|^k`` is at most 1 / (1 - delta)). Rounded
     upward throughout."""
     mid = M.midpoint
-    if not np.all(np.isfinite(mid)):
-        return "the mass matrix is not finite in the box"
-    try:
-        X = np.linalg.inv(mid)
-    except np.linalg.LinAlgError:
-        return "the mass matrix is singular in the box"
-    if not np.all(np.isfinite(X)):
-        return "the mass matrix is singular in the box"
-    n = X.shape[-1]
-    E = Interval(np.eye(n)) - matmul(M, X)
+    B, n = mid.shape[0], mid.shape[-1]
+    reason = np.full(B, "", dtype=object)
+    finite = np.all(np.isfinite(mid), axis=(1, 2)) & np.all(
+        np.isfinite(M.lo) & np.isfinite(M.hi), axis=(1, 2)
+    )
+    reason[~finite] = "the mass matrix is not finite in the box"
+    eye = np.eye(n)
+    safe = np.where(finite[:, None, None], mid, eye)
+    with np.errstate(all="ignore"):
+        cond = np.linalg.cond(safe)
+    singular = finite & ~(cond < 1.0 / np.finfo(float).eps)
+    reason[singular] = "the mass matrix is singular in the box"
+    bad = ~finite | singular
+    X = np.linalg.inv(np.where(bad[:, None, None], eye, safe))
+    Mx = Interval._raw(
+        np.where(bad[:, None, None], eye, M.lo), np.where(bad[:, None, None], eye, M.hi)
+    )
+    E = Interval(eye) - matmul(Mx, X)
     absE = Interval(E.magnitude)
-    delta = float(absE.sum(axis=-1).hi.max(initial=0.0))
-    if not delta < CERTIFY_NEUMANN_MAX:
-        return (
+    delta = absE.sum(axis=-1).hi.max(axis=-1)  # (B,)
+    loose = ~bad & ~(delta < CERTIFY_NEUMANN_MAX)
+    for b in np.flatnonzero(loose):
+        reason[b] = (
             f"the mass matrix may be singular or varies too much over the box (Neumann "
-            f"bound {delta:.3g}, needs < {CERTIFY_NEUMANN_MAX:g})"
+            f"bound {delta[b]:.3g}, needs < {CERTIFY_NEUMANN_MAX:g})"
         )
-    tail = (Interval(1.0) - Interval(delta)).reciprocal().hi  # 1 / (1 - delta), up
+    delta = np.where(bad | loose, 0.0, delta)
+    tail = (Interval(1.0) - Interval(delta)).reciprocal().hi  # 1 / (1 - delta), up (B,)
     E2 = matmul(absE, absE)
-    series = Interval(np.eye(n)) + absE + matmul(E2, np.ones((n, n))) * float(tail)
+    series = Interval(eye) + absE + matmul(E2, np.ones((n, n))) * tail[:, None, None]
     R = matmul(Interval(matmul(X, E).magnitude), Interval(series.hi)).hi
-    return Interval(X) + Interval(-R, R)
+    return Interval(X) + Interval(-R, R), reason
 
 
-def _g_enclosure(robot: Any, lo: np.ndarray, hi: np.ndarray) -> tuple[Interval, Any] | str:
-    """(G = C_q M^-1 (-L^T) over the box (p, m), or the reason there is
-    none): the mean-value form of G, from its value at the box's centre
-    and the enclosure of its derivatives over the box,
+def _g_enclosure(robot: Any, lo: np.ndarray, hi: np.ndarray) -> tuple[Interval, np.ndarray]:
+    """G = C_q M^-1 (-L^T) over each box of a batch (B, p, m), and per box
+    the reason there is none ("" where there is one): the mean-value form
+    of G, from its value at the box's centre and the enclosure of its
+    derivatives over the box,
     ``dG = dC M^-1 (-L^T) - C M^-1 dM M^-1 (-L^T) + C M^-1 (-dL^T)``."""
     at_centre, over_box, radius = box_jets(robot, lo, hi)
-    if np.any(over_box["segment_may_vanish"]):
-        return "a cable segment may have zero length in the box"
+    B = lo.shape[0]
+    reason = np.full(B, "", dtype=object)
+    vanish = np.asarray(over_box["segment_may_vanish"]).reshape(B, -1).any(axis=1)
+    reason[vanish] = "a cable segment may have zero length in the box"
     # the value at the centre (a point box: round-off wide)
-    Mc_inv = inverse_enclosure(at_centre["mass_matrix"][0])
-    if isinstance(Mc_inv, str):
-        return Mc_inv
-    C_c, L_c = at_centre["output_jacobian"][0], at_centre["jacobian"][0]
+    Mc_inv, why = inverse_enclosures(at_centre["mass_matrix"])
+    reason = np.where(reason == "", why, reason)
+    C_c, L_c = at_centre["output_jacobian"], at_centre["jacobian"]
     G_c = matmul(C_c, matmul(Mc_inv, -L_c.mT))
     # the derivatives over the box
     C, L, M = (over_box[k] for k in ("output_jacobian", "jacobian", "mass_matrix"))
     C, L, M = (
-        x if isinstance(x, Jet) else Jet(x, Interval(np.zeros(x.shape + (lo.size,))))
+        x if isinstance(x, Jet) else Jet(x, Interval(np.zeros(x.shape + (lo.shape[1],))))
         for x in (C, L, M)
     )
-    M_box = mean_value(at_centre["mass_matrix"], M, radius)[0]
-    Minv = inverse_enclosure(M_box)
-    if isinstance(Minv, str):
-        return Minv
-    C0, L0 = C.val[0], L.val[0]
-    dC, dL, dM = (x.grad[0] for x in (C, L, M))  # (..., nv) on the last axis
-    B = matmul(Minv, -L0.mT)  # M^-1 (-L^T) over the box (nv, m)
-    CMinv = matmul(C0, Minv)  # (p, nv)
-    parts = []
-    for k in range(lo.size):
-        dCk, dLk, dMk = dC[..., k], dL[..., k], dM[..., k]
-        parts.append(matmul(dCk, B) - matmul(CMinv, matmul(dMk, B)) + matmul(CMinv, -dLk.mT))
-    spread = None
-    for k, part in enumerate(parts):
-        term = part * Interval(-radius[0, k], radius[0, k])
-        spread = term if spread is None else spread + term
-    G = G_c if spread is None else G_c + spread
-    return G, None
+    M_box = mean_value(at_centre["mass_matrix"], M, radius)
+    Minv, why = inverse_enclosures(M_box)
+    reason = np.where(reason == "", why, reason)
+    C0, L0 = C.val, L.val
+    B_mat = matmul(Minv, -L0.mT)  # M^-1 (-L^T) over the box (B, nv, m)
+    CMinv = matmul(C0, Minv)  # (B, p, nv)
+    G = G_c
+    for k in range(lo.shape[1]):
+        dCk, dLk, dMk = C.grad[..., k], L.grad[..., k], M.grad[..., k]
+        part = matmul(dCk, B_mat) - matmul(CMinv, matmul(dMk, B_mat)) + matmul(CMinv, -dLk.mT)
+        r = radius[:, k][:, None, None]
+        G = G + part * Interval(-r, r)
+    # boxes without an enclosure: the whole line, finite so arithmetic runs
+    failed = (reason != "") | ~np.all(np.isfinite(G.lo) & np.isfinite(G.hi), axis=(1, 2))
+    reason[failed & (reason == "")] = "the enclosure of the linearisation is not finite"
+    G = Interval._raw(
+        np.where(failed[:, None, None], -1.0, G.lo), np.where(failed[:, None, None], 1.0, G.hi)
+    )
+    return G, reason
 
 
 def _face_points(faces: np.ndarray, p: int) -> tuple[np.ndarray, np.ndarray]:
@@ -306,27 +344,30 @@ def _patch_directions(faces: np.ndarray, patches: np.ndarray, p: int) -> Interva
 
 
 def _patch_dots(faces: np.ndarray, patches: np.ndarray, G: Interval) -> Interval:
-    """w . g_j over each patch and the box, (P, m) intervals."""
-    W = _patch_directions(faces, patches, G.shape[0])
-    return matmul(W, G)
+    """w . g_j over each patch and its box, (P, m) intervals; G (P, p, m)
+    holds each patch's box's enclosure."""
+    W = _patch_directions(faces, patches, G.shape[-2])
+    return matmul(W[:, None, :], G)[:, 0, :]
 
 
-def _margin_bound(robot, faces, patches, dots: Interval, horizon, budget) -> float:
-    """A lower bound of r_T = (T^2 / 2) min_|v|=1 sum_j hi_j max(0, v . g_j)
-    over the box, patch by patch (v = w / |w|, |w| <= sqrt(1 + sum t^2))."""
+def _margin_bounds(robot, owner, faces, patches, dots: Interval, n_boxes, horizon, budget):
+    """Lower bounds (n_boxes,) of r_T = (T^2 / 2) min_|v|=1 sum_j hi_j
+    max(0, v . g_j) over each box, patch by patch (v = w / |w|, |w| <=
+    sqrt(1 + sum t^2)); ``owner`` (P,) is each patch's box. Boxes without
+    patches get +inf."""
     from cdpm.dynamics.reach import reach_bounds
 
     m = dots.shape[1]
     _, hi = reach_bounds(robot, np.zeros((1, m)), budget)
     support = (Interval(np.maximum(dots.lo, 0.0)) * hi[0]).sum(axis=-1).lo  # (P,)
-    t_max = np.max(np.abs(patches), axis=2) if patches.size else np.zeros((faces.shape[0], 0))
+    t_max = np.max(np.abs(patches), axis=2) if patches.shape[1] else np.zeros((faces.size, 0))
     w_norm = (Interval(1.0) + Interval(t_max).square().sum(axis=-1)).sqrt().hi
     per_patch = (Interval(support) * Interval(w_norm).reciprocal()).lo
-    rho = float(np.min(per_patch, initial=np.inf))
-    if not rho > 0:
-        return 0.0
+    rho = np.full(n_boxes, np.inf)
+    np.minimum.at(rho, owner, per_patch)
     half_t2 = (Interval(horizon).square() * 0.5).lo
-    return float((Interval(rho) * half_t2).lo)
+    bound = (Interval(np.where(rho > 0, rho, 0.0)) * half_t2).lo
+    return np.where(rho > 0, bound, 0.0)
 
 
 def _tile_faces(faces: np.ndarray, patches: np.ndarray, p: int) -> bool:
@@ -363,50 +404,83 @@ def _tile_faces(faces: np.ndarray, patches: np.ndarray, p: int) -> bool:
     return True
 
 
-def _prove_yes(G: Interval, p: int):
-    """Cut the direction cube's faces into patches until a column proves
-    each, within CERTIFY_MAX_PATCHES patches. Returns (faces, patches,
-    columns) or None."""
-    faces = np.arange(2 * p)
-    patches = np.tile(np.array([[-1.0, 1.0]]), (2 * p, p - 1, 1)) if p > 1 else np.zeros((2, 0, 2))
-    done_f, done_p, done_c = [], [], []
+def _prove_yes(G: Interval, live: np.ndarray):
+    """Cut the direction cube's faces into patches, box by box, until a
+    column proves each patch, within CERTIFY_MAX_PATCHES patches per box.
+
+    Args:
+        G: the enclosures (B, p, m).
+        live: (B,) the boxes to try.
+
+    Returns:
+        (proven (B,) bool, owner (P,), faces (P,), patches (P, p - 1, 2),
+        columns (P,)): the patches of the proven boxes, sorted by box.
+    """
+    B, p, _ = G.shape
+    boxes = np.flatnonzero(live)
+    owner = np.repeat(boxes, 2 * p)
+    faces = np.tile(np.arange(2 * p), boxes.size)
+    patches = np.tile(np.array([-1.0, 1.0]), (owner.size, p - 1, 1))
+    failed = ~live.copy()
+    count = np.zeros(B, dtype=np.int64)  # proven patches per box
+    done_o, done_f, done_p, done_c = [], [], [], []
     angle_scale = np.maximum(np.abs(G.lo), np.abs(G.hi))
-    col_norm = Interval(Interval(angle_scale).square().sum(axis=0).hi).sqrt().hi  # (m,)
-    while faces.size:
-        dots = _patch_dots(faces, patches, G)  # (P, m)
-        t_max = np.max(np.abs(patches), axis=2) if p > 1 else np.zeros((faces.shape[0], 0))
+    col_norm = Interval(Interval(angle_scale).square().sum(axis=1).hi).sqrt().hi  # (B, m)
+    while owner.size:
+        Gp = G[owner]
+        dots = _patch_dots(faces, patches, Gp)  # (P, m)
+        t_max = np.max(np.abs(patches), axis=2) if p > 1 else np.zeros((owner.size, 0))
         w_norm = np.sqrt(1.0 + np.sum(t_max * t_max, axis=1)) * (1 + 1e-12)
         # proven with an angular margin: the per-pose analyser calls sets
         # within its angle tolerance of the boundary NO
-        angle = dots.lo / (w_norm[:, None] * col_norm[None, :])
+        angle = dots.lo / (w_norm[:, None] * col_norm[owner])
         best = np.argmax(angle, axis=1)
-        ok = angle[np.arange(faces.size), best] > CERTIFY_ANGLE_MIN
+        ok = angle[np.arange(owner.size), best] > CERTIFY_ANGLE_MIN
+        # a patch no column can prove (each upper bound <= 0) fails its box
+        hopeless = ~ok & np.all(dots.hi <= 0, axis=1)
+        failed[owner[hopeless]] = True
+        done_o.append(owner[ok])
         done_f.append(faces[ok])
         done_p.append(patches[ok])
         done_c.append(best[ok])
-        faces, patches = faces[~ok], patches[~ok]
-        total = sum(x.size for x in done_f) + 2 * faces.size
-        if not faces.size:
+        np.add.at(count, owner[ok], 1)
+        keep = ~ok
+        owner, faces, patches = owner[keep], faces[keep], patches[keep]
+        if p == 1:
+            failed[owner] = True
+        open_count = np.bincount(owner, minlength=B)
+        failed |= count + 2 * open_count > CERTIFY_MAX_PATCHES
+        keep = ~failed[owner]
+        owner, faces, patches = owner[keep], faces[keep], patches[keep]
+        if not owner.size:
             break
-        if p == 1 or total > CERTIFY_MAX_PATCHES:
-            return None
         # bisect each open patch along its widest side
         widths = patches[:, :, 1] - patches[:, :, 0]
         side = np.argmax(widths, axis=1)
-        rows = np.arange(faces.size)
+        rows = np.arange(owner.size)
         mid = 0.5 * (patches[rows, side, 0] + patches[rows, side, 1])
         first, second = patches.copy(), patches.copy()
         first[rows, side, 1] = mid
         second[rows, side, 0] = mid
+        owner = np.concatenate([owner, owner])
         faces = np.concatenate([faces, faces])
         patches = np.concatenate([first, second])
-    return np.concatenate(done_f), np.concatenate(done_p), np.concatenate(done_c)
+    proven = live & ~failed
+    if not done_o:
+        e = np.zeros(0, dtype=np.int64)
+        return proven, e, e, np.zeros((0, max(p - 1, 0), 2)), e
+    o = np.concatenate(done_o)
+    keep = proven[o]
+    order = np.argsort(o[keep], kind="stable")
+    pick = lambda parts: np.concatenate(parts)[keep][order]  # noqa: E731
+    return proven, o[keep][order], pick(done_f), pick(done_p), pick(done_c)
 
 
-def _separator(G: Interval, p: int) -> np.ndarray | None:
-    """A point v with v . g_j < 0 for every column over the box, tried from
-    CERTIFY_SEPARATOR_CANDIDATES directions (the best at the box's centre
-    first), or None."""
+def _separators(G: Interval, live: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A point v per box with v . g_j < 0 for every column over the box,
+    tried from CERTIFY_SEPARATOR_CANDIDATES directions (the 8 best at the
+    box's centre); returns (found (B,) bool, v (B, p), NaN where none)."""
+    B, p, _ = G.shape
     Gc = G.midpoint
     if p == 1:
         candidates = np.array([[1.0], [-1.0]])
@@ -417,14 +491,308 @@ def _separator(G: Interval, p: int) -> np.ndarray | None:
         rng = np.random.default_rng(0)
         candidates = rng.standard_normal((CERTIFY_SEPARATOR_CANDIDATES, p))
         candidates /= np.linalg.norm(candidates, axis=1, keepdims=True)
-    score = np.max(candidates @ Gc, axis=1)
-    for i in np.argsort(score)[:8]:
-        if score[i] >= 0:
-            break
-        v = candidates[i]
-        if np.all(matmul(v, G).hi < 0):
-            return v
-    return None
+    score = np.max(np.einsum("cp,bpm->bcm", candidates, Gc), axis=2)  # (B, C)
+    order = np.argsort(score, axis=1)[:, :8]
+    found = np.zeros(B, dtype=bool)
+    v = np.full((B, p), np.nan)
+    rows = np.arange(B)
+    for k in range(order.shape[1]):
+        i = order[:, k]
+        try_now = live & ~found & (score[rows, i] < 0)
+        if not try_now.any():
+            continue
+        cand = candidates[i[try_now]]
+        ok = np.all(matmul(cand[:, None, :], G[try_now])[:, 0, :].hi < 0, axis=1)
+        idx = np.flatnonzero(try_now)[ok]
+        found[idx] = True
+        v[idx] = cand[ok]
+    return found, v
+
+
+@dataclass(frozen=True)
+class CertifiedBoxes:
+    """Verdicts on a batch of K boxes, and their proofs, as flat arrays
+    (what :func:`certify_boxes` returns and a certified map stores).
+
+    Attributes:
+        lower, upper: the boxes, natural coordinates [rad or m], (K, nv).
+        verdict: YES, NO or MARGINAL per box (K,) int8 (cdpm's codes).
+        reason: one line per box (K,) str: how it was decided, or why not.
+        margin_lower: YES boxes: a lower bound of r_T over the box [the
+            outputs' unit]; NaN for the others (K,).
+        horizon, tension_budget: T [s] and budget [N] of those bounds.
+        margin_unit: the outputs' common unit.
+        patch_start: box k's direction patches are rows
+            ``patch_start[k]:patch_start[k + 1]`` of the next three (K + 1,).
+        faces, patches, columns: every YES box's patches (P,), (P, p - 1, 2),
+            (P,) (see :class:`BoxCertificate`).
+        separator: NO boxes' separators (K, p); NaN rows for the others.
+    """
+
+    lower: np.ndarray
+    upper: np.ndarray
+    verdict: np.ndarray
+    reason: np.ndarray
+    margin_lower: np.ndarray
+    horizon: float
+    tension_budget: float
+    margin_unit: str
+    patch_start: np.ndarray
+    faces: np.ndarray
+    patches: np.ndarray
+    columns: np.ndarray
+    separator: np.ndarray
+
+    def __len__(self) -> int:
+        return int(self.verdict.shape[0])
+
+    def certificate(self, k: int) -> BoxCertificate:
+        """Box k's :class:`BoxCertificate`."""
+        a, b = int(self.patch_start[k]), int(self.patch_start[k + 1])
+        verdict = int(self.verdict[k])
+        return BoxCertificate(
+            self.lower[k].copy(),
+            self.upper[k].copy(),
+            verdict,
+            str(self.reason[k]),
+            margin_lower=float(self.margin_lower[k]),
+            horizon=self.horizon,
+            tension_budget=self.tension_budget,
+            faces=self.faces[a:b].copy(),
+            patches=self.patches[a:b].copy(),
+            columns=self.columns[a:b].copy(),
+            separator=self.separator[k].copy() if verdict == NO else np.zeros(0),
+            margin_unit=self.margin_unit,
+        )
+
+    def select(self, rows: Any) -> CertifiedBoxes:
+        """The boxes picked by ``rows`` (a boolean mask or indices), in that
+        order, with their proofs."""
+        rows = np.arange(len(self))[rows]
+        counts = np.diff(self.patch_start)[rows]
+        new_start = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+        patch_rows = np.repeat(self.patch_start[rows] - new_start[:-1], counts) + np.arange(
+            new_start[-1]
+        )
+        return CertifiedBoxes(
+            self.lower[rows],
+            self.upper[rows],
+            self.verdict[rows],
+            self.reason[rows],
+            self.margin_lower[rows],
+            self.horizon,
+            self.tension_budget,
+            self.margin_unit,
+            new_start,
+            self.faces[patch_rows],
+            self.patches[patch_rows],
+            self.columns[patch_rows],
+            self.separator[rows],
+        )
+
+    def verify(self, robot: Any) -> np.ndarray:
+        """Re-check every box's proof from the model (:meth:`BoxCertificate.verify`),
+        (K,) bool: False for MARGINAL boxes and for every proof that fails."""
+        K = len(self)
+        ok = np.zeros(K, dtype=bool)
+        decided = np.isin(self.verdict, (YES, NO))
+        if not decided.any() or zero_load_reason(robot):
+            return ok
+        try:
+            lo, hi = _checked_boxes(robot, self.lower, self.upper)
+        except InputError:
+            return ok
+        G, why = _g_enclosure(robot, lo, hi)
+        usable = decided & (why == "")
+        p, m = G.shape[1], G.shape[2]
+        no = usable & (self.verdict == NO)
+        sep = np.asarray(self.separator, dtype=float)
+        if sep.shape == (K, p) and no.any():
+            v = sep[no]
+            with np.errstate(invalid="ignore"):
+                ok[no] = np.all(matmul(v[:, None, :], G[no])[:, 0, :].hi < 0, axis=1) & np.all(
+                    np.isfinite(v), axis=1
+                )
+        yes = np.flatnonzero(usable & (self.verdict == YES))
+        start = np.asarray(self.patch_start)
+        if not yes.size or start.shape != (K + 1,) or np.any(np.diff(start) < 0):
+            return ok
+        faces, patches, cols = (np.asarray(x) for x in (self.faces, self.patches, self.columns))
+        P = faces.shape[0]
+        if start[-1] != P or patches.shape[:1] != (P,) or cols.shape != (P,) or start[0] != 0:
+            return ok
+        owner = np.repeat(np.arange(K), np.diff(start))
+        rows = np.isin(owner, yes)
+        if np.any((cols[rows] < 0) | (cols[rows] >= m)) or patches.shape[1:] != (p - 1, 2):
+            return ok
+        tiled = np.array(
+            [
+                _tile_faces(faces[start[k] : start[k + 1]], patches[start[k] : start[k + 1]], p)
+                for k in yes
+            ]
+        )
+        o, f, pt, c = owner[rows], faces[rows], patches[rows], cols[rows]
+        dots = _patch_dots(f, pt, G[o])
+        proves = dots.lo[np.arange(o.size), c] > 0
+        all_prove = np.ones(K, dtype=bool)
+        np.logical_and.at(all_prove, o, proves)
+        bound = _margin_bounds(robot, o, f, pt, dots, K, self.horizon, self.tension_budget)
+        ok[yes] = tiled & all_prove[yes] & (self.margin_lower[yes] <= bound[yes])
+        return ok
+
+
+def concatenate_boxes(parts: list[CertifiedBoxes]) -> CertifiedBoxes:
+    """One batch of the boxes of several (same robot and reach settings)."""
+    first = parts[0]
+    starts, offset = [np.zeros(1, dtype=np.int64)], 0
+    for part in parts:
+        starts.append(part.patch_start[1:] + offset)
+        offset += int(part.patch_start[-1])
+    cat = lambda name: np.concatenate([getattr(x, name) for x in parts])  # noqa: E731
+    return CertifiedBoxes(
+        cat("lower"),
+        cat("upper"),
+        cat("verdict"),
+        cat("reason"),
+        cat("margin_lower"),
+        first.horizon,
+        first.tension_budget,
+        first.margin_unit,
+        np.concatenate(starts),
+        cat("faces"),
+        cat("patches"),
+        cat("columns"),
+        cat("separator"),
+    )
+
+
+def _checked_boxes(robot: Any, lower: Any, upper: Any) -> tuple[np.ndarray, np.ndarray]:
+    """The corners as (K, nv) arrays, each box checked (:func:`_checked_box`)."""
+    nv = robot.nv
+    try:
+        lo = np.array(lower, dtype=float)
+        hi = np.array(upper, dtype=float)
+    except (TypeError, ValueError):
+        raise InputError(
+            f"boxes need lower and upper natural coordinates, {nv} numbers each"
+        ) from None
+    if lo.ndim != 2 or lo.shape != hi.shape or lo.shape[1] != nv:
+        raise InputError(
+            f"boxes need (K, {nv}) lower and upper natural coordinates; "
+            f"got {lo.shape} and {hi.shape}"
+        )
+    low, high = coordinate_limits(robot.model)
+    if lo.size and (
+        not np.all(np.isfinite(lo) & np.isfinite(hi))
+        or np.any(lo > hi)
+        or np.any((lo < low) | (hi > high))
+    ):
+        for k in range(lo.shape[0]):  # the first bad box, named
+            _checked_box(robot, lo[k], hi[k])
+    return lo, hi
+
+
+def certify_boxes(
+    robot: Any,
+    lower: Any,
+    upper: Any,
+    *,
+    horizon: Any = None,
+    tension_budget: Any = None,
+) -> CertifiedBoxes:
+    """Prove positive output controllability (POC) on each box of a batch,
+    or its absence, or say why neither (module docstring); one vectorised
+    pass over the batch.
+
+    Args:
+        robot: a :class:`~cdpm.model.robot.CableRobot` (or a spec path) with
+            revolute and prismatic joints.
+        lower, upper: the boxes' corners, natural coordinates (K, nv) [rad or m],
+            within the URDF's joint limits.
+        horizon, tension_budget: T [s] and budget [N] of the reach-margin
+            bound (default: the model's, as :func:`cdpm.analyze_pose`), or a
+            :class:`~cdpm.dynamics.reach.ReachSettings` as ``horizon``.
+
+    Returns:
+        :class:`CertifiedBoxes`.
+
+    Raises:
+        InputError: corners of the wrong shape, not finite, lower > upper,
+            beyond the joint limits, or a joint type certified boxes do not
+            support (named).
+    """
+    # loaded on first use: the model and the reach settings
+    from cdpm.dynamics.reach import reach_settings, reach_unit
+    from cdpm.model.robot import load_robot
+
+    if not hasattr(robot, "spec"):
+        robot = load_robot(robot)
+    lo, hi = _checked_boxes(robot, lower, upper)
+    reach = reach_settings(robot, horizon, tension_budget)
+    T, F = reach.horizon, reach.tension_budget
+    unit = reach_unit(robot.output_units)
+    K, p = lo.shape[0], len(robot.output_names)
+    verdict = np.full(K, MARGINAL, dtype=np.int8)
+    margin = np.full(K, np.nan)
+    separator = np.full((K, p), np.nan)
+    empty = np.zeros(0, dtype=np.int64)
+    no_patches = (empty, np.zeros((0, max(p - 1, 0), 2)), empty)
+    structural = zero_load_reason(robot)
+    if structural or K == 0:
+        box_kinematics(robot, lo[:1], hi[:1]) if K else None  # unsupported joints: an error
+        reason = np.full(K, structural, dtype=object)
+        return CertifiedBoxes(
+            lo,
+            hi,
+            verdict,
+            reason,
+            margin,
+            T,
+            F,
+            unit,
+            np.zeros(K + 1, dtype=np.int64),
+            *no_patches,
+            separator,
+        )
+    G, reason = _g_enclosure(robot, lo, hi)
+    live = reason == ""
+    proven, owner, faces, patches, columns = _prove_yes(G, live)
+    n_patches = np.bincount(owner, minlength=K)
+    verdict[proven] = YES
+    if proven.any():
+        dots = _patch_dots(faces, patches, G[owner])
+        bound = _margin_bounds(robot, owner, faces, patches, dots, K, T, F)
+        margin[proven] = bound[proven]
+        for k in np.flatnonzero(proven):
+            reason[k] = (
+                "every output direction has a cable that moves the outputs into it at every "
+                f"pose of the box ({n_patches[k]} direction patches)"
+            )
+    found, v = _separators(G, live & ~proven)
+    verdict[found] = NO
+    separator[found] = v[found]
+    reason[found] = "no cable moves the outputs along the separator v at any pose of the box"
+    left = live & ~proven & ~found
+    reason[left] = (
+        "neither proven: the box may hold a NO set, or it is too wide for the enclosures "
+        "(bisect it)"
+    )
+    start = np.concatenate([[0], np.cumsum(n_patches)]).astype(np.int64)
+    return CertifiedBoxes(
+        lo,
+        hi,
+        verdict,
+        reason.astype(str),
+        margin,
+        T,
+        F,
+        unit,
+        start,
+        faces,
+        patches,
+        columns,
+        separator,
+    )
 
 
 def certify_box(
@@ -436,7 +804,8 @@ def certify_box(
     tension_budget: Any = None,
 ) -> BoxCertificate:
     """Prove positive output controllability (POC) on a whole box of poses,
-    or its absence, or say why neither (module docstring).
+    or its absence, or say why neither (module docstring):
+    :func:`certify_boxes` on a batch of one.
 
     Args:
         robot: a :class:`~cdpm.model.robot.CableRobot` (or a spec path) with
@@ -454,61 +823,10 @@ def certify_box(
             beyond the joint limits, or a joint type certified boxes do not
             support (named).
     """
-    # loaded on first use: the model and the reach settings
-    from cdpm.dynamics.reach import reach_settings, reach_unit
     from cdpm.model.robot import load_robot
 
     if not hasattr(robot, "spec"):
         robot = load_robot(robot)
     lo, hi = _checked_box(robot, lower, upper)
-    reach = reach_settings(robot, horizon, tension_budget)
-    T, F = reach.horizon, reach.tension_budget
-    unit = reach_unit(robot.output_units)
-    reason = zero_load_reason(robot)
-    if reason:
-        box_kinematics(robot, lo, hi)  # unsupported joints are an error all the same
-        return BoxCertificate(lo, hi, MARGINAL, reason, horizon=T, tension_budget=F)
-    enclosure = _g_enclosure(robot, lo, hi)
-    if isinstance(enclosure, str):
-        return BoxCertificate(lo, hi, MARGINAL, enclosure, horizon=T, tension_budget=F)
-    G, _ = enclosure
-    p = G.shape[0]
-    proof = _prove_yes(G, p)
-    if proof is not None:
-        faces, patches, columns = proof
-        dots = _patch_dots(faces, patches, G)
-        bound = _margin_bound(robot, faces, patches, dots, T, F)
-        return BoxCertificate(
-            lo,
-            hi,
-            YES,
-            f"every output direction has a cable that moves the outputs into it at every pose "
-            f"of the box ({faces.size} direction patches)",
-            margin_lower=bound,
-            margin_unit=unit,
-            horizon=T,
-            tension_budget=F,
-            faces=faces,
-            patches=patches,
-            columns=columns,
-        )
-    v = _separator(G, p)
-    if v is not None:
-        return BoxCertificate(
-            lo,
-            hi,
-            NO,
-            "no cable moves the outputs along the separator v at any pose of the box",
-            horizon=T,
-            tension_budget=F,
-            separator=v,
-        )
-    return BoxCertificate(
-        lo,
-        hi,
-        MARGINAL,
-        "neither proven: the box may hold a NO set, or it is too wide for the enclosures "
-        "(bisect it)",
-        horizon=T,
-        tension_budget=F,
-    )
+    batch = certify_boxes(robot, lo[None], hi[None], horizon=horizon, tension_budget=tension_budget)
+    return batch.certificate(0)

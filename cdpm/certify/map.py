@@ -25,11 +25,11 @@ from typing import Any
 
 import numpy as np
 
-from cdpm.certify.box import BoxCertificate, certify_box, zero_load_reason
+from cdpm.certify.box import BoxCertificate, CertifiedBoxes, certify_boxes, zero_load_reason
 from cdpm.errors import InputError
 from cdpm.verdicts import MARGINAL, NO, YES
 
-__all__ = ["CertifiedMap", "certify_map"]
+__all__ = ["CertifiedMap", "certify_map", "certify_cells"]
 
 #: default least box width, as a fraction of its axis' initial cell width
 MIN_FRACTION = 1.0 / 16
@@ -45,9 +45,15 @@ class CertifiedMap:
         lower, upper: each box's corners over the mapped coordinates (K, d).
         verdict: YES, NO or MARGINAL per box (K,) int8 (cdpm's codes).
         margin_lower: YES boxes: a lower bound of r_T on the box; else NaN (K,).
-        certificates: each box's :class:`~cdpm.certify.box.BoxCertificate`.
         wraps: per mapped coordinate, whether its axis spans a full turn
             [-pi, pi] (its two ends are one face).
+        boxes: the boxes over all natural coordinates with their proofs
+            (:class:`~cdpm.certify.box.CertifiedBoxes`, K of them).
+        cell: the initial cell each box was cut from (K,), cells numbered
+            in C order over the axes' cells.
+        edges: the axes' cell edges, one array per mapped coordinate.
+        min_fraction: the least box width, as a fraction of its axis'
+            initial cell width.
     """
 
     coordinates: tuple[str, ...]
@@ -56,8 +62,16 @@ class CertifiedMap:
     upper: np.ndarray
     verdict: np.ndarray
     margin_lower: np.ndarray
-    certificates: tuple[BoxCertificate, ...]
     wraps: tuple[bool, ...]
+    boxes: CertifiedBoxes
+    cell: np.ndarray
+    edges: tuple[np.ndarray, ...]
+    min_fraction: float
+
+    @property
+    def certificates(self) -> tuple[BoxCertificate, ...]:
+        """Each box's :class:`~cdpm.certify.box.BoxCertificate` (built on demand)."""
+        return tuple(self.boxes.certificate(k) for k in range(len(self.boxes)))
 
     @property
     def volumes(self) -> np.ndarray:
@@ -96,8 +110,12 @@ class CertifiedMap:
         return labels
 
     def verify(self, robot: Any) -> bool:
-        """Re-check every YES and NO box's certificate from the model."""
-        return all(c.verify(robot) for c in self.certificates if c.verdict in (YES, NO))
+        """Re-check every YES and NO box's certificate from the model (one
+        vectorised pass, :meth:`~cdpm.certify.box.CertifiedBoxes.verify`)."""
+        decided = np.isin(self.verdict, (YES, NO))
+        if not np.array_equal(self.boxes.verdict, self.verdict):
+            return False
+        return bool(np.all(self.boxes.verify(robot)[decided]))
 
     def __str__(self) -> str:
         f = self.fractions()
@@ -217,44 +235,97 @@ def certify_map(
     )
     grids = np.meshgrid(*[np.arange(e.size - 1) for e in edges], indexing="ij")
     cells = np.stack([g.reshape(-1) for g in grids], axis=1)
-    queue = [
-        (
-            np.array([e[c] for e, c in zip(edges, cell, strict=True)]),
-            np.array([e[c + 1] for e, c in zip(edges, cell, strict=True)]),
-        )
-        for cell in cells
-    ]
-    structural = zero_load_reason(robot)
+    queue_lo = np.stack([e[cells[:, i]] for i, e in enumerate(edges)], axis=1)
+    queue_hi = np.stack([e[cells[:, i] + 1] for i, e in enumerate(edges)], axis=1)
     # the reach settings once for every box (the default horizon may need
     # a linearisation of the robot)
     reach = reach_settings(robot, horizon, tension_budget)
-    done: list[BoxCertificate] = []
-    box_lo, box_hi = [], []
-    while queue:
-        lo, hi = queue.pop()
-        full_lo, full_hi = natural.copy(), natural.copy()
-        full_lo[index], full_hi[index] = lo, hi
-        cert = certify_box(robot, full_lo, full_hi, horizon=reach)
-        relative = (hi - lo) / widths
-        if (
-            cert.verdict == MARGINAL
-            and not structural
-            and relative.max() > min_fraction * (1 + 1e-9)
-        ):
-            k = int(np.argmax(relative))
-            mid = 0.5 * (lo[k] + hi[k])
-            first_hi, second_lo = hi.copy(), lo.copy()
-            first_hi[k] = mid
-            second_lo[k] = mid
-            queue.append((lo, first_hi))
-            queue.append((second_lo, hi))
-            continue
-        done.append(cert)
-        box_lo.append(lo)
-        box_hi.append(hi)
-    verdict = np.array([c.verdict for c in done], dtype=np.int8)
-    margin = np.array([c.margin_lower if c.verdict == YES else np.nan for c in done])
+    boxes, cell = certify_cells(
+        robot, natural, index, queue_lo, queue_hi, widths, min_fraction, reach
+    )
     names = tuple(robot.coordinate_names[i] for i in index)
     return CertifiedMap(
-        names, natural, np.array(box_lo), np.array(box_hi), verdict, margin, tuple(done), wraps
+        names,
+        natural,
+        boxes.lower[:, index],
+        boxes.upper[:, index],
+        boxes.verdict.copy(),
+        boxes.margin_lower.copy(),
+        wraps,
+        boxes,
+        cell,
+        tuple(edges),
+        float(min_fraction),
     )
+
+
+#: boxes certified in one vectorised pass (bounds the memory of a pass)
+BATCH = 4096
+
+
+def certify_cells(
+    robot: Any,
+    natural: np.ndarray,
+    index: list[int],
+    lower: np.ndarray,
+    upper: np.ndarray,
+    widths: np.ndarray,
+    min_fraction: float,
+    reach: Any,
+) -> tuple[CertifiedBoxes, np.ndarray]:
+    """Certify cells, bisecting undecided boxes level by level.
+
+    Args:
+        robot: the robot.
+        natural: the base pose, natural coordinates (nv,).
+        index: the mapped coordinates' positions in ``natural`` (d,).
+        lower, upper: the cells over the mapped coordinates (N, d).
+        widths: each axis' initial cell width (d,), the unit of a box's
+            relative width.
+        min_fraction: least relative width of a box that is still bisected
+            further.
+        reach: the reach settings of the margin bounds.
+
+    Returns:
+        (boxes, cell): the final boxes over all natural coordinates, and for
+        each the row of ``lower`` it was cut from (K,).
+    """
+    from cdpm.certify.box import concatenate_boxes
+
+    structural = zero_load_reason(robot)
+    pend_lo = np.asarray(lower, dtype=float)
+    pend_hi = np.asarray(upper, dtype=float)
+    pend_cell = np.arange(pend_lo.shape[0])
+    parts, cells = [], []
+    while pend_lo.shape[0]:
+        full_lo = np.tile(natural, (pend_lo.shape[0], 1))
+        full_hi = full_lo.copy()
+        full_lo[:, index] = pend_lo
+        full_hi[:, index] = pend_hi
+        results = [
+            certify_boxes(robot, full_lo[s : s + BATCH], full_hi[s : s + BATCH], horizon=reach)
+            for s in range(0, full_lo.shape[0], BATCH)
+        ]
+        got = concatenate_boxes(results)
+        relative = (pend_hi - pend_lo) / widths
+        split = (
+            (got.verdict == MARGINAL)
+            & (not structural)
+            & (relative.max(axis=1) > min_fraction * (1 + 1e-9))
+        )
+        parts.append(got.select(~split))
+        cells.append(pend_cell[~split])
+        lo, hi, c = pend_lo[split], pend_hi[split], pend_cell[split]
+        k = np.argmax(relative[split], axis=1)
+        rows = np.arange(k.size)
+        mid = 0.5 * (lo[rows, k] + hi[rows, k])
+        first_hi, second_lo = hi.copy(), lo.copy()
+        first_hi[rows, k] = mid
+        second_lo[rows, k] = mid
+        pend_lo = np.concatenate([lo, second_lo])
+        pend_hi = np.concatenate([first_hi, hi])
+        pend_cell = np.concatenate([c, c])
+    boxes = concatenate_boxes(parts)
+    cell = np.concatenate(cells) if cells else np.zeros(0, dtype=np.int64)
+    order = np.argsort(cell, kind="stable")
+    return boxes.select(order), cell[order]
