@@ -25,11 +25,12 @@ from typing import Any
 
 import numpy as np
 
-from cdpm.certify.box import BoxCertificate, CertifiedBoxes, certify_boxes, zero_load_reason
+from cdpm.certify.box import BoxCertificate, CertifiedBoxes
+from cdpm.certify.subdivide import certify_cells
 from cdpm.errors import InputError
 from cdpm.verdicts import MARGINAL, NO, YES
 
-__all__ = ["CertifiedMap", "certify_map", "certify_cells"]
+__all__ = ["CertifiedMap", "certify_map"]
 
 #: default least box width, as a fraction of its axis' initial cell width
 MIN_FRACTION = 1.0 / 16
@@ -257,75 +258,3 @@ def certify_map(
         tuple(edges),
         float(min_fraction),
     )
-
-
-#: boxes certified in one vectorised pass (bounds the memory of a pass)
-BATCH = 4096
-
-
-def certify_cells(
-    robot: Any,
-    natural: np.ndarray,
-    index: list[int],
-    lower: np.ndarray,
-    upper: np.ndarray,
-    widths: np.ndarray,
-    min_fraction: float,
-    reach: Any,
-) -> tuple[CertifiedBoxes, np.ndarray]:
-    """Certify cells, bisecting undecided boxes level by level.
-
-    Args:
-        robot: the robot.
-        natural: the base pose, natural coordinates (nv,).
-        index: the mapped coordinates' positions in ``natural`` (d,).
-        lower, upper: the cells over the mapped coordinates (N, d).
-        widths: each axis' initial cell width (d,), the unit of a box's
-            relative width.
-        min_fraction: least relative width of a box that is still bisected
-            further.
-        reach: the reach settings of the margin bounds.
-
-    Returns:
-        (boxes, cell): the final boxes over all natural coordinates, and for
-        each the row of ``lower`` it was cut from (K,).
-    """
-    from cdpm.certify.box import concatenate_boxes
-
-    structural = zero_load_reason(robot)
-    pend_lo = np.asarray(lower, dtype=float)
-    pend_hi = np.asarray(upper, dtype=float)
-    pend_cell = np.arange(pend_lo.shape[0])
-    parts, cells = [], []
-    while pend_lo.shape[0]:
-        full_lo = np.tile(natural, (pend_lo.shape[0], 1))
-        full_hi = full_lo.copy()
-        full_lo[:, index] = pend_lo
-        full_hi[:, index] = pend_hi
-        results = [
-            certify_boxes(robot, full_lo[s : s + BATCH], full_hi[s : s + BATCH], horizon=reach)
-            for s in range(0, full_lo.shape[0], BATCH)
-        ]
-        got = concatenate_boxes(results)
-        relative = (pend_hi - pend_lo) / widths
-        split = (
-            (got.verdict == MARGINAL)
-            & (not structural)
-            & (relative.max(axis=1) > min_fraction * (1 + 1e-9))
-        )
-        parts.append(got.select(~split))
-        cells.append(pend_cell[~split])
-        lo, hi, c = pend_lo[split], pend_hi[split], pend_cell[split]
-        k = np.argmax(relative[split], axis=1)
-        rows = np.arange(k.size)
-        mid = 0.5 * (lo[rows, k] + hi[rows, k])
-        first_hi, second_lo = hi.copy(), lo.copy()
-        first_hi[rows, k] = mid
-        second_lo[rows, k] = mid
-        pend_lo = np.concatenate([lo, second_lo])
-        pend_hi = np.concatenate([first_hi, hi])
-        pend_cell = np.concatenate([c, c])
-    boxes = concatenate_boxes(parts)
-    cell = np.concatenate(cells) if cells else np.zeros(0, dtype=np.int64)
-    order = np.argsort(cell, kind="stable")
-    return boxes.select(order), cell[order]
