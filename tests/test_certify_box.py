@@ -183,3 +183,33 @@ def test_inverse_enclosure_holds_every_inverse():
             sample = M0 + w * (t + t.T) / 2
             assert np.all(inv.contains(np.linalg.inv(sample)))
     assert isinstance(inverse_enclosure(Interval(np.zeros((2, 2)), np.eye(2))), str)
+
+
+def test_a_box_where_the_output_jacobian_loses_rank_is_undecided_with_the_reason(planar):
+    """At q = (0, 0) the tip's x coordinate is stationary (C_q = 0): no box
+    around it is proven, and the reason names the rank drop."""
+    cert = certify_box(planar, [-0.01, -0.01], [0.01, 0.01])
+    assert cert.verdict == MARGINAL and "C_q may lose rank" in cert.reason
+    # away from it the reason is the general one
+    far = certify_box(planar, [0.5, 1.0], [0.51, 1.01])
+    assert far.verdict == YES and "lose rank" not in far.reason
+
+
+def test_the_batched_certifier_is_the_single_one_box_by_box(planar_xy):
+    """certify_box is certify_boxes on a batch of one: the same verdicts,
+    bounds and proofs whatever the batch."""
+    from cdpm.certify.box import certify_boxes
+
+    rng = np.random.default_rng(11)
+    c = rng.uniform(-3.0, 3.0, (40, 2))
+    h = rng.choice([0.002, 0.01, 0.02], (40, 1))
+    batch = certify_boxes(planar_xy, c - h, c + h)
+    for k in range(40):
+        one = certify_box(planar_xy, c[k] - h[k], c[k] + h[k])
+        got = batch.certificate(k)
+        assert one.verdict == got.verdict and one.reason == got.reason
+        assert np.array_equal(one.faces, got.faces) and np.array_equal(one.columns, got.columns)
+        assert one.margin_lower == got.margin_lower or (
+            np.isnan(one.margin_lower) and np.isnan(got.margin_lower)
+        )
+    assert np.all(batch.verify(planar_xy) == np.isin(batch.verdict, (YES, NO)))

@@ -277,9 +277,12 @@ def inverse_enclosures(M: Interval) -> tuple[Interval, np.ndarray]:
     return Interval(X) + Interval(-R, R), reason
 
 
-def _g_enclosure(robot: Any, lo: np.ndarray, hi: np.ndarray) -> tuple[Interval, np.ndarray]:
-    """G = C_q M^-1 (-L^T) over each box of a batch (B, p, m), and per box
-    the reason there is none ("" where there is one): the mean-value form
+def _g_enclosure(
+    robot: Any, lo: np.ndarray, hi: np.ndarray
+) -> tuple[Interval, np.ndarray, np.ndarray]:
+    """G = C_q M^-1 (-L^T) over each box of a batch (B, p, m), per box the
+    reason there is none ("" where there is one), and per box whether the
+    output Jacobian C_q may lose rank in it (B,) bool: the mean-value form
     of G, from its value at the box's centre and the enclosure of its
     derivatives over the box,
     ``dG = dC M^-1 (-L^T) - C M^-1 dM M^-1 (-L^T) + C M^-1 (-dL^T)``."""
@@ -303,6 +306,12 @@ def _g_enclosure(robot: Any, lo: np.ndarray, hi: np.ndarray) -> tuple[Interval, 
     Minv, why = inverse_enclosures(M_box)
     reason = np.where(reason == "", why, reason)
     C0, L0 = C.val, L.val
+    # can C_q lose rank in the box? (sigma_min of its midpoint against the
+    # spread; only names the reason of a box left undecided, never a proof)
+    sigma = np.linalg.svd(C0.midpoint, compute_uv=False)
+    rank_may_drop = ~(
+        sigma.min(axis=-1, initial=np.inf) > np.linalg.norm(C0.width / 2, axis=(1, 2))
+    )
     B_mat = matmul(Minv, -L0.mT)  # M^-1 (-L^T) over the box (B, nv, m)
     CMinv = matmul(C0, Minv)  # (B, p, nv)
     G = G_c
@@ -317,7 +326,7 @@ def _g_enclosure(robot: Any, lo: np.ndarray, hi: np.ndarray) -> tuple[Interval, 
     G = Interval._raw(
         np.where(failed[:, None, None], -1.0, G.lo), np.where(failed[:, None, None], 1.0, G.hi)
     )
-    return G, reason
+    return G, reason, rank_may_drop
 
 
 def _face_points(faces: np.ndarray, p: int) -> tuple[np.ndarray, np.ndarray]:
@@ -602,7 +611,7 @@ class CertifiedBoxes:
             lo, hi = _checked_boxes(robot, self.lower, self.upper)
         except InputError:
             return ok
-        G, why = _g_enclosure(robot, lo, hi)
+        G, why, _ = _g_enclosure(robot, lo, hi)
         usable = decided & (why == "")
         p, m = G.shape[1], G.shape[2]
         no = usable & (self.verdict == NO)
@@ -754,7 +763,7 @@ def certify_boxes(
             *no_patches,
             separator,
         )
-    G, reason = _g_enclosure(robot, lo, hi)
+    G, reason, rank_may_drop = _g_enclosure(robot, lo, hi)
     live = reason == ""
     proven, owner, faces, patches, columns = _prove_yes(G, live)
     n_patches = np.bincount(owner, minlength=K)
@@ -776,6 +785,10 @@ def certify_boxes(
     reason[left] = (
         "neither proven: the box may hold a NO set, or it is too wide for the enclosures "
         "(bisect it)"
+    )
+    reason[left & rank_may_drop] = (
+        "neither proven: the output Jacobian C_q may lose rank in the box (a singular pose "
+        "of the outputs, where no cable moves them in some direction)"
     )
     start = np.concatenate([[0], np.cumsum(n_patches)]).astype(np.int64)
     return CertifiedBoxes(
