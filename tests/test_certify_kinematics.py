@@ -257,3 +257,67 @@ def test_the_odd_model_has_the_joints_it_claims(robots):
     kinds = [model.joints[j].shortname() for j in range(1, model.njoints)]
     assert kinds == ["JointModelRevoluteUnaligned", "JointModelPX", "JointModelRY"]
     assert textwrap.dedent(ODD_SPEC).count("- name:") == 4
+
+
+def _prismatic_root(tmp_path):
+    """The odd chain with its first joint made prismatic (along an unaligned axis)."""
+    urdf = ODD_URDF.replace(
+        '<joint name="j1" type="revolute">', '<joint name="j1" type="prismatic">'
+    )
+    urdf = urdf.replace(
+        '<axis xyz="0 0.6 0.8"/>\n    <limit lower="-3.2" upper="3.2"',
+        '<axis xyz="0 0.6 0.8"/>\n    <limit lower="-0.4" upper="0.4"',
+    )
+    (tmp_path / "odd.urdf").write_text(urdf)
+    (tmp_path / "odd.yaml").write_text(ODD_SPEC)
+    return cdpm.load_robot(tmp_path / "odd.yaml")
+
+
+@pytest.mark.parametrize("name", [*SHIPPED, "odd", "odd_prismatic_root"])
+def test_the_root_frame_jets_hold_every_value_and_derivative(robots, tmp_path, name):
+    """box_jets evaluates the chain in the frame of the joint carrying every
+    body: its values (L, lengths, outputs, C_q, M) and derivatives must still
+    hold the robot's at every pose of the box (derivatives against central
+    differences, within their error)."""
+    from cdpm.certify.kinematics import box_jets
+
+    robot = _prismatic_root(tmp_path) if name == "odd_prismatic_root" else robots[name]
+    rng = np.random.default_rng(7)
+    keys = {
+        "lengths": "lengths",
+        "jacobian": "jacobian",
+        "output_jacobian": "output_jacobian",
+        "mass_matrix": "mass_matrix",
+        "output": "output",
+    }
+    for width in (1e-3, 0.05):
+        lo, hi = random_box(rng, robot, width)
+        if name == "odd_prismatic_root":
+            lo[0], hi[0] = -0.1, -0.1 + width
+            lo[1], hi[1] = 0.0, width
+        centre_vals, over_box, _ = box_jets(robot, lo, hi)
+        qs = rng.uniform(lo, hi, (40, robot.nv))
+        kin = robot.kinematics_batch(qs, dynamics=True)
+        centre = robot.kinematics_batch(((lo + hi) / 2)[None], dynamics=True)
+        step = 1e-6
+        for key, attr in keys.items():
+            jet = over_box[key]
+            val = jet.val if hasattr(jet, "val") else jet
+            got = getattr(kin, attr)
+            assert val[0].contains(got).all(), (name, key, width)
+            assert centre_vals[key][0].contains(getattr(centre, attr)[0]).all(), (name, key)
+            # (a rotation output's value is only bounded by [-pi, pi]: its
+            # derivative is C_q's row, checked there)
+            if not hasattr(jet, "grad") or key == "output":
+                continue
+            for k in range(robot.nv):
+                e = np.zeros(robot.nv)
+                e[k] = step
+                plus = getattr(robot.kinematics_batch(qs + e, dynamics=True), attr)
+                minus = getattr(robot.kinematics_batch(qs - e, dynamics=True), attr)
+                fd = (plus - minus) / (2 * step)
+                g = jet.grad[0][..., k]
+                slack = 1e-5 * (1 + np.abs(fd))
+                inside = (fd >= g.lo - slack) & (fd <= g.hi + slack)
+                # poses within a step of the box's faces: the difference reaches outside
+                assert inside.all(), (name, key, width, k)

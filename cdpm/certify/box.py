@@ -305,7 +305,10 @@ def _g_enclosure(
     M_box = mean_value(at_centre["mass_matrix"], M, radius)
     Minv, why = inverse_enclosures(M_box)
     reason = np.where(reason == "", why, reason)
-    C0, L0 = C.val, L.val
+    # the values over the box in their mean-value forms (cut to the naive
+    # ones): tighter factors in the derivative's products below
+    C0 = mean_value(at_centre["output_jacobian"], C, radius)
+    L0 = mean_value(at_centre["jacobian"], L, radius)
     # can C_q lose rank in the box? (sigma_min of its midpoint against the
     # spread; only names the reason of a box left undecided, never a proof)
     sigma = np.linalg.svd(C0.midpoint, compute_uv=False)
