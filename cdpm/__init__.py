@@ -79,6 +79,7 @@ _EXPORTS: dict[str, str] = {
     "BoxCertificate": "cdpm.certify.box",
     "certify_map": "cdpm.certify.map",
     "CertifiedMap": "cdpm.certify.map",
+    "open_certified": "cdpm.certify.map",
     # margins with units and POC neighbourhoods
     "ReachSettings": "cdpm.dynamics.reach",
     "reach_settings": "cdpm.dynamics.reach",
@@ -177,7 +178,7 @@ if TYPE_CHECKING:  # pragma: no cover - for static type checkers only
     )
     from cdpm.caspr import CasprImport, CasprWarning, cable_sets, import_caspr  # noqa: F401
     from cdpm.certify.box import BoxCertificate, certify_box  # noqa: F401
-    from cdpm.certify.map import CertifiedMap, certify_map  # noqa: F401
+    from cdpm.certify.map import CertifiedMap, certify_map, open_certified  # noqa: F401
     from cdpm.dynamics.equilibrium import (  # noqa: F401
         EquilibriumResult,
         EquilibriumWarning,

@@ -31,6 +31,7 @@ COMMAND_MODULES = (
     "cdpm.cli.view",
     "cdpm.cli.picture",
     "cdpm.cli.map",
+    "cdpm.cli.certify",
     "cdpm.cli.plot",
     "cdpm.cli.path",
     "cdpm.cli.find",
@@ -43,6 +44,8 @@ examples:
   cdpm analyze models/two_link_planar/two_link_planar.yaml --q pi/6 pi/3 --json
   cdpm map models/two_link_vertical/two_link_vertical.yaml \\
       --axis q1=-pi:pi:121 --axis q2=-pi:pi:121 --out vertical.zarr --plot vertical.png
+  cdpm certify models/two_link_planar/two_link_planar.yaml \\
+      --axis q1=-pi:pi:61 --axis q2=-pi:pi:61 --out certified.zarr --plot certified.png
   cdpm path vertical.zarr --from nominal --to -2.6 2.4 --maximin --plot path.png
   cdpm find models/two_link_vertical --where poc --count 3
   cdpm verify models/two_link_planar/two_link_planar.yaml --pose nominal --plot verify.png
