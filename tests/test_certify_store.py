@@ -166,7 +166,7 @@ def test_a_sampled_map_store_is_not_a_certified_one(planar, tmp_path):
         certify_map(planar, AXES, min_fraction=MIN_FRACTION, store=sampled, workers=1)
     certified = tmp_path / "c.zarr"
     certify_map(planar, AXES, min_fraction=MIN_FRACTION, store=certified, workers=1)
-    with pytest.raises(InputError, match="not a cdpm map"):
+    with pytest.raises(InputError, match=r"is a certified map.*cdpm.open_certified"):
         cdpm.open_map(certified)
     with pytest.raises(InputError, match="not found"):
         open_certified(tmp_path / "missing.zarr")

@@ -703,6 +703,11 @@ def _open_map(path, index_values: dict | None = None):
         raise InputError(
             f"map store {p} cannot be read as a zarr group ({type(exc).__name__}: {reason}); {fix}"
         ) from exc
+    if ds.attrs.get("cdpm_kind") == "certified_map":
+        raise InputError(
+            f"{p} is a certified map (made by `cdpm certify`), not a sampled one: open it with "
+            "cdpm.open_certified; `cdpm path` takes either"
+        )
     if "cdpm_settings" not in ds.attrs:
         raise InputError(
             f"map store {p} is a zarr store but not a cdpm map (no cdpm_settings); {fix}"
