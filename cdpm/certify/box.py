@@ -4,7 +4,7 @@ The per-pose analysis decides positive output controllability (POC,
 seed paper Theorem 1) at one pose. A box ``Q = [lower, upper]`` of natural
 coordinates is *certified* YES when a proof covers every pose in it, and
 certified NO when one vector separates the inputs from some output
-direction at every pose in it (shared THEORY.md section 6).
+direction at every pose in it (docs/analysis.md, "Certified boxes").
 
 The case certified here is the seed paper's: **zero load** (no gravity, no
 external load, every tension bound from 0), so the equilibrium tension is
