@@ -74,6 +74,8 @@ _EXPORTS: dict[str, str] = {
     "poc_path": "cdpm.regions.paths",
     "POCPath": "cdpm.regions.paths",
     "NotConnectedError": "cdpm.regions.paths",
+    "certified_path": "cdpm.regions.certified",
+    "CertifiedPath": "cdpm.regions.certified",
     # certified boxes: POC proven on a whole box of poses
     "certify_box": "cdpm.certify.box",
     "BoxCertificate": "cdpm.certify.box",
@@ -85,6 +87,8 @@ _EXPORTS: dict[str, str] = {
     "reach_settings": "cdpm.dynamics.reach",
     "poc_neighbourhood": "cdpm.regions.neighbourhood",
     "Neighbourhood": "cdpm.regions.neighbourhood",
+    "certified_neighbourhood": "cdpm.regions.neighbourhood",
+    "CertifiedNeighbourhood": "cdpm.regions.neighbourhood",
     # searching for poses worth analysing (cdpm find)
     "find_poses": "cdpm.regions.search",
     "search_box": "cdpm.regions.search",
@@ -218,7 +222,13 @@ if TYPE_CHECKING:  # pragma: no cover - for static type checkers only
     from cdpm.pipeline import STATUS_CODES, VERDICT_CODES, evaluate_poses  # noqa: F401
     from cdpm.plotting import plot_map, save_map_plot  # noqa: F401
     from cdpm.plotting.picture import render_pose  # noqa: F401
-    from cdpm.regions.neighbourhood import Neighbourhood, poc_neighbourhood  # noqa: F401
+    from cdpm.regions.certified import CertifiedPath, certified_path  # noqa: F401
+    from cdpm.regions.neighbourhood import (  # noqa: F401
+        CertifiedNeighbourhood,
+        Neighbourhood,
+        certified_neighbourhood,
+        poc_neighbourhood,
+    )
     from cdpm.regions.paths import NotConnectedError, POCPath, poc_path  # noqa: F401
     from cdpm.regions.search import (  # noqa: F401
         FoundPose,

@@ -34,7 +34,9 @@ eigenvector when it fails), output and Kalman controllability, and wrench
 closure; then the reach margin r_T (how far, in T seconds, tension changes
 within the cables' bounds can move the outputs in every direction) and, with
 --neighbourhood R, the POC neighbourhood: how far around the pose every pose of
-a local map is POC.
+a local map is POC, and the largest box around the pose on which POC is proven
+for every pose (certified boxes, robots without load; a loaded robot is told
+why not).
 
 Each output prints with its unit (m, or rad for rotations and revolute joints)
 and, when it is a joint, a cable length or a weighted sum, its formula; r_T is
@@ -135,7 +137,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--neighbourhood",
         metavar="R",
         help="also map the poses within R [rad or m] of the pose (every natural coordinate) "
-        "and report the largest box and ball around it in which every pose is POC",
+        "and report the largest box and ball around it in which every sampled pose is POC, "
+        "and the largest box q +- h (h <= R) proven POC at every pose (certified boxes; "
+        "zero-load robots)",
     )
     parser.add_argument(
         "--points",
@@ -181,7 +185,8 @@ def run(args: argparse.Namespace) -> int:
     )
     best = _best_tension(robot, q, args) if search else None
     if search:
-        return _print_with_best(report, best, fmt, output)
+        certified = _certified_box(robot, q, radius, args)
+        return _print_with_best(report, best, fmt, output, certified)
     if not report.feasible:
         print(f"cdpm analyze: error: {_infeasible_words(report)}", file=sys.stderr)
     if fmt in ("npz", "mat"):
@@ -194,7 +199,14 @@ def run(args: argparse.Namespace) -> int:
         shapes = ", ".join(f"{k} {'x'.join(map(str, lin.to_arrays()[k].shape))}" for k in "ABC")
         print(f"wrote {output}: the linearisation of {_where(report)} ({shapes}; {fmt})")
         return 0
-    text = json_text(report.as_dict()) if fmt == "json" else str(report)
+    certified = _certified_box(robot, q, radius, args)
+    if fmt == "json":
+        data = report.as_dict()
+        if certified is not None:
+            data["certified_neighbourhood"] = certified[1]
+        text = json_text(data)
+    else:
+        text = str(report) if certified is None else f"{report}\n\n{certified[0]}"
     if output is None:
         print(text)
     else:
@@ -236,8 +248,25 @@ def _best_tension(robot: CableRobot, q, args: argparse.Namespace):
         return None
 
 
-def _print_with_best(report, best, fmt: str, output: Path | None) -> int:
-    """Print (or write) the report followed by the tension search."""
+def _certified_box(robot: CableRobot, q, radius, args: argparse.Namespace):
+    """With --neighbourhood R: the largest box around the pose proven POC
+    (:func:`cdpm.regions.neighbourhood.certified_neighbourhood`), as (text,
+    JSON data); None without --neighbourhood."""
+    if radius is None:
+        return None
+    # loaded when the command runs (cdpm --help stays fast)
+    from cdpm.regions.neighbourhood import certified_neighbourhood
+    from cdpm.text.regions import certified_neighbourhood_json, certified_neighbourhood_lines
+
+    box = certified_neighbourhood(
+        robot, q, radius, horizon=args.horizon, tension_budget=args.tension_budget
+    )
+    return "\n".join(certified_neighbourhood_lines(box)), certified_neighbourhood_json(box)
+
+
+def _print_with_best(report, best, fmt: str, output: Path | None, certified=None) -> int:
+    """Print (or write) the report followed by the tension search (and,
+    with --neighbourhood, the certified box: ``certified`` as (text, JSON))."""
     # loaded when the command runs (cdpm --help stays fast)
     from cdpm.text.tension import best_tension_json, best_tension_text
 
@@ -258,6 +287,8 @@ def _print_with_best(report, best, fmt: str, output: Path | None) -> int:
     if fmt == "json":
         data = report.as_dict()
         data["best_tension"] = None if best is None else best_tension_json(best)
+        if certified is not None:
+            data["certified_neighbourhood"] = certified[1]
         text = json_text(data)
     else:
         search = (
@@ -266,6 +297,8 @@ def _print_with_best(report, best, fmt: str, output: Path | None) -> int:
             else best_tension_text(best)
         )
         text = f"{report}\n\n{search}"
+        if certified is not None:
+            text += f"\n\n{certified[0]}"
     if output is None:
         print(text)
     else:

@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from cdpm.errors import InputError
 from cdpm.maps.regions import (
     as_dataset,
     default_radius,
@@ -27,6 +28,7 @@ from cdpm.verdicts import YES
 
 __all__ = [
     "MARGIN_VARIABLES",
+    "NotConnectedError",
     "bottleneck",
     "connected",
     "grid_graph",
@@ -38,6 +40,26 @@ __all__ = [
     "suspect_region_steps",
     "suspect_region_splits",
 ]
+
+
+class NotConnectedError(InputError):
+    """No path of POC poses joins the start and the goal.
+
+    Attributes:
+        start_region, goal_region: labels of the map poses nearest the start
+            and the goal (0: in no region).
+        start_pose, goal_pose: those map poses, {axis: value}.
+        start_size, goal_size: their regions' sizes [poses] (0 for none).
+    """
+
+    def __init__(self, message: str, start_region: int, goal_region: int, **info: Any):
+        super().__init__(message)
+        self.start_region, self.goal_region = int(start_region), int(goal_region)
+        self.start_pose = info.get("start_pose", {})
+        self.goal_pose = info.get("goal_pose", {})
+        self.start_size = int(info.get("start_size", 0))
+        self.goal_size = int(info.get("goal_size", 0))
+
 
 #: margin variables a path reads, in order of preference
 MARGIN_VARIABLES = ("reach_margin", "poc_margin")

@@ -45,12 +45,28 @@ from cdpm.pipeline.evaluate import (
 )
 from cdpm.printing import TextRepr
 from cdpm.regions.paths import suspect_edges
-from cdpm.verdicts import NOT_ANALYSED, STATUS_CODES, STATUS_LABELS, VERDICT_CODES, YES, verdict_key
+from cdpm.verdicts import (
+    MARGINAL,
+    NO,
+    NOT_ANALYSED,
+    STATUS_CODES,
+    STATUS_LABELS,
+    VERDICT_CODES,
+    YES,
+    verdict_key,
+)
 
 if TYPE_CHECKING:  # pragma: no cover
     from cdpm.dynamics.reach import ReachSettings
 
-__all__ = ["Neighbourhood", "SampledPose", "NonYesPose", "poc_neighbourhood"]
+__all__ = [
+    "Neighbourhood",
+    "SampledPose",
+    "NonYesPose",
+    "poc_neighbourhood",
+    "CertifiedNeighbourhood",
+    "certified_neighbourhood",
+]
 
 #: default grid budget on the closed-form (zero-load, nv <= 2) path [poses]
 DEFAULT_MAX_POSES = 20000
@@ -68,6 +84,15 @@ MAX_CORNER_RAY_COORDINATES = 10
 _CHUNK = 4096
 #: suspect edges resampled at least, however few poses the grid has
 _MIN_RESAMPLED_EDGES = 16
+#: certified_neighbourhood: half-widths R 2^(-j/2), j = 0 .. this, tried
+#: at once (the smallest is R / 2^15, about 3e-5 R)
+CERTIFIED_NEIGHBOURHOOD_HALVINGS = 30
+#: ... then this many half-widths evenly inside the bracket, twice (the
+#: bracket shrinks by a factor of 17 each time)
+CERTIFIED_NEIGHBOURHOOD_REFINE = 16
+#: ... each box bisected while undecided into about this many pieces at
+#: most (a box is proven when every piece is)
+CERTIFIED_NEIGHBOURHOOD_PIECES = 64
 
 
 @dataclass(frozen=True)
@@ -649,3 +674,248 @@ def poc_neighbourhood(
         suspect_cleared=suspect_cleared,
         suspect_least=suspect_least,
     )
+
+
+# ------------------------------------------------------- certified boxes
+
+
+@dataclass(frozen=True)
+class CertifiedNeighbourhood(TextRepr):
+    """The largest box around a pose on which POC is proven
+    (:func:`certified_neighbourhood`): every pose of the box, not only
+    sampled ones, is POC.
+
+    Printing it gives a short summary; :func:`cdpm.text.regions.certified_neighbourhood_lines`
+    gives the report's lines and :func:`cdpm.text.regions.certified_neighbourhood_json`
+    its JSON data.
+
+    Attributes:
+        model_name: name of the spec file.
+        pose_name: name of the pose, or None for an explicit q.
+        natural: natural coordinates of the pose (nv,) [rad or m].
+        coordinate_names: names of all nv natural coordinates.
+        coordinates: the varied coordinates (the box's sides), robot order.
+        radius: R, the largest half-width tried [rad or m].
+        half_width: h, the largest half-width proven (0 when none is):
+            the box is ``natural +- h`` along the varied coordinates (clipped
+            to the joint limits).
+        lower, upper: that box (nv,) [rad or m]; the pose itself when none
+            is proven.
+        clipped: the box was clipped to the joint limits (not centred).
+        verdict: YES when a box is proven; else NO (the smallest box tried
+            is proven NO) or MARGINAL (undecided), cdpm's codes.
+        margin_lower: a lower bound [margin_unit] of the reach margin r_T on
+            the box (within ``horizon`` and ``tension_budget``); NaN if none.
+        margin_unit: the unit of ``margin_lower``.
+        horizon: T [s] of that bound; tension_budget: its budget [N].
+        unproven: the least half-width tried that was not proven (the
+            bracket's upper end), or None when R itself is proven.
+        boxes_tried: boxes certified in the search.
+        reason: the proof's or the failure's reason, in words.
+    """
+
+    model_name: str
+    pose_name: str | None
+    natural: np.ndarray
+    coordinate_names: tuple[str, ...]
+    coordinates: tuple[str, ...]
+    radius: float
+    half_width: float
+    lower: np.ndarray
+    upper: np.ndarray
+    clipped: bool
+    verdict: int
+    margin_lower: float
+    margin_unit: str
+    horizon: float
+    tension_budget: float
+    unproven: float | None
+    boxes_tried: int
+    reason: str
+
+    @property
+    def proven(self) -> bool:
+        """A box of positive half-width is proven POC YES."""
+        return self.verdict == YES and self.half_width > 0
+
+    def __str__(self) -> str:
+        # a summary; cdpm.text.regions.certified_neighbourhood_lines gives the report's lines
+        where = f"pose {self.pose_name!r}" if self.pose_name else "the given q"
+        head = f"certified POC box around {where} ({self.model_name})"
+        if not self.proven:
+            return f"{head}: none proven within {self.radius:.4g}: {self.reason}"
+        return (
+            f"{head}: half-width {self.half_width:.4g} (of at most {self.radius:.4g}); "
+            f"r_T >= {self.margin_lower:.4g} {self.margin_unit} on it"
+        )
+
+
+def certified_neighbourhood(
+    robot: CableRobot | str | os.PathLike,
+    q: Any,
+    radius: Any,
+    *,
+    coordinates: Sequence[str] | None = None,
+    horizon: Any = None,
+    tension_budget: Any = None,
+    pose_name: str | None = None,
+) -> CertifiedNeighbourhood:
+    """The largest box ``q +- h`` (h <= radius, along every varied
+    coordinate) on which POC YES is proven by
+    :func:`cdpm.certify.box.certify_boxes`: every pose of it is POC.
+
+    The half-width is found by bisection without a loop of single boxes:
+    one batch of half-widths ``R 2^(-j / 2)`` (j = 0 ..
+    CERTIFIED_NEIGHBOURHOOD_HALVINGS) brackets it between the largest proven
+    and the next larger one; then two batches of
+    CERTIFIED_NEIGHBOURHOOD_REFINE half-widths evenly inside the bracket
+    narrow it. A larger box holds the smaller ones, so a proven box
+    proves every box inside it; the search reports the largest proven.
+
+    Args:
+        robot: a :class:`~cdpm.model.robot.CableRobot` or the path of its cable spec.
+        q: a pose name, a configuration (nq,) or natural coordinates (nv,).
+        radius: R > 0 [rad or m], the largest half-width tried (a number
+            or an expression such as ``"pi/20"``).
+        coordinates: the coordinates to vary (default all nv); the others
+            stay at q.
+        horizon, tension_budget: of the reach-margin bound (as
+            :func:`cdpm.certify_box`).
+        pose_name: the pose's name in the result (default q when a name).
+
+    Returns:
+        :class:`CertifiedNeighbourhood` (``proven`` False, with the reason,
+        for a robot outside the certified case, e.g. under load or with a
+        joint type certified boxes do not support, or a pose with no
+        provable box).
+
+    Raises:
+        InputError: a bad radius, coordinates or pose.
+    """
+    # loaded on first use
+    from cdpm.certify.subdivide import certify_cells
+
+    robot = robot if isinstance(robot, CableRobot) else load_robot(robot)
+    R = _check_radius(radius)
+    columns = _check_coordinates(robot, coordinates)
+    pose_name = q if pose_name is None and isinstance(q, str) else pose_name
+    natural = np.asarray(robot.to_natural(robot.as_q(q)), dtype=float)
+    low, high = coordinate_limits(robot.model)
+    reach = reach_settings(robot, horizon, tension_budget)
+    unit = reach_unit(robot.output_units)
+
+    def boxes(h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        lo = np.tile(natural, (h.size, 1))
+        hi = lo.copy()
+        lo[:, columns] -= h[:, None]
+        hi[:, columns] += h[:, None]
+        return np.maximum(lo, low), np.minimum(hi, high)
+
+    def result(h, lo, hi, verdict, margin, unproven, tried, reason):
+        return CertifiedNeighbourhood(
+            model_name=robot.spec.path.name,
+            pose_name=pose_name,
+            natural=natural.copy(),
+            coordinate_names=tuple(robot.coordinate_names),
+            coordinates=tuple(robot.coordinate_names[i] for i in columns),
+            radius=R,
+            half_width=float(h),
+            lower=lo,
+            upper=hi,
+            clipped=bool(np.any(lo[columns] > natural[columns] - h))
+            or bool(np.any(hi[columns] < natural[columns] + h)),
+            verdict=int(verdict),
+            margin_lower=float(margin),
+            margin_unit=unit,
+            horizon=float(reach.horizon),
+            tension_budget=float(reach.tension_budget),
+            unproven=unproven,
+            boxes_tried=tried,
+            reason=reason,
+        )
+
+    outside = np.flatnonzero((natural < low) | (natural > high))
+    if outside.size:
+        name = robot.coordinate_names[int(outside[0])]
+        raise InputError(f"the pose is outside the joint limits of {name}: no box to certify")
+    k = len(columns)
+    # pieces per box at most about CERTIFIED_NEIGHBOURHOOD_PIECES: bisections per side
+    depth = max(int(math.log2(CERTIFIED_NEIGHBOURHOOD_PIECES) // k), 0)
+    fraction = 2.0**-depth
+
+    def prove(h: np.ndarray):
+        """Each box q +- h, bisected while undecided down to ``fraction``
+        of its side (:func:`cdpm.certify.subdivide.certify_cells`): (proven
+        (n,), r_T lower bound (n,), pieces (n,), reason (n,), NO (n,), lo,
+        hi)."""
+        lo, hi = boxes(h)
+        out = (np.zeros(h.size, bool), np.full(h.size, np.nan), np.zeros(h.size, int))
+        reasons, no = [""] * h.size, np.zeros(h.size, bool)
+        for i in range(h.size):
+            widths = np.maximum(2.0 * h[i], np.finfo(float).tiny) * np.ones(k)
+            pieces, _ = certify_cells(
+                robot,
+                natural,
+                columns,
+                lo[i : i + 1, columns],
+                hi[i : i + 1, columns],
+                widths,
+                fraction,
+                reach,
+            )
+            verdict = np.asarray(pieces.verdict)
+            out[0][i] = bool(np.all(verdict == YES))
+            out[2][i] = verdict.size
+            if out[0][i]:
+                out[1][i] = float(np.min(pieces.margin_lower))
+                reasons[i] = (
+                    f"proven POC YES on each of {verdict.size} box(es) that tile it"
+                    if verdict.size > 1
+                    else str(pieces.reason[0])
+                )
+            else:
+                bad = int(np.flatnonzero(verdict != YES)[0])
+                no[i] = bool(np.any(verdict == NO))
+                reasons[i] = str(pieces.reason[bad])
+        return (*out, np.array(reasons, dtype=object), no, lo, hi)
+
+    h = R * 2.0 ** (-np.arange(CERTIFIED_NEIGHBOURHOOD_HALVINGS + 1) / 2.0)
+    # the halvings from R down until one is proven (the smaller ones are inside it)
+    tried, best, found = 0, -1, None
+    for start in range(0, h.size, CERTIFIED_NEIGHBOURHOOD_REFINE):
+        part = h[start : start + CERTIFIED_NEIGHBOURHOOD_REFINE]
+        try:
+            found = prove(part)
+        except InputError as exc:  # a joint type certified boxes do not support
+            return result(0.0, natural, natural, MARGINAL, math.nan, R, tried, str(exc))
+        tried += int(found[2].sum())
+        ok = np.flatnonzero(found[0])
+        if ok.size:
+            best = start + int(ok[0])
+            break
+    if best < 0:
+        last = found[3].size - 1  # the smallest box: what holds it back
+        reason = str(found[3][last])
+        verdict = MARGINAL
+        if found[4][last]:
+            verdict = NO
+            reason = f"a NO box lies within {h[-1]:.3g} of the pose: {reason}"
+        return result(0.0, natural, natural, verdict, math.nan, float(h[-1]), tried, reason)
+    j = best - start
+    h_yes, h_no = float(h[best]), (float(h[best - 1]) if best > 0 else None)
+    chosen = (found[5][j], found[6][j], float(found[1][j]), str(found[3][j]))
+    for _ in range(2):
+        if h_no is None:
+            break
+        inner = np.linspace(h_yes, h_no, CERTIFIED_NEIGHBOURHOOD_REFINE + 2)[1:-1]
+        refined = prove(inner)
+        tried += int(refined[2].sum())
+        ok = np.flatnonzero(refined[0])
+        if ok.size:
+            i = int(ok[-1])  # the largest proven
+            h_yes = float(inner[i])
+            chosen = (refined[5][i], refined[6][i], float(refined[1][i]), str(refined[3][i]))
+        larger = np.flatnonzero(~refined[0] & (inner > h_yes))
+        if larger.size:
+            h_no = float(inner[larger[0]])
+    return result(h_yes, chosen[0], chosen[1], YES, chosen[2], h_no, tried, chosen[3])

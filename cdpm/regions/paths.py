@@ -52,6 +52,7 @@ from cdpm.maps.regions import (
 from cdpm.printing import TextRepr
 from cdpm.regions.graph import (
     MARGIN_VARIABLES,
+    NotConnectedError,
     bottleneck,
     connected,
     margin_values,
@@ -73,25 +74,6 @@ __all__ = [
     "suspect_region_splits",
     "MARGIN_VARIABLES",
 ]
-
-
-class NotConnectedError(InputError):
-    """No path of POC poses joins the start and the goal.
-
-    Attributes:
-        start_region, goal_region: labels of the map poses nearest the start
-            and the goal (0: in no region).
-        start_pose, goal_pose: those map poses, {axis: value}.
-        start_size, goal_size: their regions' sizes [poses] (0 for none).
-    """
-
-    def __init__(self, message: str, start_region: int, goal_region: int, **info: Any):
-        super().__init__(message)
-        self.start_region, self.goal_region = int(start_region), int(goal_region)
-        self.start_pose = info.get("start_pose", {})
-        self.goal_pose = info.get("goal_pose", {})
-        self.start_size = int(info.get("start_size", 0))
-        self.goal_size = int(info.get("goal_size", 0))
 
 
 @dataclass(frozen=True)
@@ -198,11 +180,18 @@ class POCPath(TextRepr):
 # ------------------------------------------------------------------ graph
 
 
-def poc_path(map: Any, start: Any, goal: Any, *, maximise_margin: bool = False) -> POCPath:
+def poc_path(map: Any, start: Any, goal: Any, *, maximise_margin: bool = False) -> Any:
     """A path of POC map poses from the start to the goal, inside one region.
 
+    On a certified map (:class:`cdpm.certify.map.CertifiedMap`) this is
+    :func:`cdpm.regions.certified.certified_path`: straight steps, each
+    inside one certified YES box, every pose along them proven POC; the
+    start and goal are not moved and must lie in YES boxes of one certified
+    region; it returns a :class:`~cdpm.regions.certified.CertifiedPath`.
+
     Args:
-        map: a map (``xarray.Dataset``) or the path of its store.
+        map: a map (``xarray.Dataset``) or the path of its store, or a
+            certified map.
         start, goal: poses as for :func:`cdpm.maps.regions.region_of`:
             ``{coordinate: value}``, values in the map's axis order, the
             robot's natural coordinates, or a pose name of the map's spec;
@@ -224,6 +213,13 @@ def poc_path(map: Any, start: Any, goal: Any, *, maximise_margin: bool = False) 
         InputError: a pose off the map, of the wrong length or an unknown
             pose name; a map without margins with ``maximise_margin``.
     """
+    # loaded on first use: the certified maps
+    from cdpm.certify.map import CertifiedMap
+
+    if isinstance(map, CertifiedMap):
+        from cdpm.regions.certified import certified_path
+
+        return certified_path(map, start, goal, maximise_margin=maximise_margin)
     ds = as_dataset(map)
     if isinstance(start, str) or isinstance(goal, str):
         robot = map_robot(ds, "a pose name")

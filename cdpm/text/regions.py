@@ -1,7 +1,10 @@
 """Text and JSON of the regions' results: the POC neighbourhood of a pose
 (:class:`~cdpm.regions.neighbourhood.Neighbourhood`, in the pose report and
-``cdpm analyze --neighbourhood``) and a path of POC poses
-(:class:`~cdpm.regions.paths.POCPath`, ``cdpm path``)."""
+``cdpm analyze --neighbourhood``) and its certified box
+(:class:`~cdpm.regions.neighbourhood.CertifiedNeighbourhood`), a path of
+POC poses (:class:`~cdpm.regions.paths.POCPath`, ``cdpm path``) and a
+certified path (:class:`~cdpm.regions.certified.CertifiedPath`, ``cdpm path``
+on a certified map)."""
 
 from __future__ import annotations
 
@@ -15,7 +18,8 @@ from cdpm.printing import strict
 from cdpm.verdicts import STATUS_LABELS, YES, verdict_key
 
 if TYPE_CHECKING:  # pragma: no cover
-    from cdpm.regions.neighbourhood import Neighbourhood, SampledPose
+    from cdpm.regions.certified import CertifiedPath
+    from cdpm.regions.neighbourhood import CertifiedNeighbourhood, Neighbourhood, SampledPose
     from cdpm.regions.paths import POCPath
 
 
@@ -303,6 +307,162 @@ def path_json(path: POCPath) -> dict:
             "margins": path.margins,
             "indices": path.indices,
             "coordinates": path.coordinates,
+            "natural_names": list(path.natural_names),
+            "natural": path.natural,
+        }
+    )
+
+
+# ----------------------------------------------------------- certified box
+
+
+def certified_neighbourhood_lines(cn: CertifiedNeighbourhood) -> list[str]:
+    """The certified box around a pose in words (``cdpm analyze
+    --neighbourhood``; first line: the summary)."""
+    varied = ", ".join(cn.coordinates)
+    if not cn.proven:
+        return [
+            f"Certified POC box (q +- h over {varied}, h <= {cn.radius:.4g}): none proven: "
+            f"{cn.reason}"
+        ]
+    whole = " (all of R)" if cn.unproven is None else ""
+    out = [
+        f"Certified POC box (q +- h over {varied}, h <= {cn.radius:.4g}): half-width "
+        f"h = {cn.half_width:.4g}{whole}, proven POC YES at every pose of it; "
+        f"r_T >= {cn.margin_lower:.4g} {cn.margin_unit} on it (T {cn.horizon:.3g} s, "
+        f"budget {cn.tension_budget:.3g} N)"
+    ]
+    sides = ", ".join(
+        f"{c} [{cn.lower[i]:.5g}, {cn.upper[i]:.5g}]"
+        for i, c in enumerate(cn.coordinate_names)
+        if c in cn.coordinates
+    )
+    out.append(f"  box: {sides}" + ("; clipped to the joint limits" if cn.clipped else ""))
+    if cn.unproven is not None:
+        out.append(
+            f"  h in [{cn.half_width:.4g}, {cn.unproven:.4g}): the box of half-width "
+            f"{cn.unproven:.4g} was not proven (bisection)"
+        )
+    out.append(f"  proof: {cn.reason}; {cn.boxes_tried} boxes certified in the search")
+    return out
+
+
+def certified_neighbourhood_json(cn: CertifiedNeighbourhood) -> dict:
+    """Strict-JSON data of the certified box (null margin when none is proven)."""
+    names = cn.coordinate_names
+    return strict(
+        {
+            "model": cn.model_name,
+            "pose": cn.pose_name,
+            "coordinates": dict(zip(names, cn.natural.tolist(), strict=True)),
+            "varied": list(cn.coordinates),
+            "radius": cn.radius,
+            "proven": cn.proven,
+            "verdict": verdict_key(cn.verdict),
+            "half_width": cn.half_width,
+            "unproven": cn.unproven,
+            "lower": dict(zip(names, cn.lower.tolist(), strict=True)),
+            "upper": dict(zip(names, cn.upper.tolist(), strict=True)),
+            "clipped": cn.clipped,
+            "margin_lower": cn.margin_lower,
+            "margin_unit": cn.margin_unit,
+            "horizon": cn.horizon,
+            "tension_budget": cn.tension_budget,
+            "boxes_tried": cn.boxes_tried,
+            "reason": cn.reason,
+        }
+    )
+
+
+# ---------------------------------------------------------- certified path
+
+
+def _certified_unit(path: CertifiedPath) -> str:
+    units = {u for u in path.units if u}
+    if len(units) == 1:
+        return next(iter(units))
+    return "axis units" if not units else "m or rad"
+
+
+def certified_path_text(path: CertifiedPath) -> str:
+    """The certified path as ``cdpm path`` prints it on a certified map: the
+    summary, its smallest margin bound, seam crossings and the waypoints
+    (the first and last PRINT_WAYPOINTS / 2 of a longer path), each step
+    with its box's margin bound."""
+    kind = "largest smallest margin" if path.maximise_margin else "shortest"
+    k, n = path.n_waypoints, path.n_steps
+    lines = [
+        f"certified POC path ({kind}) in certified region {path.region} "
+        f"({path.region_boxes} YES boxes, {100 * path.region_volume:.1f}% of the mapped "
+        f"volume): {k} waypoint{'s' if k != 1 else ''}, {n} straight step"
+        f"{'s' if n != 1 else ''}, each inside one certified YES box "
+        f"({np.unique(path.boxes).size} boxes), length {path.length:.4g} "
+        f"[{_certified_unit(path)}]",
+        "  every pose along it is proven POC (no step can cross a NO set)",
+    ]
+    if n:
+        at = int(np.argmin(path.margins))
+        lines.append(
+            f"  smallest margin bound along it: r_T >= {path.min_margin:.4g} "
+            f"{path.margin_unit} (step {at}, waypoints {at} to {at + 1})"
+        )
+    if path.seam_crossings:
+        lines.append(
+            "  crosses the seam of a full-turn axis at waypoint(s) "
+            f"{', '.join(map(str, path.seam_crossings))}"
+        )
+    head = "  waypoints:  #  " + " ".join(f"{a:>10}" for a in path.coordinates)
+    lines.append(head + f"  r_T >= [{path.margin_unit}] to the next")
+    shown = path.map_waypoints
+    show = list(range(k))
+    if k > PRINT_WAYPOINTS:
+        half = PRINT_WAYPOINTS // 2
+        show = list(range(half)) + [-1] + list(range(k - half, k))
+    for i in show:
+        if i < 0:
+            lines.append(f"{'':>14}... ({k - PRINT_WAYPOINTS} more)")
+            continue
+        row = " ".join(f"{v:>10.4g}" for v in shown[i])
+        margin = f"  {path.margins[i]:.4g}" if i < n else ""
+        lines.append(f"  {'':>10}{i:>3}  {row}{margin}")
+    return "\n".join(lines)
+
+
+def certified_path_json(path: CertifiedPath) -> dict:
+    """Strict-JSON data of the certified path (``cdpm path --json`` on a
+    certified map): ``waypoints`` lists {coordinate: value} per waypoint,
+    ``steps`` each step's two ends in its box's coordinates with the box
+    and its margin bound."""
+    names = path.coordinates
+    shown = path.map_waypoints
+    return strict(
+        {
+            "certified": True,
+            "region": path.region,
+            "region_boxes": path.region_boxes,
+            "region_volume": path.region_volume,
+            "n_waypoints": path.n_waypoints,
+            "n_steps": path.n_steps,
+            "length": path.length,
+            "maximise_margin": path.maximise_margin,
+            "threshold": path.threshold,
+            "min_margin": path.min_margin,
+            "margin_unit": path.margin_unit,
+            "seam_crossings": list(path.seam_crossings),
+            "coordinates": list(names),
+            "units": list(path.units),
+            "start": dict(zip(names, path.start.tolist(), strict=True)),
+            "goal": dict(zip(names, path.goal.tolist(), strict=True)),
+            "waypoints": [dict(zip(names, row.tolist(), strict=True)) for row in shown],
+            "steps": [
+                {
+                    "from": dict(zip(names, step[0].tolist(), strict=True)),
+                    "to": dict(zip(names, step[1].tolist(), strict=True)),
+                    "box": int(box),
+                    "margin_lower": float(m),
+                }
+                for step, box, m in zip(path.steps, path.boxes, path.margins, strict=True)
+            ],
             "natural_names": list(path.natural_names),
             "natural": path.natural,
         }
