@@ -421,3 +421,14 @@ CERTIFY_MAX_PATCHES = 4096
 CERTIFY_NEUMANN_MAX = 0.9
 #: certified boxes: candidate separators tried for a NO proof
 CERTIFY_SEPARATOR_CANDIDATES = 720
+#: loaded boxes (cdpm.certify.loaded): a cable's equilibrium tension is
+#: proven inside or outside a bound only with a gap of this times the
+#: tension scale (the robot's force scale, or the largest tension): a
+#: thousand times the per-pose analyser's bound test (STATICS_RTOL), so the
+#: equilibrium solvers' round-off cannot move a cable across it
+CERTIFY_TENSION_GAP_RTOL = 1e-6
+#: loaded boxes: the free cables' output directions C_q M^-1 L^T (unit
+#: columns) must have a smallest singular value above this over the box:
+#: a thousand times the analyser's rank thresholds (RANK_RATIO,
+#: FREE_SPAN_RATIO), so it finds the same full rank at every pose
+CERTIFY_FREE_RANK_MIN = 1e-3

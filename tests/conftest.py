@@ -104,3 +104,21 @@ def execute_notebook(path: Path, timeout: int = 300):
         resources={"metadata": {"path": str(Path(path).parent)}},
     ).execute()
     return nb
+
+
+def neither_case_spec(tmp_path: Path) -> Path:
+    """The vertical arm (under gravity) with the zero-tension equilibrium
+    method: outside both cases certified boxes cover (zero load, and a
+    least-norm tension under load)."""
+    src = MODELS / "two_link_vertical"
+    for f in src.iterdir():
+        if f.suffix in (".urdf", ".yaml"):
+            shutil.copy(f, tmp_path)
+    path = tmp_path / "two_link_vertical.yaml"
+    text = path.read_text()
+    lines = [
+        "equilibrium: {method: zero}" if line.startswith("equilibrium:") else line
+        for line in text.splitlines()
+    ]
+    path.write_text("\n".join(lines) + "\n")
+    return path

@@ -219,8 +219,10 @@ def test_a_pose_name_needs_the_maps_spec(band):
         certified_path(_cells(SEPARATED), "nominal", [0.5, 0.5])
 
 
-def test_no_yes_box_at_all_says_so():
-    vertical = PAPER_SPEC.parents[1] / "two_link_vertical" / "two_link_vertical.yaml"
+def test_no_yes_box_at_all_says_so(tmp_path):
+    from tests.conftest import neither_case_spec
+
+    vertical = neither_case_spec(tmp_path)
     cmap = certify_map(vertical, {"q1": np.linspace(0.0, 0.4, 3)}, workers=1)
     with pytest.raises(NotConnectedError, match="the map has no certified YES box"):
         certified_path(cmap, [0.1], [0.3])

@@ -140,10 +140,25 @@ def test_corrupted_certificates_are_rejected(planar_xy, two_cables):
     assert not dataclasses.replace(no, separator=np.zeros(1)).verify(two_cables)
 
 
-def test_under_load_a_box_is_undecided_with_the_reason():
+def test_under_load_a_box_with_a_constant_taut_set_is_proven_and_verified():
     robot = _robot("two_link_vertical")
+    cert = certify_box(robot, [0.81177, -1.39128], [0.83177, -1.37128])
+    assert cert.verdict == YES and "constant active set" in cert.reason
+    assert cert.margin_lower == 0.0 and cert.verify(robot)
+    rng = np.random.default_rng(3)
+    qs = np.vstack([rng.uniform(cert.lower, cert.upper, (200, 2)), cert.lower, cert.upper])
+    assert np.all(np.asarray(cdpm.evaluate_poses(robot, qs)["poc"]) == YES)
+    assert not dataclasses.replace(cert, upper=cert.upper + 0.5).verify(robot)
+    assert not dataclasses.replace(cert, margin_lower=0.1).verify(robot)
+
+
+def test_a_robot_in_neither_case_is_undecided_with_the_reason(tmp_path):
+    from tests.conftest import neither_case_spec
+
+    robot = cdpm.load_robot(neither_case_spec(tmp_path))
     cert = certify_box(robot, [0.5, 1.0], [0.51, 1.01])
     assert cert.verdict == MARGINAL and "under load" in cert.reason
+    assert "loaded boxes cannot be certified" in cert.reason and "'zero'" in cert.reason
     assert not cert.verify(robot)
 
 

@@ -66,11 +66,20 @@ def test_one_output_two_cables_has_proven_no_volume():
     assert np.all(m.regions()[m.verdict == NO] == 0)
 
 
-def test_a_loaded_robot_is_undecided_at_once_with_the_reason():
+def test_a_loaded_robot_is_certified_where_its_taut_set_is_constant():
     robot = cdpm.load_robot(MODELS / "two_link_vertical" / "two_link_vertical.yaml")
+    m = certify_map(robot, {"q1": [0.7, 0.8, 0.9], "q2": [-1.5, -1.4, -1.3]}, min_fraction=0.25)
+    assert m.fractions()["yes"] > 0.5 and m.verify(robot)
+    assert np.all(m.verdict != NO)  # loaded boxes prove YES only
+
+
+def test_a_robot_in_neither_case_is_undecided_at_once_with_the_reason(tmp_path):
+    from tests.conftest import neither_case_spec
+
+    robot = cdpm.load_robot(neither_case_spec(tmp_path))
     m = certify_map(robot, {"q1": [0.0, 0.5, 1.0], "q2": [0.0, 1.0]})
     assert m.verdict.tolist() == [MARGINAL, MARGINAL]
-    assert all("under load" in c.reason for c in m.certificates)
+    assert all("loaded boxes cannot be certified" in c.reason for c in m.certificates)
 
 
 @pytest.mark.parametrize(

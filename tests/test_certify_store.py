@@ -183,8 +183,10 @@ def test_a_store_named_like_an_image_is_refused(planar, tmp_path):
         certify_map(planar, AXES, store=tmp_path / "c.png")
 
 
-def test_a_loaded_robot_is_stored_undecided_with_its_reason(tmp_path):
-    robot = cdpm.load_robot(MODELS / "two_link_vertical" / "two_link_vertical.yaml")
+def test_a_robot_in_neither_case_is_stored_undecided_with_its_reason(tmp_path):
+    from tests.conftest import neither_case_spec
+
+    robot = cdpm.load_robot(neither_case_spec(tmp_path))
     store = tmp_path / "v.zarr"
     m = certify_map(robot, {"q1": [0.0, 0.5, 1.0], "q2": [0.0, 1.0]}, store=store, workers=4)
     assert m.verdict.tolist() == [MARGINAL, MARGINAL]

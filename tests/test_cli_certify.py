@@ -79,8 +79,10 @@ def test_other_settings_on_a_store_name_the_fix(tmp_path, capsys):
     assert code == 0, err
 
 
-def test_a_loaded_robot_is_undecided_with_its_reason(capsys):
-    vertical = MODELS / "two_link_vertical" / "two_link_vertical.yaml"
+def test_a_robot_in_neither_case_is_undecided_with_its_reason(capsys, tmp_path):
+    from tests.conftest import neither_case_spec
+
+    vertical = neither_case_spec(tmp_path)
     code, out, err = _cli(
         ["certify", str(vertical), "--axis", "q1=0:1:2", "--axis", "q2=0:1:1", "--quiet"], capsys
     )

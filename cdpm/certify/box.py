@@ -34,10 +34,15 @@ and every q in Q: no admissible input moves the outputs along v (to first
 order) anywhere in Q. NO sets of zero area (the paper arm's curves) cannot
 be proven; boxes across them stay undecided (MARGINAL).
 
-Everything else is MARGINAL with a reason: a robot under load (its
-equilibrium tension varies over Q; not certified yet), joint damping, a
-pinned cable, a mass matrix that may be singular on Q, a cable segment that
-may vanish, or patches left unproven.
+A robot outside this case (under load, with a pretension, damped joints
+or a pinned cable) goes to :mod:`cdpm.certify.loaded` when its equilibrium
+is a least-norm tension in bounds: YES where the equilibrium's active set
+is constant on Q and the free cables alone move the outputs in every
+direction (no NO proofs there; the margin bound is the trivial 0).
+
+Everything else is MARGINAL with a reason: a robot in neither case, a
+mass matrix that may be singular on Q, a cable segment that may vanish, an
+output Jacobian that may lose rank, or patches left unproven.
 
 Every certificate carries what :meth:`BoxCertificate.verify` needs to
 re-check it from the model without any search: the patches with their
@@ -69,6 +74,7 @@ __all__ = [
     "BoxCertificate",
     "CertifiedBoxes",
     "certify_box",
+    "certified_case",
     "certify_boxes",
     "concatenate_boxes",
     "inverse_enclosure",
@@ -175,20 +181,34 @@ def zero_load_reason(robot: Any) -> str:
     """Why the robot is outside the certified case (zero load, bounds from
     0, no damping, no pinned cable), or "" when it is inside."""
     if np.any(robot.gravity) or np.any(robot.external_wrench):
-        return (
-            "the robot is under load (gravity or an external load): its equilibrium tension "
-            "varies over the box, which certified boxes do not cover yet"
-        )
+        return "the robot is under load (gravity or an external load)"
     if np.any(robot.tension_min != 0):
         return "a cable has a minimum tension above 0: the equilibrium is loaded"
     method = str(robot.spec.equilibrium_method)
     if method == "pretension" and (robot.spec.pretension or 0) > 0:
-        return "the pretension method loads every cable: not certified yet"
+        return "the pretension method loads every cable"
     if np.any(robot.tension_max <= 0):
         return "a cable is pinned at zero tension (its maximum is 0)"
     if np.any(robot.joint_damping):
         return "the joints are damped: the linearisation is not nilpotent"
     return ""
+
+
+def certified_case(robot: Any) -> tuple[str, str]:
+    """Which proof applies to the robot: ``("zero_load", "")`` (the module
+    docstring's), ``("loaded", "")`` (:mod:`cdpm.certify.loaded`: a
+    least-norm equilibrium tension with a constant active set), or
+    ``("", reason)`` when neither does (every box is then MARGINAL with
+    that reason)."""
+    from cdpm.certify.loaded import loaded_reason
+
+    zero = zero_load_reason(robot)
+    if not zero:
+        return "zero_load", ""
+    loaded = loaded_reason(robot)
+    if not loaded:
+        return "loaded", ""
+    return "", f"{zero}, and loaded boxes cannot be certified: {loaded}"
 
 
 def _checked_box(robot: Any, lower: Any, upper: Any) -> tuple[np.ndarray, np.ndarray]:
@@ -608,11 +628,19 @@ class CertifiedBoxes:
         K = len(self)
         ok = np.zeros(K, dtype=bool)
         decided = np.isin(self.verdict, (YES, NO))
-        if not decided.any() or zero_load_reason(robot):
+        case, _ = certified_case(robot)
+        if not decided.any() or not case:
             return ok
         try:
             lo, hi = _checked_boxes(robot, self.lower, self.upper)
         except InputError:
+            return ok
+        if case == "loaded":  # no patches: the proof is recomputed
+            from cdpm.certify.loaded import verify_loaded
+
+            yes = np.flatnonzero(self.verdict == YES)
+            if yes.size:
+                ok[yes] = verify_loaded(robot, lo[yes], hi[yes]) & (self.margin_lower[yes] <= 0)
             return ok
         G, why, _ = _g_enclosure(robot, lo, hi)
         usable = decided & (why == "")
@@ -749,7 +777,24 @@ def certify_boxes(
     separator = np.full((K, p), np.nan)
     empty = np.zeros(0, dtype=np.int64)
     no_patches = (empty, np.zeros((0, max(p - 1, 0), 2)), empty)
-    structural = zero_load_reason(robot)
+    case, structural = certified_case(robot)
+    if case == "loaded" and K:
+        from cdpm.certify.loaded import certify_loaded
+
+        verdict, reason, margin = certify_loaded(robot, lo, hi, reach)
+        return CertifiedBoxes(
+            lo,
+            hi,
+            verdict.astype(np.int8),
+            reason.astype(str),
+            margin,
+            T,
+            F,
+            unit,
+            np.zeros(K + 1, dtype=np.int64),
+            *no_patches,
+            separator,
+        )
     if structural or K == 0:
         box_kinematics(robot, lo[:1], hi[:1]) if K else None  # unsupported joints: an error
         reason = np.full(K, structural, dtype=object)

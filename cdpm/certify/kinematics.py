@@ -7,7 +7,7 @@ values :class:`cdpm.model.robot.CableRobot` computes at q: joint placements,
 cable route points and their Jacobians, cable lengths and the cable
 Jacobian L(q), the outputs and their Jacobian C_q, and the mass matrix
 M(q), round-off included. These are what the zero-load POC test
-(``G(q) = C_q M(q)^-1 (-L(q)^T)``, shared THEORY.md section 6) needs.
+(``G(q) = C_q M(q)^-1 (-L(q)^T)``, docs/analysis.md) needs.
 
 Two forms:
 
@@ -87,6 +87,10 @@ class BoxKinematics:
             only known to lie in [-pi, pi].
         output_jacobian: C_q = dy/dv, (..., p, nv).
         mass_matrix: M(q) [kg, kg m, kg m^2], (..., nv, nv) (seed paper eq 14).
+        gravity: the generalised gravity G(q) [N or N m], (..., nv) (seed
+            paper eq 11; Pinocchio's ``computeGeneralizedGravity``):
+            ``G = -sum_bodies m J_com^T g`` with J_com the Jacobian of the
+            body's centre of mass and g the model's gravity [m/s^2].
         segment_may_vanish: per box, whether some segment's length may be 0
             in it, (...,) bool. Its unit vector is then only bounded by
             [-1, 1] per component, and L's enclosure holds where L exists.
@@ -106,6 +110,7 @@ class BoxKinematics:
     output_jacobian: Interval
     mass_matrix: Interval
     segment_may_vanish: np.ndarray
+    gravity: Interval
 
     def __str__(self) -> str:
         boxes = 1 if self.lower.ndim == 1 else self.lower.shape[0]
@@ -171,7 +176,11 @@ def box_jets(robot: Any, lower: Any, upper: Any) -> tuple[dict, dict, np.ndarray
     lo, hi, _ = _check_box(robot, lower, upper)
     centre = np.clip(0.5 * lo + 0.5 * hi, lo, hi)
     radius = np.maximum(np.nextafter(centre - lo, np.inf), np.nextafter(hi - centre, np.inf))
-    return chain.evaluate(Interval(centre)), chain.evaluate(variables(lo, hi)), radius
+    return (
+        chain.evaluate(Interval(centre), "root"),
+        chain.evaluate(variables(lo, hi), "root"),
+        radius,
+    )
 
 
 def _check_box(robot: Any, lower: Any, upper: Any) -> tuple[np.ndarray, np.ndarray, bool]:
@@ -327,12 +336,47 @@ class _Chain:
         self.point_joint = np.array(joints, dtype=int)
         self.point_local = np.array(local, dtype=float).reshape(-1, 3)
         self.armature = np.array(model.armature, dtype=float).reshape(-1)
+        # m_b g per body [N], (nb, 3): G = -sum_b J_com_b^T (m_b g)
+        self.body_weight = self.body_mass[:, None] * np.array(model.gravity.linear, dtype=float)
+        # a joint that carries every body (the first of a chain from the
+        # world): M does not depend on its coordinate
+        self.root_dof = -1
+        for j in range(1, self.nj):
+            k = self.joint_dof[j]
+            if k >= 0 and self.parent[j] == 0 and bool(np.all(self.support[1:, k])):
+                self.root_dof = int(k)
+                self.root_revolute = bool(self.revolute[k])
+                self.root_axis = self.placement_rotation[j] @ self.axis[j]  # world frame
+                self.root_origin = self.placement_translation[j]
+                break
 
     # ----------------------------------------------------------- evaluation
 
-    def evaluate(self, q: Interval | Jet) -> dict[str, Any]:
+    def evaluate(self, q: Interval | Jet, frame: str = "world") -> dict[str, Any]:
         """Interval evaluation over boxes q (B, nv): naive for an Interval,
-        with the derivatives' enclosures for a Jet."""
+        with the derivatives' enclosures for a Jet.
+
+        ``frame="root"``, for a robot whose bodies all ride on one joint at
+        the world (its *root*), evaluates the chain with the root's
+        coordinate pinned at 0 and moves the world-fixed points (and the
+        output and gravity directions) by the root's inverse motion instead:
+        the relative geometry is the same, so the frame-independent
+        quantities (cable lengths, L, M, G, and the outputs and C_q, mapped
+        back) are the same, but the root's coordinate enters once instead of
+        along the whole chain, which keeps the enclosures far tighter. Its
+        dict holds only those quantities."""
+        if frame == "world" or self.root_dof < 0:
+            return self._assemble(q, *self._placements(q))
+        k = self.root_dof
+        motion = _root_motion(q, k, self.root_axis, self.root_origin, self.root_revolute)
+        out = self._assemble(q, *self._placements(_pin(q, k)), world=motion)
+        for name in ("joint_rotation", "joint_translation", "point_positions", "point_jacobians"):
+            out.pop(name)
+        return out
+
+    def _placements(self, q: Interval | Jet) -> tuple[Any, Any, Any]:
+        """World rotation (B, nj, 3, 3), origin (B, nj, 3) and motion axis
+        (B, nj, 3) of every joint frame over boxes q (B, nv)."""
         n_boxes = q.shape[0]
         s, c = jet_sin(q), jet_cos(q)
         rot: list[Any] = [Interval(np.broadcast_to(np.eye(3), (n_boxes, 3, 3)))]
@@ -355,19 +399,34 @@ class _Chain:
         rot_all = jet_stack(rot, axis=1)  # (B, nj, 3, 3)
         pos_all = jet_stack(pos, axis=1)  # (B, nj, 3)
         axis_all = jet_stack(axis_world, axis=1)  # (B, nj, 3)
-        return self._assemble(q, rot_all, pos_all, axis_all)
+        return rot_all, pos_all, axis_all
 
-    def _assemble(self, q: Any, rot: Any, pos: Any, axis: Any) -> dict[str, Any]:
-        """Points, Jacobians, L, outputs and M from the joint placements."""
-        pj = self.point_joint
-        points = pos[:, pj] + (rot[:, pj] * self.point_local[None, :, None, :]).sum(axis=-1)
+    def _points(
+        self, rot: Any, pos: Any, axis: Any, which: slice, world: Any = None
+    ) -> tuple[Any, Any]:
+        """Positions (B, P, 3) and Jacobians (B, P, 3, nv) of the tracked
+        points ``which``; ``world`` (rotation (B, 3, 3), translation (B, 3))
+        replaces the world frame's placement for the points fixed to it."""
+        pj = self.point_joint[which]
+        if world is not None:
+            rot = jet_where((np.arange(self.nj) == 0)[None, :, None, None], world[0][:, None], rot)
+            pos = jet_where((np.arange(self.nj) == 0)[None, :, None], world[1][:, None], pos)
+        points = pos[:, pj] + (rot[:, pj] * self.point_local[which][None, :, None, :]).sum(axis=-1)
         dof_axis = axis[:, self.dof_joint]  # (B, nv, 3)
         dof_origin = pos[:, self.dof_joint]
         arm = points[:, :, None, :] - dof_origin[:, None, :, :]  # (B, P, nv, 3)
         linear = _cross(dof_axis[:, None], arm)
         linear = jet_where(self.revolute[None, :, None], linear, dof_axis[:, None])
         mask = self.support[pj][:, :, None]  # (P, nv, 1)
-        point_jac = jet_where(mask, linear, 0.0).swapaxes(-1, -2)  # (B, P, 3, nv)
+        return points, jet_where(mask, linear, 0.0).swapaxes(-1, -2)
+
+    def _assemble(self, q: Any, rot: Any, pos: Any, axis: Any, world: Any = None) -> dict[str, Any]:
+        """Points, Jacobians, L, outputs and M from the joint placements;
+        ``world``: the root frame's view (see :meth:`evaluate`), as
+        (rotation, translation, world directions (B, 3, 3), world offset
+        (B, 3)) from :func:`_root_motion`."""
+        points, point_jac = self._points(rot, pos, axis, slice(None), world)
+        dof_axis = axis[:, self.dof_joint]  # (B, nv, 3)
 
         a, b = self.segments[:, 0], self.segments[:, 1]
         diff = points[:, b] - points[:, a]  # (B, S, 3)
@@ -375,9 +434,8 @@ class _Chain:
         may_vanish = _value(squared).lo <= 0
         # segments that may vanish get a stand-in length of 1 for their
         # direction, which is then only known to lie in [-1, 1]^3
-        safe = jet_where(may_vanish, 1.0, squared).sqrt()
+        safe, units = _length_and_direction(diff, jet_where(may_vanish, 1.0, squared))
         seg_len = jet_where(may_vanish, _value(squared).sqrt(), safe)
-        units = (diff * safe.reciprocal()[..., None]).intersect(-1.0, 1.0)
         units = jet_where(may_vanish[..., None], Interval(-1.0, 1.0), units)
         seg_rows = (units[..., None] * (point_jac[:, b] - point_jac[:, a])).sum(axis=-2)
         lengths = (self.to_cable[:, :, None] * seg_len[:, None, :, None]).sum(axis=-2)[..., 0]
@@ -389,14 +447,23 @@ class _Chain:
             value = Interval(np.zeros(n_boxes))
             rate = Interval(np.zeros((n_boxes, self.nv)))
             for weight, kind, where in terms:
-                if kind == "position":
+                if kind == "position" and world is not None:
+                    axis_k, point = where
+                    e = world[2][:, axis_k]  # the world axis k in the root frame (B, 3)
+                    v = (e * points[:, point]).sum(axis=-1) + world[3][:, axis_k]
+                    r = (e[:, :, None] * point_jac[:, point]).sum(axis=-2)
+                elif kind == "position":
                     axis_k, point = where
                     v, r = points[:, point, axis_k], point_jac[:, point, axis_k]
                 elif kind == "rotation":
                     axis_k, joint = where
                     v = Interval(np.full(n_boxes, -math.pi), np.full(n_boxes, math.pi))
                     v = Interval._raw(np.nextafter(v.lo, -np.inf), np.nextafter(v.hi, np.inf))
-                    angular = dof_axis[:, :, axis_k]  # (B, nv)
+                    if world is not None:
+                        e = world[2][:, axis_k]
+                        angular = (e[:, None, :] * dof_axis).sum(axis=-1)  # (B, nv)
+                    else:
+                        angular = dof_axis[:, :, axis_k]  # (B, nv)
                     r = jet_where(self.revolute & self.support[joint], angular, 0.0)
                 elif kind == "joint":
                     v = q[:, where]
@@ -412,7 +479,14 @@ class _Chain:
             jet_stack(rates, axis=1) if rates else Interval(np.zeros((n_boxes, 0, self.nv)))
         )
 
-        mass = self._mass_matrix(rot, dof_axis, point_jac[:, self.first_com :])
+        com_jac = point_jac[:, self.first_com :]  # (B, nb, 3, nv)
+        mass = self._mass_matrix(rot, dof_axis, com_jac)
+        if world is None:
+            weight = self.body_weight[:, :, None]  # (nb, 3, 1) world frame
+        else:  # the weights in the root frame: sum_i (m g)_i (R^T e_i)
+            weight = (self.body_weight[None, :, :, None] * world[2][:, None]).sum(axis=-2)
+            weight = weight[..., None]  # (B, nb, 3, 1)
+        gravity = -(com_jac * weight).sum(axis=-2).sum(axis=1)
         return {
             "joint_rotation": rot,
             "joint_translation": pos,
@@ -424,6 +498,7 @@ class _Chain:
             "output": output,
             "output_jacobian": output_jac,
             "mass_matrix": mass,
+            "gravity": gravity,
             "segment_may_vanish": may_vanish.any(axis=-1),
         }
 
@@ -433,6 +508,8 @@ class _Chain:
         angular Jacobian, R its joint's world rotation, I_c its inertia about
         the centre of mass in the joint frame; plus the joints' armature."""
         linear = (com_jac.mT @ com_jac * self.body_mass[:, None, None]).sum(axis=1)
+        if not np.any(self.body_inertia):  # point masses: no rotational term
+            return linear + np.diag(self.armature)
         body_support = self.support[1:] & self.revolute[None, :]  # (nb, nv)
         angular = jet_where(body_support[:, None, :], dof_axis.mT[:, None], 0.0)  # (B, nb, 3, nv)
         in_body = rot[:, 1:].mT @ angular  # (B, nb, 3, nv)
@@ -462,6 +539,65 @@ class _Chain:
             keep = naive.reshape(naive.shape + (1,) * (len(mv.shape) - 1))
             out[name] = jet_where(keep, value.val, mv)
         return out
+
+
+def _length_and_direction(diff: Any, squared: Any) -> tuple[Any, Any]:
+    """Lengths l = |d| and unit vectors u = d / l of segment vectors d
+    (..., 3), given their squared lengths (bounded away from 0).
+
+    For jets the derivatives take the forms with the least repetition of d,
+    ``dl = u . dd`` and ``du = (dd - u (u . dd)) / l`` (the part of dd
+    across u, over l), whose interval evaluation overestimates far less
+    than the chain rule through ``d / sqrt(d . d)``."""
+    length = _value(squared).sqrt()
+    inv = length.reciprocal()
+    u_val = (_value(diff) * inv[..., None]).intersect(-1.0, 1.0)
+    if not isinstance(diff, Jet):
+        return length, u_val
+    along = (u_val[..., None] * diff.grad).sum(axis=-2)  # u . dd  (..., n)
+    across = (diff.grad - u_val[..., None] * along[..., None, :]) * inv[..., None, None]
+    return Jet(length, along), Jet(u_val, across)
+
+
+def _root_motion(q: Any, k: int, axis: np.ndarray, origin: np.ndarray, revolute: bool):
+    """The root frame's view of the world over boxes q (B, nv), the root
+    joint moving by q_k about (revolute) or along (prismatic) the world
+    ``axis`` through ``origin``: the inverse motion's rotation Rt (B, 3, 3)
+    and translation (B, 3) (a world-fixed point p is at ``Rt p + t`` in
+    the root frame), and back: the world axes in the root frame (rows of
+    Rt^T... here the columns of R^T: ``E[:, i]`` is world axis i) and the
+    offset ``o - R o`` (world value = E[:, i] . p' + offset_i)."""
+    qk = q[:, k]
+    n_boxes = q.shape[0]
+    if revolute:
+        outer, perp, skew = _axis_matrices(axis)
+        c, s = jet_cos(qk), jet_sin(qk)
+        # R(q) = outer + c perp + s skew; its inverse R(-q) = outer + c perp - s skew
+        inverse = (c[:, None, None] * perp - s[:, None, None] * skew) + outer
+        forward = (c[:, None, None] * perp + s[:, None, None] * skew) + outer
+        shift = origin - inverse @ origin  # Rt p + (o - Rt o)
+        offset = origin - forward @ origin
+        # world value e_i . (o + R (p' - o)) = (R^T e_i) . p' + e_i . (o - R o);
+        # R^T = R(-q) = inverse: world axis i in the root frame is inverse[:, :, i]
+        directions = inverse.mT  # row i: R^T e_i
+        return inverse, shift, directions, offset
+    eye = Interval(np.broadcast_to(np.eye(3), (n_boxes, 3, 3)))
+    shift = qk[:, None] * (-axis)
+    return eye, shift, eye, qk[:, None] * axis
+
+
+def _pin(q: Any, k: int) -> Any:
+    """Boxes q (B, nv) with coordinate k pinned at the point 0 (no
+    derivative along any coordinate)."""
+    val = q.val if isinstance(q, Jet) else q
+    lo, hi = val.lo.copy(), val.hi.copy()
+    lo[:, k] = hi[:, k] = 0.0
+    pinned = Interval._raw(lo, hi)
+    if not isinstance(q, Jet):
+        return pinned
+    glo, ghi = q.grad.lo.copy(), q.grad.hi.copy()
+    glo[:, k] = ghi[:, k] = 0.0
+    return Jet(pinned, Interval._raw(glo, ghi))
 
 
 def _value(x: Any) -> Interval:

@@ -44,8 +44,8 @@ from cdpm.certify.box import (
     BoxCertificate,
     CertifiedBoxes,
     _checked_box,
+    certified_case,
     concatenate_boxes,
-    zero_load_reason,
 )
 from cdpm.certify.subdivide import certify_cells
 from cdpm.errors import InputError, is_integer
@@ -709,7 +709,7 @@ def certify_map(
         # the reach settings once for every box (the default horizon may need
         # a linearisation of the robot)
         reach = reach_settings(robot, horizon, tension_budget)
-        structural = zero_load_reason(robot)
+        structural = certified_case(robot)[1]
         source = runtime.RobotSource.from_robot(robot)
         plan = CellPlan(tuple(edges), int(chunk_size))
         widths = np.array([float(np.min(np.diff(e))) for e in edges])

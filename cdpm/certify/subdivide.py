@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from cdpm.certify.box import CertifiedBoxes, certify_boxes, concatenate_boxes, zero_load_reason
+from cdpm.certify.box import CertifiedBoxes, certified_case, certify_boxes, concatenate_boxes
 from cdpm.verdicts import MARGINAL
 
 __all__ = ["BATCH", "certify_cells"]
@@ -52,7 +52,7 @@ def certify_cells(
         (boxes, cell): the final boxes over all natural coordinates, and for
         each the row of ``lower`` it was cut from (K,).
     """
-    structural = zero_load_reason(robot)
+    structural = certified_case(robot)[1]
     pend_lo = np.asarray(lower, dtype=float)
     pend_hi = np.asarray(upper, dtype=float)
     pend_cell = np.arange(pend_lo.shape[0])
