@@ -20,7 +20,6 @@ from cdpm.regions.certified import CertifiedPath, certified_path, locate, segmen
 from cdpm.regions.paths import NotConnectedError
 from cdpm.text.regions import certified_path_json, certified_path_text
 from cdpm.verdicts import MARGINAL, NO, YES
-from tests.conftest import PAPER_SPEC
 
 NOMINAL = [math.pi / 6, math.pi / 3]
 #: the paper arm over a full turn of q1 and a band of q2 around the nominal

@@ -17,7 +17,7 @@ from cdpm.errors import InputError
 from cdpm.maps import StoreSettingsError
 from cdpm.maps.runtime import StoreBusyError, store_lock
 from cdpm.verdicts import MARGINAL, NO, YES
-from tests.conftest import MODELS, PAPER_SPEC
+from tests.conftest import PAPER_SPEC
 
 #: 3 x 3 cells of the paper arm across the edge of its proven-NO patch:
 #: YES, NO and undecided boxes, cells bisected up to twice per axis

@@ -242,3 +242,65 @@ def test_a_compared_map_over_other_coordinates_is_refused_first(tmp_path, capsys
         f"--compare {sampled}: the compared map must be a sampled map over a grid of q1, q2" in err
     )
     assert "this one maps q1" in err and not (tmp_path / "c.png").exists()
+
+
+def test_a_least_box_below_the_floor_is_refused_before_any_work(capsys):
+    """A least box of 1e-9 of a cell would bisect along a NO curve for ever:
+    refused at once, naming the floor."""
+    code, out, err = _cli(
+        [
+            "certify",
+            str(PAPER_SPEC),
+            "--axis",
+            "q1=0.3:0.7:2",
+            "--axis",
+            "q2=0.9:1.3:2",
+            "--min-fraction",
+            "1e-9",
+        ],
+        capsys,
+    )
+    assert code == 1 and "[1/4096, 1]" in err and "never finish" in err
+    with pytest.raises(cdpm.InputError, match=r"min_fraction must be a number in \[2\^-12"):
+        cdpm.certify_map(PAPER_SPEC, {"q1": [0.3, 0.7]}, base=[0.5, 1.0], min_fraction=1e-9)
+
+
+def test_the_summary_names_the_least_box_made(capsys):
+    code, out, _ = _cli(
+        [
+            "certify",
+            str(PAPER_SPEC),
+            "--axis",
+            "q1=0.3:0.7:2",
+            "--axis",
+            "q2=0.9:1.3:2",
+            "--min-fraction",
+            "0.3",
+            "--quiet",
+        ],
+        capsys,
+    )
+    assert code == 0 and "least box 0.25 of a cell's width" in out
+
+
+def test_a_map_of_another_spec_is_not_compared(tmp_path, capsys):
+    other = MODELS / "two_link_two_cables" / "two_link_two_cables.yaml"
+    sampled = tmp_path / "other.zarr"
+    cdpm.workspace_map(other, {"q1": [0.0, 1.0], "q2": [0.0, 1.0]}, store=sampled, workers=1)
+    code, _, err = _cli(
+        [
+            "certify",
+            str(PAPER_SPEC),
+            "--axis",
+            "q1=0:1:2",
+            "--axis",
+            "q2=0:1:2",
+            "--plot",
+            str(tmp_path / "c.png"),
+            "--compare",
+            str(sampled),
+        ],
+        capsys,
+    )
+    assert code == 1 and "was made from" in err and "two_link_two_cables.yaml" in err
+    assert not (tmp_path / "c.png").exists()

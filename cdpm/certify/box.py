@@ -832,7 +832,7 @@ def certify_boxes(
     left = live & ~proven & ~found
     reason[left] = (
         "neither proven: the box may hold a NO set, or it is too wide for the enclosures "
-        "(bisect it)"
+        "(smaller boxes may decide it: a smaller least box, min_fraction)"
     )
     reason[left & rank_may_drop] = (
         "neither proven: the output Jacobian C_q may lose rank in the box (a singular pose "

@@ -68,6 +68,10 @@ __all__ = [
 
 #: default least box width, as a fraction of its axis' initial cell width
 MIN_FRACTION = 1.0 / 16
+#: the least ``min_fraction`` accepted: 2^-12 of a cell (12 bisections per
+#: axis). Along a NO curve the boxes double with every bisection, so a
+#: smaller one can run for hours and fill the memory
+MIN_FRACTION_FLOOR = 2.0**-12
 
 
 @dataclass(frozen=True)
@@ -676,9 +680,13 @@ def certify_map(
         if not (
             isinstance(min_fraction, (int, float, np.floating))
             and not isinstance(min_fraction, bool)
-            and 0 < min_fraction <= 1
+            and MIN_FRACTION_FLOOR <= min_fraction <= 1
         ):
-            raise InputError("min_fraction must be a number in (0, 1]")
+            raise InputError(
+                f"min_fraction must be a number in [2^-12 = {MIN_FRACTION_FLOOR:.3g}, 1]; got "
+                f"{min_fraction!r} (boxes double along a NO curve with every bisection: a "
+                "smaller least box may never finish)"
+            )
         min_fraction = float(min_fraction)
         if base is None:  # the spec's first named pose, else the neutral configuration
             q = next(iter(robot.poses.values())) if robot.poses else robot.neutral()

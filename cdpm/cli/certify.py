@@ -71,8 +71,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--min-fraction",
         metavar="F",
-        help="least box width, as a fraction of a cell's width, in (0, 1] (default 1/16: "
-        "four bisections per axis); smaller proves more of the volume near NO sets, slower",
+        help="a box still undecided is bisected while wider than F of a cell's width, F in "
+        "[1/4096, 1] (default 1/16: four bisections per axis; the least box is the largest "
+        "1/2^k at most F); smaller proves more of the volume near NO sets, slower",
     )
     parser.add_argument(
         "--out", metavar="STORE", help="zarr store to write and resume (e.g. certified.zarr)"
@@ -184,8 +185,13 @@ def _min_fraction(text: str | None) -> float | None:
         value = parse_number(text)
     except ValueError as exc:
         raise InputError(f"--min-fraction {text!r}: {exc}") from None
-    if not (math.isfinite(value) and 0 < value <= 1):
-        raise InputError(f"--min-fraction {text}: give a fraction in (0, 1], e.g. 1/16")
+    from cdpm.certify.map import MIN_FRACTION_FLOOR
+
+    if not (math.isfinite(value) and MIN_FRACTION_FLOOR <= value <= 1):
+        raise InputError(
+            f"--min-fraction {text}: give a fraction in [1/4096, 1], e.g. 1/16 (boxes double "
+            "along a NO curve with every bisection: a smaller least box may never finish)"
+        )
     return float(value)
 
 
@@ -272,6 +278,14 @@ def run(args: argparse.Namespace) -> int:
                 check_sampled(sampled, list(axes)[:2])
             except InputError as exc:
                 raise InputError(f"--compare {args.compare}: {exc}") from None
+            made_from = sampled.attrs.get("spec_sha256")
+            if made_from and made_from != robot.spec.sha256:
+                raise InputError(
+                    f"--compare {args.compare}: that map was made from "
+                    f"{sampled.attrs.get('spec', 'another spec')} (sha256 {made_from[:12]}), not "
+                    f"from {robot.spec.path} (sha256 {robot.spec.sha256[:12]}): compare with a map "
+                    "of the same spec (`cdpm map SPEC ... --out MAP.zarr`)"
+                )
     say = sys.stderr if args.json else sys.stdout
     runs = []
 

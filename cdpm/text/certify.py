@@ -5,6 +5,7 @@ stayed undecided."""
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
@@ -68,7 +69,8 @@ def certified_lines(summary: dict) -> list[str]:
     name = summary["spec"].rsplit("/", 1)[-1] if summary["spec"] else "the robot"
     lines = [
         f"{name}: certified map over {', '.join(summary['coordinates'])} ({cells} cells, "
-        f"least box {summary['min_fraction']:.4g} of a cell's width): {summary['boxes']} boxes",
+        f"least box {_least_box(summary['min_fraction']):.4g} of a cell's width): "
+        f"{summary['boxes']} boxes",
         f"proven YES {100 * f['yes']:.2f}% of the volume, proven NO {100 * f['no']:.2f}%, "
         f"undecided {100 * f['undecided']:.2f}%",
     ]
@@ -84,9 +86,19 @@ def certified_lines(summary: dict) -> list[str]:
     if reasons:
         lines.append("undecided, by share of the volume:")
         for item in reasons[:MAX_REASONS]:
-            lines.append(f"  {100 * item['fraction']:.2f}%: {item['reason']}")
+            share = 100 * item["fraction"]
+            shown = f"{share:.2f}%" if share >= 0.005 else "<0.01%"
+            lines.append(f"  {shown}: {item['reason']}")
         if len(reasons) > MAX_REASONS:
             lines.append(f"  ... and {len(reasons) - MAX_REASONS} other reason(s)")
     if summary.get("seconds") is not None:
         lines.append(f"time {summary['seconds']:.1f} s")
     return lines
+
+
+def _least_box(min_fraction: float) -> float:
+    """The least box a certified map makes, as a fraction of a cell's width:
+    boxes are halved while wider than ``min_fraction``, so the largest
+    1/2^k at most it."""
+    k = max(0, math.ceil(-math.log2(min_fraction) - 1e-12))
+    return 2.0**-k
