@@ -212,13 +212,39 @@ def test_boxes_in_a_batch_get_their_own_enclosures(robots):
         np.testing.assert_array_equal(one.mass_matrix.hi, batch.mass_matrix.hi[k])
 
 
-def test_a_free_flyer_is_refused_by_name():
-    robot = cdpm.load_robot(MODELS / "spatial_8cable")
-    with pytest.raises(
-        cdpm.InputError,
-        match=r"joint 'platform_joint' \(FreeFlyer\) is not supported by certified boxes yet",
-    ):
-        box_kinematics(robot, np.zeros(6), np.ones(6))
+@pytest.mark.parametrize("name", ["spatial_8cable", "mixed"])
+def test_a_free_flyers_boxes_hold_every_pose(tmp_path, name):
+    """Free-flyer joints: natural coordinates x, y, z, roll, pitch, yaw;
+    their degrees of freedom along and about the body's own axes (Pinocchio's
+    local velocities). Every pose of a box, mapped to Pinocchio's
+    configuration, has its L, C_q, M, G, lengths and outputs inside the
+    enclosures (the platform alone, and a free-flyer carrying an unaligned
+    prismatic and revolute joint)."""
+    from tests.test_maps import MIXED_SPEC, MIXED_URDF
+
+    if name == "mixed":
+        (tmp_path / "mixed.urdf").write_text(MIXED_URDF)
+        (tmp_path / "mixed.yaml").write_text(MIXED_SPEC.format(gravity="[0, 0, -9.81]"))
+        robot = cdpm.load_robot(tmp_path / "mixed.yaml")
+        centre = np.array([0.1, -0.2, 0.3, 0.2, -0.3, 0.4, 0.2, 0.5])
+    else:
+        robot = cdpm.load_robot(MODELS / "spatial_8cable")
+        centre = np.asarray(robot.to_natural(robot.poses["offset"]), dtype=float)
+    rng = np.random.default_rng(3)
+    for width in (1e-6, 0.01, 0.1):
+        c = centre + rng.uniform(-0.1, 0.1, robot.nv)
+        for form in FORMS:
+            bk = box_kinematics(robot, c - width, c + width, form)
+            qs = rng.uniform(c - width, c + width, (40, robot.nv))
+            kin = robot.kinematics_batch(
+                np.array([robot.from_natural(x) for x in qs]), dynamics=True
+            )
+            for field in ("jacobian", "output_jacobian", "mass_matrix", "gravity", "lengths"):
+                assert getattr(bk, field).contains(getattr(kin, field)).all(), (name, width, field)
+            assert bk.output.contains(kin.output).all(), (name, width)
+    # a point box is round-off wide
+    tight = box_kinematics(robot, c, c, "naive")
+    assert float(np.max(tight.jacobian.width)) < 1e-9
 
 
 def test_a_continuous_joint_is_refused_by_name(tmp_path):

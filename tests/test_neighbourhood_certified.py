@@ -78,9 +78,15 @@ def test_a_loaded_robot_gets_a_box_where_its_taut_set_is_constant():
     assert box.proven and box.half_width > 0.05 and box.margin_lower == 0.0
 
 
-def test_a_joint_certified_boxes_do_not_support_is_the_reason():
-    box = certified_neighbourhood(MODELS / "spatial_8cable" / "spatial_8cable.yaml", "offset", 0.05)
-    assert not box.proven and "(FreeFlyer) is not supported by certified boxes" in box.reason
+def test_a_joint_certified_boxes_do_not_support_is_the_reason(tmp_path):
+    urdf = (MODELS / "two_link_planar" / "two_link_planar.urdf").read_text()
+    (tmp_path / "two_link_planar.urdf").write_text(
+        urdf.replace('type="revolute"', 'type="continuous"', 1)
+    )
+    spec = (MODELS / "two_link_planar" / "two_link_planar.yaml").read_text()
+    (tmp_path / "arm.yaml").write_text(spec)
+    box = certified_neighbourhood(tmp_path / "arm.yaml", "nominal", 0.05)
+    assert not box.proven and "joint 'q1' (RUBZ) is not supported by certified boxes" in box.reason
 
 
 def test_bad_radius_is_an_input_error(paper_robot):

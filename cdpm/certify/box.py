@@ -746,7 +746,7 @@ def certify_boxes(
 
     Args:
         robot: a :class:`~cdpm.model.robot.CableRobot` (or a spec path) with
-            revolute and prismatic joints.
+            revolute, prismatic and free-flyer joints.
         lower, upper: the boxes' corners, natural coordinates (K, nv) [rad or m],
             within the URDF's joint limits.
         horizon, tension_budget: T [s] and budget [N] of the reach-margin
@@ -870,7 +870,7 @@ def certify_box(
 
     Args:
         robot: a :class:`~cdpm.model.robot.CableRobot` (or a spec path) with
-            revolute and prismatic joints.
+            revolute, prismatic and free-flyer joints.
         lower, upper: the box's corners, natural coordinates (nv,) [rad or m],
             within the URDF's joint limits.
         horizon, tension_budget: T [s] and budget [N] of the reach-margin

@@ -26,10 +26,13 @@ angles in rad; Jacobians map the tangent velocity (nv,) [rad/s or m/s] to
 the rate of the quantity, as cdpm's (a revolute or prismatic joint's
 natural coordinate is its configuration entry and its tangent coordinate).
 
-Supported joints: revolute (Pinocchio's RX, RY, RZ and RevoluteUnaligned)
-and prismatic (PX, PY, PZ, PrismaticUnaligned); fixed joints are frames
-merged into their parent link. Other joints (free-flyer, spherical, planar,
-continuous, ...) raise :class:`cdpm.errors.InputError`.
+Supported joints: revolute (Pinocchio's RX, RY, RZ and RevoluteUnaligned),
+prismatic (PX, PY, PZ, PrismaticUnaligned) and free-flyer (natural
+coordinates x, y, z, roll, pitch, yaw with ``R = Rz(yaw) Ry(pitch)
+Rx(roll)``; its six degrees of freedom move along and about the body's own
+axes, Pinocchio's local velocities, so L, C_q and M are Pinocchio's); fixed
+joints are frames merged into their parent link. Other joints (spherical,
+planar, continuous, ...) raise :class:`cdpm.errors.InputError`.
 """
 
 from __future__ import annotations
@@ -262,16 +265,25 @@ class _Chain:
         self.dof_joint = np.zeros(self.nv, dtype=int)
         self.joint_dof = [-1] * self.nj
         self.axis = [np.zeros(3)] * self.nj
+        self.free_flyer = [False] * self.nj
         for j in range(1, self.nj):
             joint = model.joints[j]
             short = joint.shortname()
+            if short == "JointModelFreeFlyer":
+                # x, y, z along the body's own axes, then rotations about them
+                k = joint.idx_v
+                self.free_flyer[j] = True
+                self.revolute[k + 3 : k + 6] = True
+                self.dof_joint[k : k + 6] = j
+                self.joint_dof[j] = k
+                continue
             code = _REVOLUTE.get(short, _PRISMATIC.get(short))
             if code is None:
                 raise InputError(
                     f"joint {model.names[j]!r} ({short.removeprefix('JointModel')}) is not "
                     "supported by certified boxes yet: they handle revolute joints (about any "
-                    "axis) and prismatic joints, and fixed joints; continuous (unbounded), "
-                    "spherical, planar and free-flyer joints are not"
+                    "axis), prismatic joints, free-flyer joints and fixed joints; continuous "
+                    "(unbounded), spherical and planar joints are not"
                 )
             axis = np.eye(3)[code] if code >= 0 else np.array(joint.extract().axis, dtype=float)
             self.axis[j] = axis / np.linalg.norm(axis)
@@ -343,7 +355,12 @@ class _Chain:
         self.root_dof = -1
         for j in range(1, self.nj):
             k = self.joint_dof[j]
-            if k >= 0 and self.parent[j] == 0 and bool(np.all(self.support[1:, k])):
+            if (
+                k >= 0
+                and not self.free_flyer[j]
+                and self.parent[j] == 0
+                and bool(np.all(self.support[1:, k]))
+            ):
                 self.root_dof = int(k)
                 self.root_revolute = bool(self.revolute[k])
                 self.root_axis = self.placement_rotation[j] @ self.axis[j]  # world frame
@@ -375,17 +392,33 @@ class _Chain:
         return out
 
     def _placements(self, q: Interval | Jet) -> tuple[Any, Any, Any]:
-        """World rotation (B, nj, 3, 3), origin (B, nj, 3) and motion axis
-        (B, nj, 3) of every joint frame over boxes q (B, nv)."""
+        """World rotation (B, nj, 3, 3) and origin (B, nj, 3) of every joint
+        frame, and the world axis of every degree of freedom (B, nv, 3), over
+        boxes q (B, nv) of natural coordinates (a free-flyer's: x, y, z,
+        then roll, pitch, yaw; its degrees of freedom move along and about
+        its body's own axes, as Pinocchio's local velocities)."""
         n_boxes = q.shape[0]
         s, c = jet_sin(q), jet_cos(q)
         rot: list[Any] = [Interval(np.broadcast_to(np.eye(3), (n_boxes, 3, 3)))]
         pos: list[Any] = [Interval(np.zeros((n_boxes, 3)))]
-        axis_world: list[Any] = [Interval(np.zeros((n_boxes, 3)))]
+        dof_axes: list[Any] = [None] * self.nv
         for j in range(1, self.nj):
             par, k = self.parent[j], self.joint_dof[j]
             r_pre = rot[par] @ self.placement_rotation[j]
             origin = pos[par] + rot[par] @ self.placement_translation[j]
+            if self.free_flyer[j]:
+                turn = None  # R = Rz(yaw) Ry(pitch) Rx(roll)
+                for i in (2, 1, 0):
+                    outer, perp, skew = _axis_matrices(np.eye(3)[i])
+                    ki = k + 3 + i
+                    r_i = (c[:, ki, None, None] * perp + s[:, ki, None, None] * skew) + outer
+                    turn = r_i if turn is None else turn @ r_i
+                body = r_pre @ turn
+                rot.append(body)
+                pos.append(origin + (r_pre * q[:, None, k : k + 3]).sum(axis=-1))
+                for i in range(6):
+                    dof_axes[k + i] = body[:, :, i % 3]
+                continue
             a = r_pre @ self.axis[j]
             if self.revolute[k]:
                 outer, perp, skew = _axis_matrices(self.axis[j])
@@ -395,10 +428,10 @@ class _Chain:
             else:
                 rot.append(r_pre)
                 pos.append(origin + a * q[:, k, None])
-            axis_world.append(a)
+            dof_axes[k] = a
         rot_all = jet_stack(rot, axis=1)  # (B, nj, 3, 3)
         pos_all = jet_stack(pos, axis=1)  # (B, nj, 3)
-        axis_all = jet_stack(axis_world, axis=1)  # (B, nj, 3)
+        axis_all = jet_stack(dof_axes, axis=1)  # (B, nv, 3)
         return rot_all, pos_all, axis_all
 
     def _points(
@@ -412,7 +445,7 @@ class _Chain:
             rot = jet_where((np.arange(self.nj) == 0)[None, :, None, None], world[0][:, None], rot)
             pos = jet_where((np.arange(self.nj) == 0)[None, :, None], world[1][:, None], pos)
         points = pos[:, pj] + (rot[:, pj] * self.point_local[which][None, :, None, :]).sum(axis=-1)
-        dof_axis = axis[:, self.dof_joint]  # (B, nv, 3)
+        dof_axis = axis  # (B, nv, 3)
         dof_origin = pos[:, self.dof_joint]
         arm = points[:, :, None, :] - dof_origin[:, None, :, :]  # (B, P, nv, 3)
         linear = _cross(dof_axis[:, None], arm)
@@ -426,7 +459,7 @@ class _Chain:
         (rotation, translation, world directions (B, 3, 3), world offset
         (B, 3)) from :func:`_root_motion`."""
         points, point_jac = self._points(rot, pos, axis, slice(None), world)
-        dof_axis = axis[:, self.dof_joint]  # (B, nv, 3)
+        dof_axis = axis  # (B, nv, 3)
 
         a, b = self.segments[:, 0], self.segments[:, 1]
         diff = points[:, b] - points[:, a]  # (B, S, 3)
