@@ -277,15 +277,16 @@ def test_the_inverse_enclosures_hold_the_inverses(vertical):
     """M^-1 over wide boxes of the vertical arm: the norm bound in the
     centre's scaling proves boxes the entrywise Neumann bound cannot, and
     both hold every sampled M^-1."""
-    from cdpm.certify.loaded import _inverse_enclosures, _inverse_over_box, _split
+    from cdpm.certify.inverse import inverse_enclosures, inverse_over_box
+    from cdpm.certify.loaded import _split
 
     rng = np.random.default_rng(17)
     centres = rng.uniform(-3, 3, (100, 2))
     half = 0.1
     at_centre, over_box, radius = box_jets(vertical, centres - half, centres + half)
     M_c, M_b, dM = _split("mass_matrix", at_centre, over_box, radius)
-    plain, plain_why = _inverse_enclosures(M_b)
-    scaled, scaled_why = _inverse_over_box(M_b, M_c, dM, radius)
+    plain, plain_why = inverse_enclosures(M_b)
+    scaled, scaled_why = inverse_over_box(M_b, M_c, dM, radius)
     assert np.all(scaled_why == "") and np.any(plain_why != "")
     for b in range(centres.shape[0]):
         qs = rng.uniform(centres[b] - half, centres[b] + half, (50, 2))

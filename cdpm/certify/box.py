@@ -58,6 +58,7 @@ from typing import Any
 import numpy as np
 
 from cdpm.certify.interval import Interval, matmul
+from cdpm.certify.inverse import inverse_enclosures as shared_inverse_enclosures
 from cdpm.certify.jet import Jet, mean_value
 from cdpm.certify.kinematics import box_jets, box_kinematics
 from cdpm.errors import InputError
@@ -65,7 +66,6 @@ from cdpm.model.coordinates import coordinate_limits
 from cdpm.numerics import (
     CERTIFY_ANGLE_MIN,
     CERTIFY_MAX_PATCHES,
-    CERTIFY_NEUMANN_MAX,
     CERTIFY_SEPARATOR_CANDIDATES,
 )
 from cdpm.verdicts import MARGINAL, NO, YES
@@ -252,49 +252,13 @@ def inverse_enclosure(M: Interval) -> Interval | str:
 
 
 def inverse_enclosures(M: Interval) -> tuple[Interval, np.ndarray]:
-    """Enclosures of M^-1 for every matrix in each interval matrix of a
+    """Enclosures of M^-1 for every mass matrix in each interval matrix of a
     batch M (B, n, n), and per matrix the reason there is none ("" where
-    there is one; that entry of the enclosure is then meaningless).
-
-    With X the inverse of M's midpoint and E = I - M X (an interval
-    matrix), ``M^-1 = X (I - E)^-1 = X + X E (I + E + E^2 + ...)``; when
-    the row sums of |E| stay below delta < 1, entry by entry
-    ``|M^-1 - X| <= |X E| (I + |E| + |E|^2 J / (1 - delta))`` (J all ones:
-    every entry of ``sum_k |E|^k`` is at most 1 / (1 - delta)). Rounded
-    upward throughout."""
-    mid = M.midpoint
-    B, n = mid.shape[0], mid.shape[-1]
-    reason = np.full(B, "", dtype=object)
-    finite = np.all(np.isfinite(mid), axis=(1, 2)) & np.all(
-        np.isfinite(M.lo) & np.isfinite(M.hi), axis=(1, 2)
-    )
-    reason[~finite] = "the mass matrix is not finite in the box"
-    eye = np.eye(n)
-    safe = np.where(finite[:, None, None], mid, eye)
-    with np.errstate(all="ignore"):
-        cond = np.linalg.cond(safe)
-    singular = finite & ~(cond < 1.0 / np.finfo(float).eps)
-    reason[singular] = "the mass matrix is singular in the box"
-    bad = ~finite | singular
-    X = np.linalg.inv(np.where(bad[:, None, None], eye, safe))
-    Mx = Interval._raw(
-        np.where(bad[:, None, None], eye, M.lo), np.where(bad[:, None, None], eye, M.hi)
-    )
-    E = Interval(eye) - matmul(Mx, X)
-    absE = Interval(E.magnitude)
-    delta = absE.sum(axis=-1).hi.max(axis=-1)  # (B,)
-    loose = ~bad & ~(delta < CERTIFY_NEUMANN_MAX)
-    for b in np.flatnonzero(loose):
-        reason[b] = (
-            f"the mass matrix may be singular or varies too much over the box (Neumann "
-            f"bound {delta[b]:.3g}, needs < {CERTIFY_NEUMANN_MAX:g})"
-        )
-    delta = np.where(bad | loose, 0.0, delta)
-    tail = (Interval(1.0) - Interval(delta)).reciprocal().hi  # 1 / (1 - delta), up (B,)
-    E2 = matmul(absE, absE)
-    series = Interval(eye) + absE + matmul(E2, np.ones((n, n))) * tail[:, None, None]
-    R = matmul(Interval(matmul(X, E).magnitude), Interval(series.hi)).hi
-    return Interval(X) + Interval(-R, R), reason
+    there is one): :func:`cdpm.certify.inverse.inverse_enclosures`, its
+    plain Neumann bound."""
+    inv, why = shared_inverse_enclosures(M, weighted=False)
+    reason = np.array([f"the mass matrix {w}" if w else "" for w in why], dtype=object)
+    return inv, reason
 
 
 def _g_enclosure(

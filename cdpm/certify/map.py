@@ -31,7 +31,6 @@ import json
 import multiprocessing
 import os
 import sys
-import time
 import warnings
 from collections.abc import Callable, Mapping
 from contextlib import nullcontext
@@ -49,7 +48,6 @@ from cdpm.certify.box import (
 )
 from cdpm.certify.subdivide import certify_cells
 from cdpm.errors import InputError, is_integer
-from cdpm.numerics import PROGRESS_LOG_INTERVAL
 from cdpm.verdicts import MARGINAL, NO, YES
 
 __all__ = [
@@ -61,7 +59,6 @@ __all__ = [
     "CellPlan",
     "CellJob",
     "CellRunInfo",
-    "CellProgress",
     "chunk_arrays",
     "boxes_of",
 ]
@@ -519,61 +516,6 @@ class CellRunInfo:
         return lines + [f"{what} {where}"]
 
 
-class CellProgress:
-    """A one-line progress bar on stderr: cells done, cells/s and ETA
-    (redrawn in place on a terminal, a plain line at most every
-    PROGRESS_LOG_INTERVAL seconds elsewhere, and the last one)."""
-
-    def __init__(self, stream: Any = None, interval: float = 0.2):
-        self.stream = stream or sys.stderr
-        isatty = getattr(self.stream, "isatty", None)
-        self.tty = bool(isatty()) if callable(isatty) else False
-        self.interval = interval if self.tty else max(interval, PROGRESS_LOG_INTERVAL)
-        self.start = time.perf_counter()
-        self.last = -float("inf")
-        self.done = self.total = 0
-
-    def __call__(self, done: int, total: int, index: int | None = None) -> None:
-        self.done, self.total = done, total
-        now = time.perf_counter()
-        if done >= total or now - self.last >= self.interval:
-            self.last = now
-            self._draw(now)
-
-    def stopped(self) -> None:
-        """End an interrupted run's bar where it stands, on a line of its own."""
-        if self.done < self.total:
-            self._draw(time.perf_counter())
-            if self.tty:
-                self.stream.write("\n")
-                self.stream.flush()
-
-    def _draw(self, now: float) -> None:
-        elapsed = max(now - self.start, 1e-9)
-        frac = self.done / self.total if self.total else 1.0
-        bar = "#" * int(round(24 * frac))
-        rate = self.done / elapsed
-        eta = (self.total - self.done) / rate if rate > 0 else float("nan")
-        text = (
-            f"certify [{bar:<24}] {self.done}/{self.total} cells {100 * frac:5.1f}%  "
-            f"{rate:,.1f} cells/s  ETA {_clock(eta)}"
-        )
-        self.stream.write(("\r" if self.tty else "") + text)
-        if self.done >= self.total:
-            self.stream.write(f"  done in {_clock(elapsed)}")
-        if self.done >= self.total or not self.tty:
-            self.stream.write("\n")
-        self.stream.flush()
-
-
-def _clock(seconds: float) -> str:
-    if not np.isfinite(seconds):
-        return "--:--"
-    m, s = divmod(int(round(seconds)), 60)
-    h, m = divmod(m, 60)
-    return f"{h}:{m:02d}:{s:02d}" if h else f"{m:02d}:{s:02d}"
-
-
 # --------------------------------------------------------------------------
 # the map
 
@@ -749,7 +691,16 @@ def certify_map(
             todo = [k for k in range(plan.n_chunks) if k not in done]
             if progress is True:
                 announce = announce or _print_to_stderr
-                printer = CellProgress() if todo else None
+                printer = (
+                    runtime.ProgressPrinter(
+                        sum(plan.chunk_size(k) for k in todo),
+                        label="certify",
+                        unit="cells",
+                        decimals=1,
+                    )
+                    if todo
+                    else None
+                )
                 progress = printer
             elif progress is False:
                 progress = None

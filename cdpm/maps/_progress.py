@@ -19,7 +19,8 @@ __all__ = ["ProgressPrinter", "MapRunInfo"]
 
 
 class ProgressPrinter:
-    """A one-line progress bar on stderr: poses done, poses/s and ETA.
+    """A one-line progress bar on stderr: items done (poses by default),
+    items/s and ETA.
 
     On a terminal the bar is redrawn in place (``\r``); elsewhere (a log
     file, a pipe) it prints one plain line at most every
@@ -30,10 +31,21 @@ class ProgressPrinter:
         label: text before the bar.
         stream: where to print (stderr by default).
         interval: seconds between redraws on a terminal.
+        unit: what is counted (``"poses"``, ``"cells"``).
+        decimals: decimals of the rate (few items a second need one).
     """
 
-    def __init__(self, total: int, label: str = "map", stream=None, interval: float = 0.2):
+    def __init__(
+        self,
+        total: int,
+        label: str = "map",
+        stream=None,
+        interval: float = 0.2,
+        unit: str = "poses",
+        decimals: int = 0,
+    ):
         self.total, self.label = total, label
+        self.unit, self.decimals = unit, decimals
         self.stream = stream or sys.stderr
         isatty = getattr(self.stream, "isatty", None)
         self.tty = bool(isatty()) if callable(isatty) else False
@@ -68,8 +80,8 @@ class ProgressPrinter:
         bar = "#" * int(round(frac * width))
         eta = (self.total - self.done) / rate if rate > 0 else float("nan")
         text = (
-            f"{self.label} [{bar:<{width}}] {self.done}/{self.total} poses "
-            f"{100 * frac:5.1f}%  {rate:,.0f} poses/s  ETA {_clock(eta)}"
+            f"{self.label} [{bar:<{width}}] {self.done}/{self.total} {self.unit} "
+            f"{100 * frac:5.1f}%  {rate:,.{self.decimals}f} {self.unit}/s  ETA {_clock(eta)}"
         )
         self.stream.write(("\r" if self.tty else "") + text)
         if self.done >= self.total:

@@ -25,7 +25,7 @@ from __future__ import annotations
 from cdpm.maps import default_workers
 from cdpm.maps._dask import check_scheduler_address
 from cdpm.maps._lock import StoreBusyError, lock_path, store_lock
-from cdpm.maps._progress import MapRunInfo
+from cdpm.maps._progress import MapRunInfo, ProgressPrinter
 from cdpm.maps._runner import interrupts_held, run_chunks
 from cdpm.maps._store import StoreSettingsError, store_path_problem
 from cdpm.maps._workers import RobotSource, prestart_workers, unimportable_main
@@ -35,6 +35,7 @@ from cdpm.maps.plan import settings_difference
 __all__ = [
     "run_chunks",
     "MapRunInfo",
+    "ProgressPrinter",
     "RobotSource",
     "prestart_workers",
     "unimportable_main",
