@@ -178,19 +178,14 @@ def run(args: argparse.Namespace) -> int:
     legs = None
     if args.steer:
         legs = _steer_path(robot.get("--steer"), ds, path, args.legs or _default_legs(path), out)
-    if args.plot:
+
+    def draw(subtitle):
         # loaded when the command runs (cdpm --help stays fast)
         from cdpm.plotting import save_map_plot
 
-        subtitle = None if legs is None else _legs_caption(legs, _miss_unit(robot.get("--steer")))
-        written = save_map_plot(ds, args.plot, path=path, subtitle=subtitle)
-        print(f"plot written to {written}", file=out)
-    if args.json:
-        result = {"connected": True, **path_json(path)}
-        if legs is not None:
-            result["steering"] = legs
-            result["legs_reached"] = sum(leg["reached"] for leg in legs)
-        print(json_text(result))
+        return save_map_plot(ds, args.plot, path=path, subtitle=subtitle)
+
+    _plot_and_json(args, robot, legs, draw, path_json(path), out)
     if args.view:
         _view(robot.get("--view"), ds, path, args, out)
     return LEG_MISSED_EXIT if legs and not all(leg["reached"] for leg in legs) else 0
@@ -259,19 +254,14 @@ def _run_certified(args: argparse.Namespace) -> int:
         else:
             why = "one leg per step: both ends of each leg in one certified YES box"
             legs = _steer_legs(r, path.natural, pairs, None, out, why)
-    if args.plot:
+
+    def draw(subtitle):
         # loaded when the command runs (cdpm --help stays fast)
         from cdpm.plotting.certified_path import save_certified_path_plot
 
-        subtitle = None if legs is None else _legs_caption(legs, _miss_unit(robot.get("--steer")))
-        written = save_certified_path_plot(cmap, args.plot, path=path, subtitle=subtitle)
-        print(f"plot written to {written}", file=out)
-    if args.json:
-        result = {"connected": True, **certified_path_json(path)}
-        if legs is not None:
-            result["steering"] = legs
-            result["legs_reached"] = sum(leg["reached"] for leg in legs)
-        print(json_text(result))
+        return save_certified_path_plot(cmap, args.plot, path=path, subtitle=subtitle)
+
+    _plot_and_json(args, robot, legs, draw, certified_path_json(path), out)
     if args.view:
         r = robot.get("--view")
         _play(r, _waypoint_trajectory(r, path.natural, None), args, out)
@@ -397,6 +387,21 @@ def _default_legs(path) -> int:
     """One leg per STEPS_PER_LEG steps, at most MAX_DEFAULT_LEGS."""
     steps = max(path.n_waypoints - 1, 1)
     return min(-(-steps // STEPS_PER_LEG), MAX_DEFAULT_LEGS)
+
+
+def _plot_and_json(args, robot, legs, draw, path_data: dict, out) -> None:
+    """The path's picture (``draw(subtitle)`` writes it; the legs' outcome
+    as its subtitle) and its JSON (the path's ``path_data``, with the
+    steering's legs), as the options ask."""
+    if args.plot:
+        subtitle = None if legs is None else _legs_caption(legs, _miss_unit(robot.get("--steer")))
+        print(f"plot written to {draw(subtitle)}", file=out)
+    if args.json:
+        result = {"connected": True, **path_data}
+        if legs is not None:
+            result["steering"] = legs
+            result["legs_reached"] = sum(leg["reached"] for leg in legs)
+        print(json_text(result))
 
 
 def _steer_path(robot: CableRobot, ds, path, legs: int, out) -> list[dict]:
