@@ -154,7 +154,7 @@ def plot_certified_path(cmap: Any, path: Any = None, *, title=None, subtitle=Non
     f = cmap.fractions()
     heading = title or (
         f"certified map: {len(verdict)} boxes; proven YES {100 * f['yes']:.1f}%, NO "
-        f"{100 * f['no']:.1f}%, undecided {100 * f['undecided']:.1f}% of the area"
+        f"{100 * f['no']:.1f}%, undecided {100 * f['undecided']:.1f}% of the volume"
     )
     if path is not None:
         heading += (

@@ -404,7 +404,8 @@ def certified_path_text(path: CertifiedPath) -> str:
         at = int(np.argmin(path.margins))
         lines.append(
             f"  smallest margin bound along it: r_T >= {path.min_margin:.4g} "
-            f"{path.margin_unit} (step {at}, waypoints {at} to {at + 1})"
+            f"{path.margin_unit} (step {at + 1}, from waypoint {at} to {at + 1}; steered as leg "
+            f"{at + 1})"
         )
     if path.seam_crossings:
         lines.append(
