@@ -309,3 +309,36 @@ def test_a_missed_leg_says_which_by_how_much_and_why(band_store, capsys, monkeyp
     # the reason, then every attempt: the default duration, more iterations (a near miss), longer
     assert line.group(3).startswith("the reason steer gives; tried T = 1 s (1 simulations, miss ")
     assert line.group(3).count("T = ") == 4
+
+
+def test_a_path_that_is_not_connected_still_draws_the_map_and_its_ends(band_store, tmp_path):
+    """Start in a box that is not proven YES: exit 3, the reason, and the
+    picture of the map with the start and the goal marked (where the user
+    needs it)."""
+    import subprocess
+    import sys
+
+    cmap = cdpm.open_certified(band_store)
+    no = np.flatnonzero(cmap.verdict != YES)
+    yes = np.flatnonzero(cmap.verdict == YES)
+    assert no.size and yes.size
+    start = 0.5 * (cmap.lower[no[0]] + cmap.upper[no[0]])
+    goal = 0.5 * (cmap.lower[yes[0]] + cmap.upper[yes[0]])
+    image = tmp_path / "nc.png"
+    argv = [
+        sys.executable,
+        "-m",
+        "cdpm",
+        "path",
+        str(band_store),
+        "--from",
+        *map(str, start),
+        "--to",
+        *map(str, goal),
+        "--plot",
+        str(image),
+    ]
+    done = subprocess.run(argv, capture_output=True, text=True)
+    assert done.returncode == 3, done.stderr
+    assert "not connected" in done.stderr and "plot written to" in done.stderr
+    assert image.stat().st_size > 10000

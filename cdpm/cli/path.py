@@ -240,6 +240,15 @@ def _run_certified(args: argparse.Namespace) -> int:
         if args.json:
             print(json_text(_not_connected_dict(exc)))
         print(f"cdpm path: not connected: {exc}", file=sys.stderr)
+        if args.plot and exc.start_pose and exc.goal_pose:
+            # loaded when the command runs (cdpm --help stays fast)
+            from cdpm.plotting.certified_path import save_certified_path_plot
+
+            ends = [list(exc.start_pose.values()), list(exc.goal_pose.values())]
+            written = save_certified_path_plot(
+                cmap, args.plot, ends=ends, subtitle="not connected: no certified path joins them"
+            )
+            print(f"plot written to {written} (the map, the start and the goal)", file=sys.stderr)
         return NOT_CONNECTED_EXIT
     out = sys.stderr if args.json else sys.stdout  # keep --json output parseable
     if not args.json:

@@ -38,7 +38,7 @@ UNDECIDED_EDGE_COLOR = "#4d4d4d"
 UNDECIDED_OUTLINE_PT = 0.5
 
 
-def plot_certified_path(cmap: Any, path: Any = None, *, title=None, subtitle=None):
+def plot_certified_path(cmap: Any, path: Any = None, *, ends=None, title=None, subtitle=None):
     """The figure: the map's boxes over its two (or one) mapped coordinates
     and the path's steps (``path`` a :class:`~cdpm.regions.certified.CertifiedPath`
     or None).
@@ -138,6 +138,26 @@ def plot_certified_path(cmap: Any, path: Any = None, *, title=None, subtitle=Non
         handles.append(
             Line2D([], [], marker="*", ls="", ms=11, color=PATH_COLOR, mec="white", label="goal")
         )
+    if (path is None or not path.n_steps) and ends is not None:
+        # no path (start and goal not connected): where they are
+        kinds = zip(ends, ("o", "*"), (8, 14), ("start", "goal"), strict=True)
+        for point, marker, size, label in kinds:
+            xy = np.asarray(point, dtype=float).reshape(-1)
+            if d == 1:
+                xy = np.array([xy[0], 0.5])
+            ax.plot(*xy[:2], marker, color=PATH_COLOR, ms=size, mec="white", mew=1.2)
+            handles.append(
+                Line2D(
+                    [],
+                    [],
+                    marker=marker,
+                    ls="",
+                    ms=size * 0.8,
+                    color=PATH_COLOR,
+                    mec="white",
+                    label=label,
+                )
+            )
     edges = [np.asarray(e, dtype=float) for e in cmap.edges]
     ax.set_xlim(edges[0][0], edges[0][-1])
     units = tuple(getattr(cmap, "units", ()) or ())
@@ -172,15 +192,17 @@ def save_certified_path_plot(
     image: str | os.PathLike,
     *,
     path: Any = None,
+    ends: Any = None,
     dpi: float = 110,
     title: str | None = None,
     subtitle: str | None = None,
 ) -> Path:
     """Draw :func:`plot_certified_path` into the file ``image`` (format from
-    its extension) and return the file written."""
+    its extension) and return the file written; ``ends``: the start and the
+    goal over the mapped coordinates, marked when there is no path."""
     out = check_image_path(image)
     dpi = check_dpi(dpi)
-    fig = plot_certified_path(cmap, path, title=title, subtitle=subtitle)
+    fig = plot_certified_path(cmap, path, ends=ends, title=title, subtitle=subtitle)
     out.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out, dpi=dpi)
     return out
