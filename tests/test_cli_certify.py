@@ -170,7 +170,7 @@ def test_an_interrupt_says_how_to_resume(tmp_path, capsys, monkeypatch):
     monkeypatch.setattr(certify_module, "certify_map", interrupted)
     code, out, err = _cli(["certify", str(PAPER_SPEC), *AXES, "--out", str(store)], capsys)
     assert code == 130
-    assert "cdpm certify: interrupted; the 1 finished chunk(s) are kept in" in err
+    assert "cdpm certify: interrupted; the 1 finished chunk is kept in" in err
     assert "run the same command again to resume" in err
 
 

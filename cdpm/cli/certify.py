@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from cdpm.cli._interrupt import interrupted
 from cdpm.cli._reach import add_reach_arguments, reach_from_args
 from cdpm.errors import InputError
 
@@ -226,29 +227,6 @@ def _check_options(args: argparse.Namespace) -> None:
         check_scheduler_address(args.scheduler)
 
 
-def _interrupted(args: argparse.Namespace, store: str | None) -> int:
-    """Say how to go on after an interrupt."""
-    if args.out and store is None:
-        hint = f"{args.out} was not opened yet: run the same command again to make or resume it"
-    elif args.out:
-        done = Path(store) / ".cdpm" / "done"
-        try:
-            finished = sum(p.name.isdigit() for p in done.iterdir()) if done.is_dir() else 0
-        except OSError:
-            finished = 0
-        hint = (
-            f"the {finished} finished chunk(s) are kept in {args.out}: run the same command "
-            "again to resume from them"
-            if finished
-            else f"no chunk was finished yet: run the same command again to make {args.out}"
-        )
-    else:
-        hint = "nothing was kept: add --out STORE to keep finished chunks and resume later"
-    print(f"cdpm certify: interrupted; {hint}", file=sys.stderr)
-    exec("pass")  # forget an interrupt seen inside an exec (see cdpm.cli.map._interrupted)
-    return 130
-
-
 def run(args: argparse.Namespace) -> int:
     # loaded when the command runs (cdpm --help stays fast)
     from cdpm.certify.map import MIN_FRACTION, certify_map
@@ -316,7 +294,7 @@ def run(args: argparse.Namespace) -> int:
             announce=announce,
         )
     except KeyboardInterrupt as exc:
-        return _interrupted(args, getattr(exc, "certified_store", None))
+        return interrupted("certify", args.out, getattr(exc, "certified_store", None))
     except StoreSettingsError as exc:
         raise InputError(
             exc.explain("re-run with the stored settings", "add --overwrite", "--out path")

@@ -7,11 +7,11 @@ import json
 import math
 import os
 import sys
-from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 
+from cdpm.cli._interrupt import interrupted
 from cdpm.cli._reach import add_reach_arguments, reach_from_args
 from cdpm.cli._tension import (
     add_tension_arguments,
@@ -437,38 +437,6 @@ def _check_outputs(args: argparse.Namespace) -> None:
         check_scheduler_address(args.scheduler)  # before the model is loaded
 
 
-def _interrupted(args: argparse.Namespace, store: str | None) -> int:
-    """Say how to go on (the progress bar ends its own line when the map is
-    interrupted: cdpm.maps._progress.ProgressPrinter.stopped); ``store``: the
-    store the run had opened (``map_store`` of the interrupt), else None."""
-    if args.out and store is None:
-        hint = f"{args.out} was not opened yet: run the same command again to make or resume it"
-    elif args.out:
-        done = Path(store) / ".cdpm" / "done"
-        try:
-            finished = sum(p.name.isdigit() for p in done.iterdir()) if done.is_dir() else 0
-        except OSError:
-            finished = 0
-        if finished:
-            chunks = "chunk is" if finished == 1 else "chunks are"
-            hint = (
-                f"the {finished} finished {chunks} kept in {args.out}: run the same command "
-                "again to resume from them"
-            )
-        else:
-            hint = f"no chunk was finished yet: run the same command again to make {args.out}"
-    else:
-        hint = "nothing was kept: add --out STORE to keep finished chunks and resume later"
-    print(f"cdpm map: interrupted; {hint}", file=sys.stderr)
-    # Python remembers an interrupt that went through an exec() of a string
-    # (dataclasses and some lazy imports run one) even once it is handled,
-    # and `python -m cdpm` then ended by SIGINT instead of this exit code
-    # (now and then, when Ctrl-C or SIGTERM came in such a call); an exec
-    # that completes forgets it
-    exec("pass")
-    return 130
-
-
 def _some_tension_line(ds) -> str:
     """``POC for some feasible tension: yes 12 (60.0%), ...`` of a map
     made with --tension best."""
@@ -554,7 +522,7 @@ def run(args: argparse.Namespace) -> int:
             tension_objective=args.objective or "poc",
         )
     except KeyboardInterrupt as exc:
-        return _interrupted(args, getattr(exc, "map_store", None))
+        return interrupted("map", args.out, getattr(exc, "map_store", None))
     except StoreSettingsError as exc:
         raise InputError(
             exc.explain("re-run with the stored settings", "add --overwrite", "--out path")
