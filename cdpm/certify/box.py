@@ -212,6 +212,7 @@ def certified_case(robot: Any) -> tuple[str, str]:
 
 
 def _checked_box(robot: Any, lower: Any, upper: Any) -> tuple[np.ndarray, np.ndarray]:
+    """One box's corners as (nv,) arrays, checked as :func:`_checked_boxes`."""
     nv = robot.nv
     try:
         lo = np.array(lower, dtype=float).reshape(-1)
@@ -225,22 +226,8 @@ def _checked_box(robot: Any, lower: Any, upper: Any) -> tuple[np.ndarray, np.nda
             f"a box needs {nv} lower and {nv} upper natural coordinates "
             f"({', '.join(robot.coordinate_names)}); got {lo.size} and {hi.size}"
         )
-    if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi))):
-        raise InputError("a box's corners must be finite numbers")
-    bad = np.flatnonzero(lo > hi)
-    if bad.size:
-        names = ", ".join(robot.coordinate_names[i] for i in bad)
-        raise InputError(f"the box has lower > upper for {names}: give each lower <= upper")
-    low, high = coordinate_limits(robot.model)
-    out = np.flatnonzero((lo < low) | (hi > high))
-    if out.size:
-        i = out[0]
-        raise InputError(
-            f"the box leaves the joint limits of {robot.coordinate_names[i]}: "
-            f"[{lo[i]:.6g}, {hi[i]:.6g}] is not within [{low[i]:.6g}, {high[i]:.6g}]; "
-            "give a box inside the URDF's limits"
-        )
-    return lo, hi
+    lo, hi = _checked_boxes(robot, lo[None], hi[None])
+    return lo[0], hi[0]
 
 
 def inverse_enclosure(M: Interval) -> Interval | str:
@@ -671,7 +658,8 @@ def concatenate_boxes(parts: list[CertifiedBoxes]) -> CertifiedBoxes:
 
 
 def _checked_boxes(robot: Any, lower: Any, upper: Any) -> tuple[np.ndarray, np.ndarray]:
-    """The corners as (K, nv) arrays, each box checked (:func:`_checked_box`)."""
+    """The corners as (K, nv) arrays: finite, lower <= upper, within the
+    joint limits; the first bad box is named with its coordinate."""
     nv = robot.nv
     try:
         lo = np.array(lower, dtype=float)
@@ -685,14 +673,22 @@ def _checked_boxes(robot: Any, lower: Any, upper: Any) -> tuple[np.ndarray, np.n
             f"boxes need (K, {nv}) lower and upper natural coordinates; "
             f"got {lo.shape} and {hi.shape}"
         )
+    if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi))):
+        raise InputError("a box's corners must be finite numbers")
+    swapped = lo > hi
+    if swapped.any():
+        k = int(np.flatnonzero(swapped.any(axis=1))[0])
+        names = ", ".join(robot.coordinate_names[i] for i in np.flatnonzero(swapped[k]))
+        raise InputError(f"the box has lower > upper for {names}: give each lower <= upper")
     low, high = coordinate_limits(robot.model)
-    if lo.size and (
-        not np.all(np.isfinite(lo) & np.isfinite(hi))
-        or np.any(lo > hi)
-        or np.any((lo < low) | (hi > high))
-    ):
-        for k in range(lo.shape[0]):  # the first bad box, named
-            _checked_box(robot, lo[k], hi[k])
+    out = (lo < low) | (hi > high)
+    if out.any():
+        k, i = (int(x) for x in np.argwhere(out)[0])
+        raise InputError(
+            f"the box leaves the joint limits of {robot.coordinate_names[i]}: "
+            f"[{lo[k, i]:.6g}, {hi[k, i]:.6g}] is not within [{low[i]:.6g}, {high[i]:.6g}]; "
+            "give a box inside the URDF's limits"
+        )
     return lo, hi
 
 

@@ -50,7 +50,7 @@ from cdpm.errors import InputError, float_array
 from cdpm.model.coordinates import MAX_COORDINATE
 from cdpm.model.outputs import anchor_in_joint, joint_support
 
-__all__ = ["BoxKinematics", "box_kinematics", "box_jets", "FORMS"]
+__all__ = ["BoxKinematics", "box_kinematics", "box_jets", "check_boxes", "FORMS"]
 
 #: the evaluation forms of :func:`box_kinematics`
 FORMS = ("naive", "mean_value")
@@ -149,7 +149,7 @@ def box_kinematics(robot: Any, lower: Any, upper: Any, form: str = "naive") -> B
     if form not in FORMS:
         raise InputError(f"form must be one of {', '.join(FORMS)}; got {form!r}")
     chain = _chain(robot)
-    lo, hi, single = _check_box(robot, lower, upper)
+    lo, hi, single = check_boxes(robot, lower, upper)
     if form == "naive":
         values = chain.evaluate(Interval(lo, hi))
     else:
@@ -176,7 +176,7 @@ def box_jets(robot: Any, lower: Any, upper: Any) -> tuple[dict, dict, np.ndarray
         axis B, and the half-widths (B, nv) [rad or m].
     """
     chain = _chain(robot)
-    lo, hi, _ = _check_box(robot, lower, upper)
+    lo, hi, _ = check_boxes(robot, lower, upper)
     centre = np.clip(0.5 * lo + 0.5 * hi, lo, hi)
     radius = np.maximum(np.nextafter(centre - lo, np.inf), np.nextafter(hi - centre, np.inf))
     return (
@@ -186,8 +186,10 @@ def box_jets(robot: Any, lower: Any, upper: Any) -> tuple[dict, dict, np.ndarray
     )
 
 
-def _check_box(robot: Any, lower: Any, upper: Any) -> tuple[np.ndarray, np.ndarray, bool]:
-    """The corners as (B, nv) float arrays, and whether one box was given."""
+def check_boxes(robot: Any, lower: Any, upper: Any) -> tuple[np.ndarray, np.ndarray, bool]:
+    """Box corners, (nv,) or (B, nv), checked (numbers, one per coordinate,
+    finite, lower <= upper) as (B, nv) float arrays, and whether one box was
+    given."""
     nv = robot.nv
     names = ", ".join(robot.coordinate_names)
     arrays = []

@@ -78,7 +78,7 @@ import numpy as np
 from cdpm.certify.interval import Interval, matmul
 from cdpm.certify.inverse import inverse_enclosures, inverse_over_box, norm_upper
 from cdpm.certify.jet import Jet, mean_value
-from cdpm.certify.kinematics import box_jets
+from cdpm.certify.kinematics import box_jets, check_boxes
 from cdpm.errors import InputError
 from cdpm.numerics import (
     CERTIFY_FREE_RANK_MIN,
@@ -170,22 +170,15 @@ def verify_loaded(robot: Any, lower: Any, upper: Any) -> np.ndarray:
 
 
 def _boxes(robot: Any, lower: Any, upper: Any) -> tuple[np.ndarray, np.ndarray]:
-    """The corners as (B, nv) float arrays, finite, lower <= upper."""
-    nv = robot.nv
-    try:
-        lo = np.array(lower, dtype=float)
-        hi = np.array(upper, dtype=float)
-    except (TypeError, ValueError):
-        raise InputError(f"boxes need lower and upper natural coordinates, {nv} each") from None
-    if lo.ndim != 2 or lo.shape != hi.shape or lo.shape[1] != nv:
+    """The corners as (B, nv) float arrays, finite, lower <= upper
+    (:func:`cdpm.certify.kinematics.check_boxes`, boxes only in a batch)."""
+    if np.ndim(lower) != 2 or np.ndim(upper) != 2:
         raise InputError(
-            f"boxes need (B, {nv}) lower and upper natural coordinates "
-            f"({', '.join(robot.coordinate_names)}); got {lo.shape} and {hi.shape}"
+            f"boxes need (B, {robot.nv}) lower and upper natural coordinates "
+            f"({', '.join(robot.coordinate_names)}); got shapes {np.shape(lower)} and "
+            f"{np.shape(upper)}"
         )
-    if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi))):
-        raise InputError("a box's corners must be finite numbers")
-    if np.any(lo > hi):
-        raise InputError("a box has lower > upper: give each lower <= upper")
+    lo, hi, _ = check_boxes(robot, lower, upper)
     return lo, hi
 
 
