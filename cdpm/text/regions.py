@@ -264,20 +264,13 @@ def path_text(path: POCPath) -> str:
             f"  warning: {len(rest)} more such step{'s' if len(rest) > 1 else ''}, from "
             f"waypoint{'s' if len(rest) > 1 else ''} {', '.join(map(str, rest))} to the next"
         )
-    head = "  waypoints:  #  " + " ".join(f"{a:>10}" for a in path.axes)
     unit = f" [{path.margin_unit}]" if path.margin_unit else ""
-    lines.append(head + (f"  margin{unit}" if path.margin_variable else ""))
-    show = list(range(k))
-    if k > PRINT_WAYPOINTS:
-        half = PRINT_WAYPOINTS // 2
-        show = list(range(half)) + [-1] + list(range(k - half, k))
-    for i in show:
-        if i < 0:
-            lines.append(f"{'':>14}... ({k - PRINT_WAYPOINTS} more)")
-            continue
-        row = " ".join(f"{path.coordinates[a][i]:>10.4g}" for a in path.axes)
-        margin = f"  {path.margins[i]:.4g}" if path.margin_variable else ""
-        lines.append(f"  {'':>10}{i:>3}  {row}{margin}")
+    lines += _waypoint_table(
+        path.axes,
+        [[path.coordinates[a][i] for a in path.axes] for i in range(k)],
+        path.margins if path.margin_variable else None,
+        f"  margin{unit}" if path.margin_variable else "",
+    )
     return "\n".join(lines)
 
 
@@ -412,20 +405,12 @@ def certified_path_text(path: CertifiedPath) -> str:
             "  crosses the seam of a full-turn axis at waypoint(s) "
             f"{', '.join(map(str, path.seam_crossings))}"
         )
-    head = "  waypoints:  #  " + " ".join(f"{a:>10}" for a in path.coordinates)
-    lines.append(head + f"  r_T >= [{path.margin_unit}] to the next")
-    shown = path.map_waypoints
-    show = list(range(k))
-    if k > PRINT_WAYPOINTS:
-        half = PRINT_WAYPOINTS // 2
-        show = list(range(half)) + [-1] + list(range(k - half, k))
-    for i in show:
-        if i < 0:
-            lines.append(f"{'':>14}... ({k - PRINT_WAYPOINTS} more)")
-            continue
-        row = " ".join(f"{v:>10.4g}" for v in shown[i])
-        margin = f"  {path.margins[i]:.4g}" if i < n else ""
-        lines.append(f"  {'':>10}{i:>3}  {row}{margin}")
+    lines += _waypoint_table(
+        path.coordinates,
+        path.map_waypoints,
+        path.margins[:n],
+        f"  r_T >= [{path.margin_unit}] to the next",
+    )
     return "\n".join(lines)
 
 
@@ -468,3 +453,23 @@ def certified_path_json(path: CertifiedPath) -> dict:
             "natural": path.natural,
         }
     )
+
+
+def _waypoint_table(names, rows, margins, margin_head: str) -> list[str]:
+    """A path's waypoints, one line each (the middle ones left out beyond
+    PRINT_WAYPOINTS): their coordinates ``rows`` (k, d) under ``names``, and
+    where ``margins`` has an entry (None: no column) its value."""
+    k = len(rows)
+    lines = ["  waypoints:  #  " + " ".join(f"{a:>10}" for a in names) + margin_head]
+    show = list(range(k))
+    if k > PRINT_WAYPOINTS:
+        half = PRINT_WAYPOINTS // 2
+        show = list(range(half)) + [-1] + list(range(k - half, k))
+    for i in show:
+        if i < 0:
+            lines.append(f"{'':>14}... ({k - PRINT_WAYPOINTS} more)")
+            continue
+        row = " ".join(f"{v:>10.4g}" for v in rows[i])
+        margin = f"  {margins[i]:.4g}" if margins is not None and i < len(margins) else ""
+        lines.append(f"  {'':>10}{i:>3}  {row}{margin}")
+    return lines
