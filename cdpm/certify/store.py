@@ -137,7 +137,7 @@ class CertifiedStore:
                 "(--out, store=) or pass --overwrite (overwrite=True) to replace it"
             )
         stored = json.loads(attrs.get("cdpm_certified_settings", "{}"))
-        diff = settings_difference(stored, self.settings)
+        diff = settings_difference(stored, self.settings, cells=True)
         if diff:
             raise StoreSettingsError(self.path, diff)
 

@@ -352,20 +352,27 @@ def make_plan(
     )
 
 
-def settings_difference(stored: dict, current: dict) -> list[str]:
-    """Readable lines naming each setting that differs."""
+def settings_difference(stored: dict, current: dict, *, cells: bool = False) -> list[str]:
+    """Readable lines naming each setting that differs.
+
+    Args:
+        stored, current: the settings.
+        cells: the axes hold cell edges (a certified map's), not poses: they
+            are counted in cells, and a different grid leaves out the chunk
+            size (its default follows the grid)."""
     lines = []
+    grid_changed = stored.get("axes") != current.get("axes")
     for key in sorted(set(stored) | set(current)):
         a, b = stored.get(key), current.get(key)
-        if a == b:
+        if a == b or (cells and grid_changed and key == "chunk_size"):
             continue
         if key == "axes" and isinstance(a, dict) and isinstance(b, dict):
             for name in sorted(set(a) | set(b)):
                 if a.get(name) != b.get(name):
-                    lines.append(
-                        f"axis {name!r}: stored {_axis_text(a.get(name))}, "
-                        f"now {_axis_text(b.get(name))}"
-                    )
+                    was, now = _axis_text(a.get(name), cells), _axis_text(b.get(name), cells)
+                    if was == now:  # the same count and span: other values between
+                        was, now = _axis_text(a.get(name)), _axis_text(b.get(name))
+                    lines.append(f"axis {name!r}: stored {was}, now {now}")
         elif key == "spec_sha256":
             lines.append("the cable spec or its URDF changed (file hash differs)")
         elif key == "overrides":
@@ -390,10 +397,13 @@ def _search_text(info) -> str:
     return ", ".join(f"{k} {v}" for k, v in info.items())
 
 
-def _axis_text(info) -> str:
+def _axis_text(info, cells: bool = False) -> str:
     if info is None:
         return "absent"
-    return f"{info['size']} values in [{info['min']:.6g}, {info['max']:.6g}] (#{info['sha256']})"
+    span = f"[{info['min']:.6g}, {info['max']:.6g}]"
+    if cells:
+        return f"{info['size'] - 1} cells over {span}"
+    return f"{info['size']} values in {span} (#{info['sha256']})"
 
 
 # --------------------------------------------------------------------------
