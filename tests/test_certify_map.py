@@ -94,3 +94,17 @@ def test_a_robot_in_neither_case_is_undecided_at_once_with_the_reason(tmp_path):
 def test_bad_axes_are_clear_errors(planar, axes, match):
     with pytest.raises(cdpm.InputError, match=match):
         certify_map(planar, axes)
+
+
+def test_unverified_names_the_boxes_whose_proof_fails(planar, small):
+    """A map whose one YES box was widened (its proof no longer covers it)
+    fails verify, and unverified names that box only."""
+    import dataclasses
+
+    assert small.unverified(planar).size == 0
+    k = int(np.flatnonzero(small.verdict == YES)[0])
+    upper = small.boxes.upper.copy()
+    upper[k] += 0.3
+    broken = dataclasses.replace(small, boxes=dataclasses.replace(small.boxes, upper=upper))
+    assert not broken.verify(planar)
+    assert broken.unverified(planar).tolist() == [k]

@@ -154,11 +154,18 @@ class CertifiedMap:
 
     def verify(self, robot: Any) -> bool:
         """Re-check every YES and NO box's certificate from the model (one
-        vectorised pass, :meth:`~cdpm.certify.box.CertifiedBoxes.verify`)."""
+        vectorised pass, :meth:`~cdpm.certify.box.CertifiedBoxes.verify`);
+        :meth:`unverified` names the boxes that fail."""
+        return self.unverified(robot).size == 0
+
+    def unverified(self, robot: Any) -> np.ndarray:
+        """The YES and NO boxes whose proof does not re-check from the model
+        (indices into the boxes, (F,)); every decided box when the map's
+        verdicts and its proofs' disagree."""
         decided = np.isin(self.verdict, (YES, NO))
         if not np.array_equal(self.boxes.verdict, self.verdict):
-            return False
-        return bool(np.all(self.boxes.verify(robot)[decided]))
+            return np.flatnonzero(decided | (self.boxes.verdict != self.verdict))
+        return np.flatnonzero(decided & ~self.boxes.verify(robot))
 
     def __str__(self) -> str:
         f = self.fractions()
