@@ -342,3 +342,20 @@ def test_a_path_that_is_not_connected_still_draws_the_map_and_its_ends(band_stor
     assert done.returncode == 3, done.stderr
     assert "not connected" in done.stderr and "plot written to" in done.stderr
     assert image.stat().st_size > 10000
+
+
+def test_an_end_beyond_a_full_turn_is_named_as_the_map_holds_it(paper_robot, capsys, tmp_path):
+    """q1 = pi/6 + 2 pi is the nominal pose a full turn on: the path goes
+    there, and the output says which pose on the map it took."""
+    from cdpm.cli import main
+
+    store = tmp_path / "turn.zarr"
+    edges = np.linspace(-np.pi, np.pi, 9)
+    certify_map(
+        paper_robot, {"q1": edges}, base=[0.0, 1.0], min_fraction=1 / 8, workers=1, store=store
+    )
+    code = main(["path", str(store), "--from", "0.4", "--to", str(0.5 + 2 * np.pi)])
+    out = capsys.readouterr().out
+    assert code == 0
+    assert "the goal's q1 = 6.78319 is q1 = 0.5 on the map (whole turns" in out
+    assert "the start's" not in out

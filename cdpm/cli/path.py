@@ -253,6 +253,8 @@ def _run_certified(args: argparse.Namespace) -> int:
     out = sys.stderr if args.json else sys.stdout  # keep --json output parseable
     if not args.json:
         print(f"certified map {args.map}: coordinates {', '.join(cmap.coordinates)}")
+        for line in _turned_ends(cmap, (start, path.start), (goal, path.goal)):
+            print(line)
         print(certified_path_text(path))
     legs = None
     if args.steer:
@@ -291,6 +293,27 @@ class _RobotOfCertified:
         if self.robot is None:
             self.robot = certified_map_robot(self.cmap, why)
         return self.robot
+
+
+def _turned_ends(cmap, *ends) -> list[str]:
+    """Lines naming an end given beyond a full-turn axis' range: the same
+    pose, a whole number of turns away on the map; ``ends``: (as given, as
+    on the map) pairs over the mapped coordinates."""
+    lines = []
+    for word, (given, held) in zip(("start", "goal"), ends, strict=True):
+        g = np.asarray(given, dtype=float).reshape(-1)
+        h = np.asarray(held, dtype=float).reshape(-1)
+        if g.size != h.size:  # a pose name: natural coordinates, on the map
+            continue
+        turns = (g - h) / (2 * np.pi)
+        moved = [
+            f"{name} = {a:.6g} is {name} = {b:.6g} on the map"
+            for name, a, b, t in zip(cmap.coordinates, g, h, turns, strict=True)
+            if abs(t) > 1e-12 and abs(t - round(t)) < 1e-9
+        ]
+        if moved:
+            lines.append(f"  the {word}'s {'; '.join(moved)} (whole turns of a full-turn axis)")
+    return lines
 
 
 def _certified_pose(cmap, robot: _RobotOfCertified, tokens: list[str], option: str) -> Any:
