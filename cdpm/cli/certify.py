@@ -23,10 +23,12 @@ cell, positive output controllability (seed paper Theorem 1) or its absence,
 with round-off accounted for; a cell neither proven is bisected across its
 widest side down to --min-fraction of a cell's width, and what is left stays
 undecided. Coordinates not on an axis stay at the base pose. Proven YES boxes
-that share a face form certified regions: every pose of a region is POC. The
-certified case is the zero-load one (no gravity or external load, tension
-bounds from 0, no joint damping); a robot outside it is undecided everywhere,
-with the reason. Re-running the same command on the same store (--out)
+that share a face form certified regions: every pose of a region is POC. Two
+cases are certified: zero load (no gravity or external load, tension bounds
+from 0, no joint damping: YES and NO proofs), and under load an equilibrium
+chosen as the least-norm tension in bounds (min_norm, pretension: YES where
+the taut set stays the same over a box); a robot in neither case is undecided
+everywhere, with the reason. Re-running the same command on the same store (--out)
 resumes an interrupted run. Prints the volume fractions proven YES, proven NO
 and undecided, the certified regions and the run's time.
 
