@@ -32,7 +32,7 @@ import multiprocessing
 import os
 import sys
 import warnings
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from contextlib import nullcontext
 from dataclasses import dataclass, field, replace
 from typing import Any
@@ -54,6 +54,7 @@ __all__ = [
     "CertifiedMap",
     "certify_map",
     "open_certified",
+    "face_pairs",
     "map_of_boxes",
     "default_chunk_size",
     "CellPlan",
@@ -142,7 +143,7 @@ class CertifiedMap:
         labels = np.zeros(self.verdict.shape[0], dtype=np.int64)
         if yes.size == 0:
             return labels
-        a, b = _face_pairs(self.lower[yes], self.upper[yes], self.wraps)
+        a, b = face_pairs(self.lower[yes], self.upper[yes], self.wraps)[:2]
         graph = coo_matrix((np.ones(a.size), (a, b)), shape=(yes.size, yes.size))
         _, comp = connected_components(graph, directed=False)
         volume = np.bincount(comp, weights=self.volumes[yes])
@@ -178,33 +179,51 @@ class CertifiedMap:
         )
 
 
-def _face_pairs(lo: np.ndarray, hi: np.ndarray, wraps: tuple[bool, ...]):
-    """Index pairs (a, b) of boxes sharing a face of positive area: equal
-    along one axis (hi of a = lo of b, or across a wrapping axis' ends), and
-    overlapping with positive length along every other axis.
+def face_pairs(lower: np.ndarray, upper: np.ndarray, wraps: Sequence[bool]):
+    """Pairs of boxes sharing a face of positive area, and the face.
 
-    Per axis, the boxes whose upper side and those whose lower side lie on
-    one value are paired (each value's two groups at once, vectorised), and
-    the pairs kept that overlap along the other axes."""
-    K, d = lo.shape
-    pairs_a, pairs_b = [], []
+    Two boxes share a face along axis a when the upper side of one equals
+    the lower side of the other there (or, on an axis that wraps, one ends
+    at +pi and the other starts at -pi), and their sides overlap with
+    positive length along every other axis. Per axis, the boxes whose upper
+    side and those whose lower side lie on one value are paired (each
+    value's two groups at once, vectorised).
+
+    Args:
+        lower, upper: the boxes' corners (K, d).
+        wraps: per axis, whether it spans a full turn [-pi, pi].
+
+    Returns:
+        (a, b, axis, face_lo, face_hi): box ids a and b (E,) with a's upper
+        side on the face, the face's axis (E,), and the face's corners (E, d)
+        in a's coordinates (equal along ``axis``); in b's coordinates the
+        face is the same but at b's lower side along ``axis``.
+    """
+    lo, hi = np.asarray(lower, dtype=float), np.asarray(upper, dtype=float)
+    d = lo.shape[1]
+    pairs_a, pairs_b, pairs_axis = [], [], []
     for axis in range(d):
         top, bottom = hi[:, axis].copy(), lo[:, axis].copy()
         if wraps[axis]:  # the two ends of a full turn are one value
             top[np.isclose(top, np.pi, rtol=0, atol=1e-12)] = -np.pi
             bottom[np.isclose(bottom, -np.pi, rtol=0, atol=1e-12)] = -np.pi
         i, j = _equal_pairs(top, bottom)
-        if not i.size:
-            continue
         overlap = np.ones(i.size, dtype=bool)
         for k in range(d):
             if k != axis:
                 overlap &= np.minimum(hi[i, k], hi[j, k]) > np.maximum(lo[i, k], lo[j, k])
         pairs_a.append(i[overlap])
         pairs_b.append(j[overlap])
-    if not pairs_a:
-        return np.zeros(0, dtype=int), np.zeros(0, dtype=int)
-    return np.concatenate(pairs_a), np.concatenate(pairs_b)
+        pairs_axis.append(np.full(int(overlap.sum()), axis))
+    a = np.concatenate(pairs_a).astype(np.intp) if d else np.zeros(0, dtype=np.intp)
+    b = np.concatenate(pairs_b).astype(np.intp) if d else np.zeros(0, dtype=np.intp)
+    axis = np.concatenate(pairs_axis).astype(np.intp) if d else np.zeros(0, dtype=np.intp)
+    face_lo = np.maximum(lo[a], lo[b])
+    face_hi = np.minimum(hi[a], hi[b])
+    rows = np.arange(a.size)
+    face_lo[rows, axis] = hi[a, axis]
+    face_hi[rows, axis] = hi[a, axis]
+    return a, b, axis, face_lo, face_hi
 
 
 def _equal_pairs(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -47,6 +47,7 @@ from typing import Any
 
 import numpy as np
 
+from cdpm.certify.map import face_pairs
 from cdpm.errors import InputError
 from cdpm.maps.regions import map_robot
 from cdpm.printing import TextRepr
@@ -57,7 +58,6 @@ __all__ = [
     "CertifiedPath",
     "certified_path",
     "certified_map_robot",
-    "face_pairs",
     "locate",
     "segment_cover",
 ]
@@ -184,63 +184,6 @@ def certified_map_robot(cmap: Any, why: str) -> Any:
 
 
 # ------------------------------------------------------------------ geometry
-
-
-def face_pairs(lower: np.ndarray, upper: np.ndarray, wraps: Sequence[bool]):
-    """Pairs of boxes sharing a face of positive area, and the face.
-
-    Two boxes share a face along axis a when the upper side of one equals
-    the lower side of the other there (or, on an axis that wraps, one ends
-    at +pi and the other starts at -pi), and their sides overlap with
-    positive length along every other axis.
-
-    Args:
-        lower, upper: the boxes' corners (K, d).
-        wraps: per axis, whether it spans a full turn [-pi, pi].
-
-    Returns:
-        (a, b, axis, face_lo, face_hi): box ids a and b (E,) with a's upper
-        side on the face, the face's axis (E,), and the face's corners (E, d)
-        in a's coordinates (equal along ``axis``); in b's coordinates the
-        face is the same but at b's lower side along ``axis``.
-    """
-    lo, hi = np.asarray(lower, dtype=float), np.asarray(upper, dtype=float)
-    K, d = lo.shape
-    out_a, out_b, out_axis = [], [], []
-    for axis in range(d):
-        # boxes whose upper side meets another's lower side: sort and match
-        order = np.argsort(lo[:, axis], kind="stable")
-        sorted_lo = lo[order, axis]
-        first = np.searchsorted(sorted_lo, hi[:, axis], side="left")
-        last = np.searchsorted(sorted_lo, hi[:, axis], side="right")
-        count = last - first
-        a = np.repeat(np.arange(K), count)
-        b = (
-            order[np.concatenate([np.arange(s, e) for s, e in zip(first, last, strict=True)])]
-            if (count.sum())
-            else np.zeros(0, dtype=np.intp)
-        )
-        if wraps[axis]:
-            top = np.flatnonzero(hi[:, axis] == math.pi)
-            bottom = np.flatnonzero(lo[:, axis] == -math.pi)
-            a = np.concatenate([a, np.repeat(top, bottom.size)])
-            b = np.concatenate([b, np.tile(bottom, top.size)])
-        keep = np.ones(a.size, dtype=bool)
-        for k in range(d):
-            if k != axis:
-                keep &= np.minimum(hi[a, k], hi[b, k]) > np.maximum(lo[a, k], lo[b, k])
-        out_a.append(a[keep])
-        out_b.append(b[keep])
-        out_axis.append(np.full(int(keep.sum()), axis))
-    a = np.concatenate(out_a).astype(np.intp) if out_a else np.zeros(0, dtype=np.intp)
-    b = np.concatenate(out_b).astype(np.intp) if out_b else np.zeros(0, dtype=np.intp)
-    axis = np.concatenate(out_axis).astype(np.intp) if out_axis else np.zeros(0, dtype=np.intp)
-    face_lo = np.maximum(lo[a], lo[b])
-    face_hi = np.minimum(hi[a], hi[b])
-    rows = np.arange(a.size)
-    face_lo[rows, axis] = hi[a, axis]
-    face_hi[rows, axis] = hi[a, axis]
-    return a, b, axis, face_lo, face_hi
 
 
 def _wrapped(x: np.ndarray, wraps: Sequence[bool]) -> np.ndarray:
