@@ -158,7 +158,7 @@ def run(args: argparse.Namespace) -> int:
     ds = open_map(args.map)
     if REGION_VARIABLE not in ds.data_vars:
         ds = attach_regions(ds)  # a map made before regions were stored
-    robot = _RobotOfMap(ds)
+    robot = _robot_of_map(ds)
     start = _pose_argument(ds, robot, args.start, "--from")
     goal = _pose_argument(ds, robot, args.goal, "--to")
     try:
@@ -231,7 +231,7 @@ def _run_certified(args: argparse.Namespace) -> int:
             "path, inside one certified box (leave out --legs)"
         )
     cmap = _open_certified(args.map)
-    robot = _RobotOfCertified(cmap)
+    robot = _robot_of_certified(cmap)
     start = _certified_pose(cmap, robot, args.start, "--from")
     goal = _certified_pose(cmap, robot, args.goal, "--to")
     try:
@@ -279,22 +279,6 @@ def _run_certified(args: argparse.Namespace) -> int:
     return LEG_MISSED_EXIT if legs and not all(leg["reached"] for leg in legs) else 0
 
 
-class _RobotOfCertified:
-    """A certified map's robot, loaded on first use from the spec its
-    provenance records and checked against the spec's hash."""
-
-    def __init__(self, cmap):
-        self.cmap, self.robot = cmap, None
-
-    def get(self, why: str) -> CableRobot:
-        # loaded when the command runs (cdpm --help stays fast)
-        from cdpm.regions.certified import certified_map_robot
-
-        if self.robot is None:
-            self.robot = certified_map_robot(self.cmap, why)
-        return self.robot
-
-
 def _turned_ends(cmap, *ends) -> list[str]:
     """Lines naming an end given beyond a full-turn axis' range: the same
     pose, a whole number of turns away on the map; ``ends``: (as given, as
@@ -316,7 +300,7 @@ def _turned_ends(cmap, *ends) -> list[str]:
     return lines
 
 
-def _certified_pose(cmap, robot: _RobotOfCertified, tokens: list[str], option: str) -> Any:
+def _certified_pose(cmap, robot: _MapRobot, tokens: list[str], option: str) -> Any:
     """A pose from --from/--to on a certified map: numbers (the mapped
     coordinates in the map's order, or natural coordinates), or one pose
     name of the map's spec (its natural coordinates)."""
@@ -342,23 +326,36 @@ def _certified_pose(cmap, robot: _RobotOfCertified, tokens: list[str], option: s
     )
 
 
-class _RobotOfMap:
-    """The map's robot, loaded from its spec on first use and checked
-    against the map's spec hash."""
+class _MapRobot:
+    """A map's robot, loaded on first use from the spec the map records and
+    checked against the spec's hash: ``load(why)`` is
+    :func:`cdpm.maps.regions.map_robot` for a sampled map,
+    :func:`cdpm.regions.certified.certified_map_robot` for a certified one."""
 
-    def __init__(self, ds):
-        self.ds, self.robot = ds, None
+    def __init__(self, load):
+        self.load, self.robot = load, None
 
     def get(self, why: str) -> CableRobot:
-        # loaded when the command runs (cdpm --help stays fast)
-        from cdpm.maps.regions import map_robot
-
         if self.robot is None:
-            self.robot = map_robot(self.ds, why)
+            self.robot = self.load(why)
         return self.robot
 
 
-def _pose_argument(ds, robot: _RobotOfMap, tokens: list[str], option: str) -> Any:
+def _robot_of_map(ds) -> _MapRobot:
+    # loaded when the command runs (cdpm --help stays fast)
+    from cdpm.maps.regions import map_robot
+
+    return _MapRobot(lambda why: map_robot(ds, why))
+
+
+def _robot_of_certified(cmap) -> _MapRobot:
+    # loaded when the command runs (cdpm --help stays fast)
+    from cdpm.regions.certified import certified_map_robot
+
+    return _MapRobot(lambda why: certified_map_robot(cmap, why))
+
+
+def _pose_argument(ds, robot: _MapRobot, tokens: list[str], option: str) -> Any:
     """A pose from --from/--to: numbers (map axis order, or natural
     coordinates), or one pose name of the map's spec; checked against the
     map (a pose off the map or of the wrong length is an InputError naming
