@@ -300,18 +300,20 @@ def _turned_ends(cmap, *ends) -> list[str]:
     return lines
 
 
+def _numbers(tokens: list[str]) -> list[float] | None:
+    """The tokens as numbers (pi/6 etc. allowed), or None when one is not."""
+    try:
+        return [parse_number(token) for token in tokens]
+    except (TypeError, ValueError):
+        return None
+
+
 def _certified_pose(cmap, robot: _MapRobot, tokens: list[str], option: str) -> Any:
     """A pose from --from/--to on a certified map: numbers (the mapped
     coordinates in the map's order, or natural coordinates), or one pose
     name of the map's spec (its natural coordinates)."""
     tokens = [t.strip() for t in tokens]
-    numbers = []
-    for token in tokens:
-        try:
-            numbers.append(parse_number(token))
-        except (TypeError, ValueError):
-            numbers = None
-            break
+    numbers = _numbers(tokens)
     if numbers is not None:
         return numbers
     if len(tokens) == 1:
@@ -364,13 +366,7 @@ def _pose_argument(ds, robot: _MapRobot, tokens: list[str], option: str) -> Any:
     from cdpm.maps.regions import map_layout, named_pose, nearest_index, region_labels
 
     tokens = [t.strip() for t in tokens]
-    numbers = []
-    for token in tokens:
-        try:
-            numbers.append(parse_number(token))
-        except (TypeError, ValueError):
-            numbers = None
-            break
+    numbers = _numbers(tokens)
     if numbers is None and len(tokens) == 1:
         r = robot.get(f"{option} {tokens[0]} (a pose name)")
         try:
