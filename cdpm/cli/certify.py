@@ -258,14 +258,13 @@ def run(args: argparse.Namespace) -> int:
                 check_sampled(sampled, list(axes)[:2])
             except InputError as exc:
                 raise InputError(f"--compare {args.compare}: {exc}") from None
-            made_from = sampled.attrs.get("spec_sha256")
-            if made_from and made_from != robot.spec.sha256:
-                raise InputError(
-                    f"--compare {args.compare}: that map was made from "
-                    f"{sampled.attrs.get('spec', 'another spec')} (sha256 {made_from[:12]}), not "
-                    f"from {robot.spec.path} (sha256 {robot.spec.sha256[:12]}): compare with a map "
-                    "of the same spec (`cdpm map SPEC ... --out MAP.zarr`)"
-                )
+            # the map must be of this spec, as an overlay in the viewer
+            from cdpm.viewer.overlay import check_map_spec
+
+            try:
+                check_map_spec(sampled, robot, override=None, use="certify")
+            except InputError as exc:
+                raise InputError(f"--compare: {exc}") from None
     say = sys.stderr if args.json else sys.stdout
     runs = []
 

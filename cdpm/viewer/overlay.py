@@ -36,7 +36,9 @@ def color_choices() -> tuple[str, ...]:
 VERDICT_CODES: dict[int, str] = {code: name for name, code in verdicts.VERDICT_CODES.items()}
 
 
-def check_map_spec(dataset, robot, *, override: str = "check_spec=False") -> None:
+def check_map_spec(
+    dataset, robot, *, override: str | None = "check_spec=False", use: str = "view it"
+) -> None:
     """Refuse a map made from another spec than ``robot``'s.
 
     A map records the sha256 of its spec file and URDF (attribute
@@ -46,7 +48,9 @@ def check_map_spec(dataset, robot, *, override: str = "check_spec=False") -> Non
     Args:
         dataset: the map (``xarray.Dataset``).
         robot: the robot it is to be shown with.
-        override: how the caller skips this check, named in the message.
+        override: how the caller skips this check, named in the message
+            (None: it cannot be skipped).
+        use: what the message offers to do with the map and its own spec.
 
     Raises:
         InputError: the hashes differ; the message names both spec files.
@@ -68,9 +72,9 @@ def check_map_spec(dataset, robot, *, override: str = "check_spec=False") -> Non
     else:  # another robot's map: keep it, make this spec's map into a new store
         new = f"`cdpm map {spec} ... --out {_new_store(store, spec)}`"
         fix = f"make a map of this spec into a new store ({new})"
+    anyway = f" ({override} overlays it anyway)" if override else ""
     raise InputError(
-        f"{what} was made from {source}; {fix} or view it with the spec it was made "
-        f"from ({override} overlays it anyway)"
+        f"{what} was made from {source}; {fix} or {use} with the spec it was made from{anyway}"
     )
 
 
