@@ -333,16 +333,17 @@ def _patch_dots(faces: np.ndarray, patches: np.ndarray, G: Interval) -> Interval
     return matmul(W[:, None, :], G)[:, 0, :]
 
 
-def _margin_bounds(robot, owner, faces, patches, dots: Interval, n_boxes, horizon, budget):
+def _margin_bounds(robot, owner, faces, patches, dots_lo, n_boxes, horizon, budget):
     """Lower bounds (n_boxes,) of r_T = (T^2 / 2) min_|v|=1 sum_j hi_j
     max(0, v . g_j) over each box, patch by patch (v = w / |w|, |w| <=
-    sqrt(1 + sum t^2)); ``owner`` (P,) is each patch's box. Boxes without
-    patches get +inf."""
+    sqrt(1 + sum t^2)); ``owner`` (P,) is each patch's box, ``dots_lo``
+    (P, m) the lower bounds of w . g_j over each patch and its box. Boxes
+    without patches get +inf."""
     from cdpm.dynamics.reach import reach_bounds
 
-    m = dots.shape[1]
+    m = dots_lo.shape[1]
     _, hi = reach_bounds(robot, np.zeros((1, m)), budget)
-    support = (Interval(np.maximum(dots.lo, 0.0)) * hi[0]).sum(axis=-1).lo  # (P,)
+    support = (Interval(np.maximum(dots_lo, 0.0)) * hi[0]).sum(axis=-1).lo  # (P,)
     t_max = np.max(np.abs(patches), axis=2) if patches.shape[1] else np.zeros((faces.size, 0))
     w_norm = (Interval(1.0) + Interval(t_max).square().sum(axis=-1)).sqrt().hi
     per_patch = (Interval(support) * Interval(w_norm).reciprocal()).lo
@@ -397,7 +398,8 @@ def _prove_yes(G: Interval, live: np.ndarray):
 
     Returns:
         (proven (B,) bool, owner (P,), faces (P,), patches (P, p - 1, 2),
-        columns (P,)): the patches of the proven boxes, sorted by box.
+        columns (P,), dots_lo (P, m)): the patches of the proven boxes,
+        sorted by box, with the lower bounds of w . g_j over each.
     """
     B, p, _ = G.shape
     boxes = np.flatnonzero(live)
@@ -406,7 +408,7 @@ def _prove_yes(G: Interval, live: np.ndarray):
     patches = np.tile(np.array([-1.0, 1.0]), (owner.size, p - 1, 1))
     failed = ~live.copy()
     count = np.zeros(B, dtype=np.int64)  # proven patches per box
-    done_o, done_f, done_p, done_c = [], [], [], []
+    done_o, done_f, done_p, done_c, done_d = [], [], [], [], []
     angle_scale = np.maximum(np.abs(G.lo), np.abs(G.hi))
     col_norm = Interval(Interval(angle_scale).square().sum(axis=1).hi).sqrt().hi  # (B, m)
     while owner.size:
@@ -426,6 +428,7 @@ def _prove_yes(G: Interval, live: np.ndarray):
         done_f.append(faces[ok])
         done_p.append(patches[ok])
         done_c.append(best[ok])
+        done_d.append(dots.lo[ok])
         np.add.at(count, owner[ok], 1)
         keep = ~ok
         owner, faces, patches = owner[keep], faces[keep], patches[keep]
@@ -451,12 +454,12 @@ def _prove_yes(G: Interval, live: np.ndarray):
     proven = live & ~failed
     if not done_o:
         e = np.zeros(0, dtype=np.int64)
-        return proven, e, e, np.zeros((0, max(p - 1, 0), 2)), e
+        return proven, e, e, np.zeros((0, max(p - 1, 0), 2)), e, np.zeros((0, G.shape[2]))
     o = np.concatenate(done_o)
     keep = proven[o]
     order = np.argsort(o[keep], kind="stable")
     pick = lambda parts: np.concatenate(parts)[keep][order]  # noqa: E731
-    return proven, o[keep][order], pick(done_f), pick(done_p), pick(done_c)
+    return proven, o[keep][order], pick(done_f), pick(done_p), pick(done_c), pick(done_d)
 
 
 def _separators(G: Interval, live: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -627,7 +630,7 @@ class CertifiedBoxes:
         proves = dots.lo[np.arange(o.size), c] > 0
         all_prove = np.ones(K, dtype=bool)
         np.logical_and.at(all_prove, o, proves)
-        bound = _margin_bounds(robot, o, f, pt, dots, K, self.horizon, self.tension_budget)
+        bound = _margin_bounds(robot, o, f, pt, dots.lo, K, self.horizon, self.tension_budget)
         ok[yes] = tiled & all_prove[yes] & (self.margin_lower[yes] <= bound[yes])
         return ok
 
@@ -773,12 +776,11 @@ def certify_boxes(
         )
     G, reason, rank_may_drop = _g_enclosure(robot, lo, hi)
     live = reason == ""
-    proven, owner, faces, patches, columns = _prove_yes(G, live)
+    proven, owner, faces, patches, columns, dots_lo = _prove_yes(G, live)
     n_patches = np.bincount(owner, minlength=K)
     verdict[proven] = YES
     if proven.any():
-        dots = _patch_dots(faces, patches, G[owner])
-        bound = _margin_bounds(robot, owner, faces, patches, dots, K, T, F)
+        bound = _margin_bounds(robot, owner, faces, patches, dots_lo, K, T, F)
         margin[proven] = bound[proven]
         for k in np.flatnonzero(proven):
             reason[k] = (
